@@ -1,0 +1,31 @@
+// The CLI's subcommands. Each lives in its own file and adds itself to the
+// CLI11 app; `main.cpp` only wires them together and reports errors.
+#pragma once
+
+#include <broadphase/registry.hpp>
+
+#include <CLI/CLI.hpp>
+#include <stdexcept>
+#include <string>
+
+namespace broadphase::app {
+
+/// Every library structure plus the peer adapters that were built.
+const Registry& registry();
+
+/// An error in what the user asked for: printed without a stack of causes,
+/// exit status 2.
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+void add_list_command(CLI::App& app);     // cmd_run.cpp
+void add_run_command(CLI::App& app);      // cmd_run.cpp
+void add_gen_command(CLI::App& app);      // cmd_run.cpp
+void add_paper_command(CLI::App& app);    // cmd_paper.cpp (the lab)
+void add_sim_command(CLI::App& app);      // cmd_sim.cpp
+void add_draw_command(CLI::App& app);     // cmd_draw.cpp
+void add_advise_command(CLI::App& app);   // cmd_advise.cpp
+
+}  // namespace broadphase::app

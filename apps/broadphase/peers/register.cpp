@@ -1,0 +1,7 @@
+#include "peers.hpp"
+
+namespace broadphase::app {
+
+void register_peers(Registry& /*r*/) {}
+
+}  // namespace broadphase::app

@@ -1,0 +1,47 @@
+#include <broadphase/replay.hpp>
+
+#include <chrono>
+
+namespace broadphase {
+
+namespace {
+double since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
+Replay::Replay(AnyBroadPhase& structure, Scene scene) : bp_(structure), scene_(std::move(scene)) {
+  handles_.reserve(scene_.size());
+  const auto t0 = std::chrono::steady_clock::now();
+  for (std::size_t i = 0; i < scene_.size(); ++i) {
+    const bool moving = scene_.is_moving(i);
+    handles_.push_back(bp_.insert(scene_.objects[i], i, moving ? Motion::dynamic : Motion::fixed));
+  }
+  build_seconds_ = since(t0);
+  for (std::size_t i = 0; i < scene_.size(); ++i)
+    if (scene_.is_moving(i)) moving_.push_back(static_cast<std::uint32_t>(i));
+  moves_.reserve(moving_.size());
+}
+
+FrameResult Replay::next() {
+  FrameResult r;
+  if (frame_ > 0) {
+    step(scene_);
+    moves_.clear();
+    for (std::uint32_t i : moving_) moves_.push_back({handles_[i], scene_.objects[i]});
+    const auto t0 = std::chrono::steady_clock::now();
+    bp_.update(moves_);
+    r.update_seconds = since(t0);
+  }
+  pairs_.clear();
+  const auto t1 = std::chrono::steady_clock::now();
+  r.tests = bp_.find_pairs(pairs_).tests;
+  r.pairs_seconds = since(t1);
+  for (const HandlePair& p : pairs_)
+    r.digest.add(static_cast<std::uint32_t>(bp_.user_data(p.a)),
+                 static_cast<std::uint32_t>(bp_.user_data(p.b)));
+  ++frame_;
+  return r;
+}
+
+}  // namespace broadphase

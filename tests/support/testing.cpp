@@ -1,0 +1,304 @@
+#include "testing.hpp"
+
+#include <broadphase/naive.hpp>
+#include <broadphase/replay.hpp>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace broadphase::testing {
+
+std::vector<ReferenceScene> reference_scenes() {
+  std::vector<ReferenceScene> out;
+  const std::filesystem::path dir = std::filesystem::path(BROADPHASE_TEST_DATA) / "scenes";
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() != ".scene") continue;
+    ReferenceScene r;
+    r.name = entry.path().stem().string();
+    r.scene_path = entry.path().string();
+    std::ifstream in(std::filesystem::path(entry.path()).replace_extension(".expected"));
+    std::uint64_t frame = 0, pairs = 0;
+    std::string hash;
+    while (in >> frame >> pairs >> hash) {
+      FrameDigest d;
+      d.pairs = pairs;
+      d.hash = std::stoull(hash, nullptr, 16);
+      r.expected.push_back(d);
+    }
+    out.push_back(std::move(r));
+  }
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
+  return out;
+}
+
+std::vector<std::string> library_structures() {
+  std::vector<std::string> names;
+  const Registry registry = Registry::library();
+  for (const StructureInfo& e : registry.entries()) names.push_back(e.name);
+  return names;
+}
+
+std::vector<FrameDigest> replay(const std::string& spec, const Scene& scene, int frames,
+                                bool validate_each_frame) {
+  Config config;
+  config.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}};
+  config.expected_objects = scene.size();
+  auto bp = make_structure(spec, config);
+  Replay r(*bp, scene);
+  std::vector<FrameDigest> out;
+  for (int f = 0; f < frames; ++f) {
+    out.push_back(r.next().digest);
+    if (validate_each_frame) bp->validate();
+  }
+  return out;
+}
+
+FrameDigest brute_force(const std::vector<Shape>& objects) {
+  FrameDigest d;
+  for (std::size_t i = 0; i < objects.size(); ++i)
+    for (std::size_t j = i + 1; j < objects.size(); ++j)
+      if (overlaps(objects[i], objects[j]))
+        d.add(static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j));
+  return d;
+}
+
+const char* to_string(World w) {
+  switch (w) {
+    case World::mixed: return "mixed";
+    case World::touching: return "touching";
+    case World::crowded: return "crowded";
+    case World::far: return "far";
+    case World::huge: return "huge";
+  }
+  return "?";
+}
+
+namespace {
+
+// Draws shapes for one kind of world.
+class ShapeSource {
+ public:
+  ShapeSource(World w, Rng& rng) : w_(w), rng_(rng) {}
+
+  Shape draw() {
+    switch (w_) {
+      case World::mixed: {
+        const Vec3 c{rng_.uniform(-100, 1100), rng_.uniform(-100, 1100), rng_.uniform(-100, 1100)};
+        const double size = rng_.uniform() < 0.1 ? 0.0 : std::pow(10.0, rng_.uniform(-3, 2));
+        return shaped(c, size);
+      }
+      case World::touching: {
+        // Centres on a lattice of pitch 10 with radius or half side 5:
+        // neighbours touch exactly, and many centres coincide.
+        auto lattice = [&] { return 10.0 * static_cast<double>(rng_.below(8)); };
+        const Vec3 c{lattice(), lattice(), lattice()};
+        const double size = rng_.uniform() < 0.2 ? 0.0 : 5.0;
+        return rng_.uniform() < 0.3 ? Shape::box(c, {size, size, size}) : Shape::sphere(c, size);
+      }
+      case World::crowded: {
+        const Vec3 c{rng_.uniform(500, 501), rng_.uniform(500, 501), rng_.uniform(500, 501)};
+        return shaped(c, rng_.uniform(0.001, 0.3));
+      }
+      case World::far: {
+        const double base = 1e7;
+        const Vec3 c{base + rng_.uniform(0, 1000), base + rng_.uniform(0, 1000),
+                     -base + rng_.uniform(0, 1000)};
+        return shaped(c, std::pow(10.0, rng_.uniform(-2, 2)));
+      }
+      case World::huge: {
+        const Vec3 c{rng_.uniform(-500, 1500), rng_.uniform(-500, 1500), rng_.uniform(-500, 1500)};
+        const double size = rng_.uniform() < 0.05 ? rng_.uniform(1000, 10000) : rng_.uniform(0.5, 50);
+        return shaped(c, size);
+      }
+    }
+    return {};
+  }
+
+  // A small move of `s` (or, sometimes, a jump anywhere, or a resize).
+  Shape moved(Shape s) {
+    const double u = rng_.uniform();
+    if (u < 0.15) return draw();
+    if (u < 0.25) {
+      const double k = rng_.uniform(0.25, 4);
+      s.half = s.half * k;
+      return s;
+    }
+    const double step = std::max(1.0, s.max_half());
+    for (int a = 0; a < 3; ++a) s.center[a] += rng_.uniform(-step, step);
+    return s;
+  }
+
+ private:
+  Shape shaped(Vec3 c, double size) {
+    if (rng_.uniform() < 0.3)
+      return Shape::box(c, {size * rng_.uniform(0.1, 1), size * rng_.uniform(0.1, 1),
+                            size * rng_.uniform(0.1, 1)});
+    return Shape::sphere(c, size);
+  }
+  World w_;
+  Rng& rng_;
+};
+
+struct Live {
+  Handle s, n;  // in the structure under test, in the oracle
+  std::uint64_t id;
+};
+
+std::vector<std::uint64_t> ids_of_query(const AnyBroadPhase& bp, const Shape& q) {
+  std::vector<std::uint64_t> ids;
+  bp.query(q, [&](Handle h) {
+    ids.push_back(bp.user_data(h));
+    return true;
+  });
+  std::sort(ids.begin(), ids.end());
+  return ids;
+}
+
+std::vector<std::pair<std::uint64_t, std::uint64_t>> ids_of_pairs(const AnyBroadPhase& bp) {
+  std::vector<HandlePair> pairs;
+  bp.find_pairs(pairs);
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> ids;
+  for (const HandlePair& p : pairs) {
+    std::uint64_t a = bp.user_data(p.a), b = bp.user_data(p.b);
+    ids.emplace_back(std::min(a, b), std::max(a, b));
+  }
+  std::sort(ids.begin(), ids.end());
+  return ids;
+}
+
+template <class T>
+std::string describe_difference(const std::vector<T>& got, const std::vector<T>& want) {
+  std::ostringstream out;
+  out << "got " << got.size() << ", want " << want.size();
+  if (std::adjacent_find(got.begin(), got.end()) != got.end()) out << " (got has duplicates)";
+  return out.str();
+}
+
+}  // namespace
+
+void differential(const std::string& spec, World world, std::uint64_t seed, int steps,
+                  const Config& config) {
+  SCOPED_TRACE("structure=" + spec + " world=" + to_string(world) + " seed=" + std::to_string(seed));
+  Rng rng(seed);
+  ShapeSource source(world, rng);
+  std::unique_ptr<AnyBroadPhase> bp;
+  try {
+    bp = make_structure(spec, config);
+  } catch (const std::exception& e) {
+    FAIL() << "cannot make " << spec << ": " << e.what();
+  }
+  Naive oracle;
+  std::vector<Live> live;
+  std::uint64_t next_id = 0;
+  const std::size_t target = world == World::crowded ? 1500 : 300;
+
+  for (int step = 0; step < steps; ++step) {
+    const std::string where = " at step " + std::to_string(step) + " (seed " + std::to_string(seed) + ")";
+    const double u = rng.uniform();
+    const double insert_p = live.size() < target ? 0.45 : 0.2;
+    std::string op;
+    try {
+      if (u < insert_p || live.empty()) {
+        op = "insert";
+        const Shape s = source.draw();
+        const Motion m = rng.uniform() < 0.5 ? Motion::dynamic : Motion::fixed;
+        live.push_back({bp->insert(s, next_id, m), oracle.insert(s, next_id, m), next_id});
+        ++next_id;
+      } else if (u < insert_p + 0.12) {
+        op = "remove";
+        const std::size_t k = rng.below(live.size());
+        const Handle gone = live[k].s;
+        bp->remove(gone);
+        oracle.remove(live[k].n);
+        live[k] = live.back();
+        live.pop_back();
+        if (bp->contains(gone)) {
+          ADD_FAILURE() << "a removed handle is still reported as contained" << where;
+          return;
+        }
+        bool threw = false;
+        try {
+          bp->remove(gone);
+        } catch (const InvalidHandle&) {
+          threw = true;
+        }
+        if (!threw) {
+          ADD_FAILURE() << "removing a stale handle did not throw InvalidHandle" << where;
+          return;
+        }
+      } else if (u < insert_p + 0.40) {
+        op = "update";
+        // Either one update or a bulk batch.
+        if (rng.uniform() < 0.7) {
+          const Live& o = live[rng.below(live.size())];
+          const Shape s = source.moved(oracle.shape(o.n));
+          bp->update(o.s, s);
+          oracle.update(o.n, s);
+        } else {
+          std::vector<Move> batch;
+          std::vector<char> used(live.size(), 0);
+          const std::size_t k = 1 + rng.below(std::min<std::size_t>(live.size(), 64));
+          for (std::size_t t = 0; t < k; ++t) {
+            const std::size_t pick = rng.below(live.size());
+            if (used[pick]) continue;
+            used[pick] = 1;
+            const Shape s = source.moved(oracle.shape(live[pick].n));
+            batch.push_back({live[pick].s, s});
+            oracle.update(live[pick].n, s);
+          }
+          bp->update(batch);
+        }
+      } else if (u < insert_p + 0.52) {
+        op = "query";
+        const Shape q = rng.uniform() < 0.5 && !live.empty()
+                            ? oracle.shape(live[rng.below(live.size())].n)
+                            : source.draw();
+        const auto got = ids_of_query(*bp, q);
+        std::vector<std::uint64_t> want;
+        oracle.query(q, [&](Handle h) { want.push_back(oracle.user_data(h)); });
+        std::sort(want.begin(), want.end());
+        if (got != want) {
+          ADD_FAILURE() << "query differs from naive: " << describe_difference(got, want) << where;
+          return;
+        }
+        // An early-stopping visitor must see exactly one hit when there are any.
+        int seen = 0;
+        const QueryCost c = bp->query(q, [&](Handle) {
+          ++seen;
+          return false;
+        });
+        if (seen != (want.empty() ? 0 : 1) || c.stopped != !want.empty()) {
+          ADD_FAILURE() << "early stop not honoured (saw " << seen << ")" << where;
+          return;
+        }
+      } else {
+        op = "all pairs";
+        const auto got = ids_of_pairs(*bp);
+        std::vector<std::pair<std::uint64_t, std::uint64_t>> want;
+        oracle.for_each_pair([&](Handle a, Handle b) {
+          std::uint64_t x = oracle.user_data(a), y = oracle.user_data(b);
+          want.emplace_back(std::min(x, y), std::max(x, y));
+        });
+        std::sort(want.begin(), want.end());
+        if (got != want) {
+          ADD_FAILURE() << "all pairs differ from naive: " << describe_difference(got, want) << where;
+          return;
+        }
+      }
+      bp->validate();
+      if (bp->size() != oracle.size()) {
+        ADD_FAILURE() << "size " << bp->size() << " != " << oracle.size() << where;
+        return;
+      }
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << op << " threw: " << e.what() << where;
+      return;
+    }
+  }
+}
+
+}  // namespace broadphase::testing

@@ -1,0 +1,52 @@
+// Shared test support: reference scenes, and the model-based differential
+// harness that drives any structure and the naive oracle side by side.
+#pragma once
+
+#include <broadphase/broad_phase.hpp>
+#include <broadphase/registry.hpp>
+#include <broadphase/scene.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace broadphase::testing {
+
+/// A reference scene and its expected per-frame results.
+struct ReferenceScene {
+  std::string name;
+  std::string scene_path;
+  std::vector<FrameDigest> expected;
+};
+
+/// Every `*.scene` under tests/data/scenes with its `.expected` file.
+std::vector<ReferenceScene> reference_scenes();
+
+/// The names of every library structure (what `broadphase list` shows).
+std::vector<std::string> library_structures();
+
+/// Replays `scene` through a fresh structure `spec` for `frames` frames.
+std::vector<FrameDigest> replay(const std::string& spec, const Scene& scene, int frames,
+                                bool validate_each_frame = false);
+
+/// Brute-force digest of the objects' current positions.
+FrameDigest brute_force(const std::vector<Shape>& objects);
+
+/// The kinds of random worlds the differential test draws from.
+enum class World {
+  mixed,       ///< spheres and boxes, sizes over decades, some outside the world
+  touching,    ///< exact touching and identical centres on a lattice
+  crowded,     ///< thousands of objects in one small cell
+  far,         ///< coordinates around 1e7 from the origin
+  huge,        ///< a few objects larger than the world
+};
+const char* to_string(World w);
+
+/// Runs `steps` random operations (insert, remove, update, query, all pairs)
+/// on structure `spec` and on the naive oracle, comparing every answer and
+/// calling validate() after every mutation. Reports failures through
+/// GoogleTest with the seed and step, and returns after the first one.
+void differential(const std::string& spec, World world, std::uint64_t seed, int steps,
+                  const Config& config = {});
+
+}  // namespace broadphase::testing

@@ -1,0 +1,41 @@
+// Every structure of the library against the naive oracle: random sequences
+// of insert / remove / update / query / all-pairs with fixed seeds, and the
+// structure's validate() after every step.
+#include <gtest/gtest.h>
+
+#include "testing.hpp"
+
+namespace broadphase::testing {
+namespace {
+
+class Differential : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(Differential, MatchesNaiveOnRandomOperations) {
+  for (World w : {World::mixed, World::touching, World::far, World::huge})
+    for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+      differential(GetParam(), w, seed * 7919 + static_cast<std::uint64_t>(w), 700);
+      if (HasFailure()) return;
+    }
+}
+
+TEST_P(Differential, MatchesNaiveWithThousandsInOneCell) {
+  differential(GetParam(), World::crowded, 42, 2500);
+}
+
+TEST_P(Differential, MatchesNaiveInAFarAwayWorld) {
+  // The world box itself far from the origin.
+  Config c;
+  c.world = {{1e7, 1e7, -1e7}, {1e7 + 1000, 1e7 + 1000, -1e7 + 1000}};
+  differential(GetParam(), World::far, 99, 800, c);
+}
+
+INSTANTIATE_TEST_SUITE_P(All, Differential, ::testing::ValuesIn(library_structures()),
+                         [](const auto& info) {
+                           std::string n = info.param;
+                           for (char& ch : n)
+                             if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+                           return n;
+                         });
+
+}  // namespace
+}  // namespace broadphase::testing
