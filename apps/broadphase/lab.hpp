@@ -1,0 +1,43 @@
+// The lab's shared vocabulary: where a run writes, how it reports progress,
+// and the experiments that families of structures add to the report.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace broadphase::app {
+
+/// What every lab experiment gets from `broadphase paper`.
+struct LabContext {
+  std::filesystem::path out_dir;  ///< results/<date>-<host>/ or --out
+  bool quick = false;             ///< --quick: everything small, under a minute in all
+  std::uint64_t seed = 1;
+  /// Structures selected with --algos (all library structures when empty).
+  std::vector<std::string> algos;
+  /// Reports progress on stderr: what is running, fraction done in [0, 1].
+  std::function<void(const std::string& what, double fraction)> progress;
+  /// Seconds the experiment may take at most (it scales its sizes to fit).
+  double budget_seconds = 60;
+};
+
+/// One experiment's contribution to REPORT.md: a Markdown section (with its
+/// own heading, "## ..."), having written its CSV and figures into out_dir.
+/// Figures are referenced relative to out_dir. An experiment that cannot
+/// run says so in its section; it never throws for a missing optional tool.
+using LabExperiment = std::function<std::string(const LabContext&)>;
+
+/// The experiments beyond the study's six tests, in report order. Each
+/// family adds its own in its own file.
+std::string lab_cell_size_sweep(const LabContext& ctx);      // lab_grids.cpp
+std::string lab_tree_experiments(const LabContext& ctx);     // lab_trees.cpp
+std::string lab_tunneling(const LabContext& ctx);            // lab_sim.cpp
+std::string lab_performance(const LabContext& ctx);          // lab_fast.cpp
+
+/// Runs the matplotlib script `tools/<script>` with arguments; returns false
+/// (and says why on stderr) when python3 or matplotlib is missing.
+bool run_plot_script(const std::string& script, const std::vector<std::string>& args);
+
+}  // namespace broadphase::app
