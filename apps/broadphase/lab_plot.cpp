@@ -24,7 +24,8 @@ bool run_plot_script(const std::string& script, const std::vector<std::string>& 
     std::fprintf(stderr, "broadphase: plots skipped: python3-matplotlib is not installed\n");
     return false;
   }
-  std::string cmd = "python3 " + quoted(path.string());
+  std::string cmd = "python3 ";
+  cmd += quoted(path.string());
   for (const std::string& a : args) cmd += " " + quoted(a);
   if (std::system(cmd.c_str()) != 0) {
     std::fprintf(stderr, "broadphase: plot script %s failed\n", script.c_str());
