@@ -8,9 +8,13 @@ namespace broadphase::app {
 
 namespace {
 std::string quoted(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
+  std::string out(1, '\'');
+  for (char c : s) {
+    if (c == '\'') out.append("'\\''");
+    else out.push_back(c);
+  }
+  out.push_back('\'');
+  return out;
 }
 }  // namespace
 
@@ -26,7 +30,10 @@ bool run_plot_script(const std::string& script, const std::vector<std::string>& 
   }
   std::string cmd = "python3 ";
   cmd += quoted(path.string());
-  for (const std::string& a : args) cmd += " " + quoted(a);
+  for (const std::string& a : args) {
+    cmd.push_back(' ');
+    cmd += quoted(a);
+  }
   if (std::system(cmd.c_str()) != 0) {
     std::fprintf(stderr, "broadphase: plot script %s failed\n", script.c_str());
     return false;
