@@ -205,12 +205,12 @@ std::string hex16(std::uint64_t v) {
 }
 
 Distribution parse_distribution(std::string_view name) {
-  if (name == "even") return Distribution::even;
-  if (name == "uneven") return Distribution::uneven;
-  if (name == "scaled-even") return Distribution::scaled_even;
-  if (name == "scaled-uneven") return Distribution::scaled_uneven;
-  throw std::invalid_argument("unknown distribution '" + std::string(name) +
-                              "'; valid: even, uneven, scaled-even, scaled-uneven");
+  std::string valid;
+  for (Distribution d : kAllDistributions) {
+    if (to_string(d) == name) return d;
+    valid += (valid.empty() ? "" : ", ") + std::string(to_string(d));
+  }
+  throw std::invalid_argument("unknown distribution '" + std::string(name) + "'; valid: " + valid);
 }
 
 std::string_view to_string(Distribution d) {
@@ -219,6 +219,13 @@ std::string_view to_string(Distribution d) {
     case Distribution::uneven: return "uneven";
     case Distribution::scaled_even: return "scaled-even";
     case Distribution::scaled_uneven: return "scaled-uneven";
+    case Distribution::clusters: return "clusters";
+    case Distribution::decades: return "decades";
+    case Distribution::all_moving: return "all-moving";
+    case Distribution::explosion: return "explosion";
+    case Distribution::flat: return "flat";
+    case Distribution::coincident: return "coincident";
+    case Distribution::outside: return "outside";
   }
   return "?";
 }
@@ -248,15 +255,16 @@ std::vector<char> choose(std::size_t n, std::size_t k, Rng& rng) {
 }
 }  // namespace
 
-Scene generate(Distribution d, std::size_t n, std::uint64_t seed) {
-  Rng rng(seed);
+namespace {
+
+// The study's workloads (SCENE-FORMAT.md).
+Scene generate_study(Distribution d, std::size_t n, Rng& rng) {
   Scene s;
   const bool scaled = d == Distribution::scaled_even || d == Distribution::scaled_uneven;
   const bool uneven = d == Distribution::uneven || d == Distribution::scaled_uneven;
-  s.world = scaled ? 1000.0 * std::cbrt(static_cast<double>(n) / 6400.0) : 1000.0;
-  if (!(s.world > 0)) s.world = 1000.0;
+  s.world = scaled && n > 0 ? 1000.0 * std::cbrt(static_cast<double>(n) / 6400.0) : 1000.0;
   const double L = s.world;
-  const std::vector<char> moving = choose(n, (n * 2 + 5) / 10, rng);          // 20%
+  const std::vector<char> moving = choose(n, (n * 2 + 5) / 10, rng);            // 20%
   const std::vector<char> low = choose(n, uneven ? (n * 8 + 5) / 10 : 0, rng);  // 80% near ground
   s.objects.reserve(n);
   s.velocity.reserve(n);
@@ -269,6 +277,81 @@ Scene generate(Distribution d, std::size_t n, std::uint64_t seed) {
     s.velocity.push_back(moving[i] ? rng.direction() * rng.uniform(0.1, 2.0) : Vec3{});
   }
   return s;
+}
+
+// A standard normal deviate (Box-Muller).
+double gaussian(Rng& rng) {
+  const double u = 1.0 - rng.uniform();  // (0, 1]
+  return std::sqrt(-2.0 * std::log(u)) * std::cos(6.283185307179586 * rng.uniform());
+}
+
+// The stress kinds of the performance work.
+Scene generate_stress(Distribution d, std::size_t n, Rng& rng) {
+  Scene s;
+  s.world = 1000.0;
+  const double L = s.world;
+  const std::size_t movers = d == Distribution::all_moving || d == Distribution::explosion
+                                 ? n
+                                 : (n * 2 + 5) / 10;
+  const std::vector<char> moving = choose(n, movers, rng);
+  const std::size_t clusters = std::max<std::size_t>(1, n / 500);
+  std::vector<Vec3> cluster_centre(clusters);
+  for (Vec3& c : cluster_centre) c = {rng.uniform(0, L), rng.uniform(0, L), rng.uniform(0, L)};
+  std::vector<Vec3> shared_centre(std::max<std::size_t>(1, n / 100));
+  for (Vec3& c : shared_centre) c = {rng.uniform(0, L), rng.uniform(0, L), rng.uniform(0, L)};
+  const Vec3 mid{L / 2, L / 2, L / 2};
+  s.objects.reserve(n);
+  s.velocity.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    Vec3 c{rng.uniform(0, L), rng.uniform(0, L), rng.uniform(0, L)};
+    double r = rng.uniform(0.5, 5.0);
+    Vec3 v = rng.direction() * rng.uniform(0.1, 2.0);
+    switch (d) {
+      case Distribution::clusters: {
+        const Vec3& k = cluster_centre[rng.below(clusters)];
+        c = {k.x + gaussian(rng) * L / 40, k.y + gaussian(rng) * L / 40, k.z + gaussian(rng) * L / 40};
+        break;
+      }
+      case Distribution::decades: r = std::pow(10.0, rng.uniform(-3, 2)); break;
+      case Distribution::explosion: {
+        // Debris packed in a ball of radius L/10, flying outwards at up to
+        // 20 units a frame in all directions: pairs change wholesale.
+        const Vec3 dir = rng.direction();
+        c = mid + dir * (L / 10 * std::cbrt(rng.uniform()));
+        v = (dir * 0.7 + rng.direction() * 0.3) * rng.uniform(1.0, 20.0);
+        break;
+      }
+      case Distribution::flat: c.y = rng.uniform(0, 1); break;
+      case Distribution::coincident:
+        if (rng.uniform() < 0.25) c = shared_centre[rng.below(shared_centre.size())];
+        break;
+      case Distribution::outside:
+        if (rng.uniform() < 0.1) {
+          // Outside the cube on at least one axis, up to one world away.
+          const int axis = static_cast<int>(rng.below(3));
+          c[axis] = rng.uniform() < 0.5 ? rng.uniform(-L, 0) : rng.uniform(L, 2 * L);
+          if (rng.uniform() < 0.002) r = rng.uniform(L, 2 * L);
+        }
+        break;
+      default: break;
+    }
+    s.objects.push_back(Shape::sphere(c, r));
+    s.velocity.push_back(moving[i] ? v : Vec3{});
+  }
+  return s;
+}
+
+}  // namespace
+
+Scene generate(Distribution d, std::size_t n, std::uint64_t seed) {
+  Rng rng(seed);
+  switch (d) {
+    case Distribution::even:
+    case Distribution::uneven:
+    case Distribution::scaled_even:
+    case Distribution::scaled_uneven: return generate_study(d, n, rng);
+    default: return generate_stress(d, n, rng);
+  }
 }
 
 }  // namespace broadphase

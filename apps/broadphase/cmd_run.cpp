@@ -117,7 +117,7 @@ void add_gen_command(CLI::App& app) {
     std::uint64_t seed = 1;
   };
   auto o = std::make_shared<GenOptions>();
-  cmd->add_option("--dist", o->dist, "even | uneven | scaled-even | scaled-uneven")->required();
+  cmd->add_option("--dist", o->dist, "even | uneven | scaled-even | scaled-uneven (the study); clusters | decades | all-moving | explosion | flat | coincident | outside (stress kinds)")->required();
   cmd->add_option("--n", o->n, "Number of objects")->required()->check(CLI::Range(0ul, 100000000ul));
   cmd->add_option("--seed", o->seed, "Random seed")->default_val(1);
   cmd->add_option("--out", o->out, "Output scene file")->required();

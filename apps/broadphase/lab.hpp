@@ -33,6 +33,7 @@ using LabExperiment = std::function<std::string(const LabContext&)>;
 /// family adds its own in its own file.
 std::string lab_cell_size_sweep(const LabContext& ctx);      // lab_grids.cpp
 std::string lab_tree_experiments(const LabContext& ctx);     // lab_trees.cpp
+std::string lab_octree_experiments(const LabContext& ctx);   // lab_octrees.cpp
 std::string lab_tunneling(const LabContext& ctx);            // lab_sim.cpp
 std::string lab_performance(const LabContext& ctx);          // lab_fast.cpp
 

@@ -88,10 +88,31 @@ struct FrameDigest {
 /// 16 lowercase hex digits.
 std::string hex16(std::uint64_t v);
 
-/// The study's workloads (SCENE-FORMAT.md, "The paper's workloads").
-enum class Distribution { even, uneven, scaled_even, scaled_uneven };
+/// The study's workloads (SCENE-FORMAT.md, "The paper's workloads"), and
+/// the stress kinds the performance work is measured on.
+enum class Distribution {
+  even,           ///< the study: centres uniform in the 1 km cube
+  uneven,         ///< the study: 80% within the lowest tenth of the cube
+  scaled_even,    ///< even at the study's density of 6400 objects per km³
+  scaled_uneven,  ///< uneven at the study's density
+  clusters,       ///< Gaussian clusters of 500 objects each (sigma L/40)
+  decades,        ///< radii log-uniform over five decades, 0.001 to 100
+  all_moving,     ///< even, but every object moves
+  explosion,      ///< debris flying out of a small ball: incoherent motion
+  flat,           ///< every centre within 1 unit of the ground (y in [0, 1])
+  coincident,     ///< a quarter of the objects share one of N/100 centres
+  outside,        ///< 10% of the centres outside the world, 1 in 5000 larger than it
+};
 
-/// Parses "even", "uneven", "scaled-even", "scaled-uneven". Throws std::invalid_argument.
+/// Every distribution, in enum order.
+inline constexpr Distribution kAllDistributions[] = {
+    Distribution::even,       Distribution::uneven,    Distribution::scaled_even,
+    Distribution::scaled_uneven, Distribution::clusters, Distribution::decades,
+    Distribution::all_moving, Distribution::explosion, Distribution::flat,
+    Distribution::coincident, Distribution::outside};
+
+/// Parses a distribution name ("even", "scaled-even", "all-moving", ...).
+/// Throws std::invalid_argument listing the valid names.
 Distribution parse_distribution(std::string_view name);
 std::string_view to_string(Distribution d);
 
@@ -116,10 +137,13 @@ class Rng {
   std::uint64_t state_;
 };
 
-/// Generates the study's workload: N spheres, radius uniform in [0.5, 50]
-/// (diameters L/1000 .. L/10 of the 1 km world), 20% moving with a uniform
-/// direction and a speed uniform in [0.1, 2]. Scaled kinds keep the
-/// density of 6400 objects per km³: L = 1000 * cbrt(N / 6400).
+/// Generates a workload of N objects. The study's kinds: spheres with radius
+/// uniform in [0.5, 50] (diameters L/1000 .. L/10 of the 1 km world), 20%
+/// moving with a uniform direction and a speed uniform in [0.1, 2]; scaled
+/// kinds keep the density of 6400 objects per km³: L = 1000 * cbrt(N / 6400).
+/// The stress kinds keep L = 1000 and the study's speeds unless their
+/// description says otherwise, with radii uniform in [0.5, 5] so that 20 000
+/// objects are about as crowded as the study's 6400.
 Scene generate(Distribution d, std::size_t n, std::uint64_t seed);
 
 }  // namespace broadphase
