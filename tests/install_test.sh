@@ -4,11 +4,12 @@
 set -eu
 build=$1
 src=$2
+flags=${3:-}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 cmake --install "$build" --prefix "$tmp/prefix" >/dev/null
 cmake -S "$src/tests/install" -B "$tmp/consumer" -DCMAKE_PREFIX_PATH="$tmp/prefix" \
-  -DEXAMPLE_SOURCE="$src/examples/quickstart.cpp" -DCMAKE_BUILD_TYPE=Release >/dev/null
+  -DEXAMPLE_SOURCE="$src/examples/quickstart.cpp" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS="$flags" >/dev/null
 cmake --build "$tmp/consumer" >/dev/null
 out=$("$tmp/consumer/quickstart")
 echo "$out"
