@@ -135,14 +135,30 @@ inline bool overlaps(const Shape& a, const Shape& b) {
 /// `overlaps(a, b)` holds, `bounds(a).overlaps(bounds(b))` holds too.
 inline constexpr double kBoundsSlack = 0x1p-40;
 
+/// Half-extents at or above these make the contract's arithmetic overflow
+/// to infinity, where `inf <= inf` counts as an overlap: a sphere of radius
+/// ≥ 2^511 can overlap a partner of radius ≥ 2^511 at any distance (their
+/// (ri + rj)² is +inf), and a box half side ≥ 2^1022 can overlap another as
+/// large on that axis at any distance (hi + hj is +inf).
+inline constexpr double kHugeRadius = 0x1p511;
+inline constexpr double kHugeHalf = 0x1p1022;
+
 /// A conservative double box around the shape: whenever `overlaps(a, b)`
 /// is true, `bounds(a)` and `bounds(b)` overlap. Never tighter than the
-/// exact box; at most a relative 2^-40 larger.
+/// exact box; at most a relative 2^-40 larger, except that shapes so large
+/// that the predicate overflows (see kHugeRadius) get infinite extents.
 inline Aabb bounds(const Shape& s) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const bool huge_sphere = s.kind == ShapeKind::sphere && s.half.x >= kHugeRadius;
   Aabb b;
   for (int a = 0; a < 3; ++a) {
     const double c = s.center[a];
     const double h = s.half[a];
+    if (huge_sphere || h >= kHugeHalf) {
+      b.lo[a] = -kInf;
+      b.hi[a] = kInf;
+      continue;
+    }
     const double m = (std::fabs(c) + h) * kBoundsSlack;
     b.lo[a] = c - h - m;
     b.hi[a] = c + h + m;
