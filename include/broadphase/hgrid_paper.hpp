@@ -16,9 +16,12 @@
 /// the cells of every centre within the bounds widened by the largest reach
 /// an object of that level can have, computed with the same monotone
 /// formula as the objects' cells, so rounding never drops a candidate.
-/// Objects too large for the coarsest level, and objects whose cell
-/// coordinates would pass ±2^40 (centres near 1e300), go to an oversize list
-/// that is tested against everything.
+/// Objects too large for the coarsest level go to an oversize list that is
+/// tested against everything; so do objects whose cell coordinates would
+/// pass ±2^40. The bounds' slack grows with the distance from the origin, so
+/// far objects rise to coarse levels by themselves (centres near 1e300 are
+/// oversize by size); the coordinate limit catches a world box placed far
+/// from the origin with objects near it.
 #pragma once
 
 #include <array>
