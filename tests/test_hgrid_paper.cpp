@@ -250,7 +250,7 @@ TEST(HGridPaper, MemoryCountsEntriesBucketsAndTheStore) {
   const std::size_t empty = g.memory_bytes();
   EXPECT_GE(empty, 64 * sizeof(std::uint32_t));
   for (int i = 0; i < 1000; ++i) g.insert(Shape::sphere({i * 0.5, 1, 1}, 0.1), i);
-  EXPECT_GE(g.memory_bytes(), empty + 1000 * (32 + 4 + 4 + sizeof(Shape) + 8 + 8));
+  EXPECT_GE(g.memory_bytes(), empty + 1000 * (32 + 4 + 4 + 4 + sizeof(Shape) + 8 + 8));
 }
 
 TEST(HGridPaper, DifferentialWithFewLevels) {

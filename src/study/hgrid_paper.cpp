@@ -110,6 +110,7 @@ void HGridPaper::make_room(std::uint32_t i, const Placement& p) {
   if (i >= entry_.size()) {
     entry_.resize(i + 1);
     slot_.resize(i + 1);
+    prev_.resize(i + 1);
   }
   if (p.level == 0) {
     oversize_.reserve(oversize_.size() + 1);
@@ -129,8 +130,7 @@ void HGridPaper::link(std::uint32_t i, const Placement& p) {
   }
   std::copy(p.cell, p.cell + 3, e.cell);
   const std::uint32_t b = bucket_of(p.level, p.cell);
-  e.next = head_[b];
-  head_[b] = i;
+  push_front(b, i);
   slot_[i] = b;
   ++in_table_;
 }
@@ -145,13 +145,24 @@ void HGridPaper::unlink(std::uint32_t i) {
     oversize_.pop_back();
     return;
   }
-  std::uint32_t* link = &head_[slot_[i]];
-  while (*link != i) {
-    if (*link == kNull) throw std::logic_error("hgrid-paper: object missing from its bucket");
-    link = &entry_[*link].next;
+  // Doubly linked, so a crowded cell (hundreds of objects in one coarse
+  // cell) costs no walk.
+  const std::uint32_t before = prev_[i];
+  if (before == kNull) {
+    if (head_[slot_[i]] != i) throw std::logic_error("hgrid-paper: object missing from its bucket");
+    head_[slot_[i]] = e.next;
+  } else {
+    entry_[before].next = e.next;
   }
-  *link = e.next;
+  if (e.next != kNull) prev_[e.next] = before;
   --in_table_;
+}
+
+void HGridPaper::push_front(std::uint32_t b, std::uint32_t i) {
+  entry_[i].next = head_[b];
+  if (head_[b] != kNull) prev_[head_[b]] = i;
+  prev_[i] = kNull;
+  head_[b] = i;
 }
 
 void HGridPaper::grow_table() {
@@ -160,10 +171,8 @@ void HGridPaper::grow_table() {
   mask_ = head_.size() - 1;
   for (std::uint32_t i = 0; i < store_.slot_count(); ++i) {
     if (!store_.slots().alive(i) || i >= entry_.size() || entry_[i].level == 0) continue;
-    Entry& e = entry_[i];
-    const std::uint32_t b = bucket_of(e.level, e.cell);
-    e.next = head_[b];
-    head_[b] = i;
+    const std::uint32_t b = bucket_of(entry_[i].level, entry_[i].cell);
+    push_front(b, i);
     slot_[i] = b;
   }
 }
@@ -206,7 +215,8 @@ void HGridPaper::update(Handle h, const Shape& s) {
 
 std::size_t HGridPaper::memory_bytes() const {
   return store_.memory_bytes() + entry_.capacity() * sizeof(Entry) +
-         (slot_.capacity() + head_.capacity() + oversize_.capacity()) * sizeof(std::uint32_t);
+         (slot_.capacity() + prev_.capacity() + head_.capacity() + oversize_.capacity()) *
+             sizeof(std::uint32_t);
 }
 
 void HGridPaper::validate() const {
@@ -236,11 +246,13 @@ void HGridPaper::validate() const {
   std::vector<char> seen(slots, 0);
   std::size_t chained = 0;
   for (std::uint32_t b = 0; b < head_.size(); ++b) {
-    for (std::uint32_t j = head_[b]; j != kNull; j = entry_[j].next) {
+    std::uint32_t before = kNull;
+    for (std::uint32_t j = head_[b]; j != kNull; before = j, j = entry_[j].next) {
       if (j >= slots || !store_.slots().alive(j) || entry_[j].level == 0 || slot_[j] != b ||
-          seen[j] || ++chained > in_table_)
+          prev_[j] != before || seen[j] || ++chained > in_table_)
         throw std::logic_error("hgrid-paper: bucket " + std::to_string(b) +
-                               " chains a dead, foreign or repeated object (or a cycle)");
+                               " chains a dead, foreign or repeated object, a wrong back link, or "
+                               "a cycle");
       seen[j] = 1;
     }
   }
