@@ -27,7 +27,8 @@ void BM_OctreeNodeOf(benchmark::State& state) {
 }
 BENCHMARK(BM_OctreeNodeOf);
 
-// A point query: the descent from the root to one finest cell.
+// Points in the world: the descent from the root to one finest cell,
+// testing the objects of every node on the way.
 void BM_OctreeNodeDescent(benchmark::State& state) {
   const Scene& s = uneven_6400();
   OctreePaper t{Config{}};
@@ -68,8 +69,9 @@ void BM_HGridPlacement(benchmark::State& state) {
 }
 BENCHMARK(BM_HGridPlacement);
 
-// A point query: one cell hashed and its bucket walked per non-empty level.
-void BM_HGridCellHashing(benchmark::State& state) {
+// Points in the world: one cell per non-empty level hashed, its bucket
+// walked and its objects tested (a coarse cell holds hundreds).
+void BM_HGridPointQuery(benchmark::State& state) {
   const Scene& s = uneven_6400();
   HGridPaper g{Config{}};
   for (std::size_t i = 0; i < s.size(); ++i) g.insert(s.objects[i], i);
@@ -78,6 +80,23 @@ void BM_HGridCellHashing(benchmark::State& state) {
   for (int i = 0; i < 1024; ++i)
     points.push_back(
         Shape::sphere({rng.uniform(0, 1000), rng.uniform(0, 1000), rng.uniform(0, 1000)}, 0));
+  std::size_t i = 0, hits = 0;
+  for (auto _ : state) g.query(points[i++ & 1023], [&](Handle) { ++hits; });
+  benchmark::DoNotOptimize(hits);
+}
+BENCHMARK(BM_HGridPointQuery);
+
+// Points outside the world, in empty cells: only the hashing and the walk
+// past other cells' entries in the bucket, once per non-empty level.
+void BM_HGridCellHashing(benchmark::State& state) {
+  const Scene& s = uneven_6400();
+  HGridPaper g{Config{}};
+  for (std::size_t i = 0; i < s.size(); ++i) g.insert(s.objects[i], i);
+  Rng rng(3);
+  std::vector<Shape> points;
+  for (int i = 0; i < 1024; ++i)
+    points.push_back(Shape::sphere(
+        {rng.uniform(3000, 9000), rng.uniform(3000, 9000), rng.uniform(3000, 9000)}, 0));
   std::size_t i = 0, hits = 0;
   for (auto _ : state) g.query(points[i++ & 1023], [&](Handle) { ++hits; });
   benchmark::DoNotOptimize(hits);

@@ -214,11 +214,46 @@ TEST(OctreePaper, RejectsOptions) {
   Config c;
   c.options["depth"] = "5";
   EXPECT_THROW(OctreePaper{c}, UnknownStructure);
+  Config bad;
+  bad.options["outside"] = "drop";
+  EXPECT_THROW(OctreePaper{bad}, UnknownStructure);
 }
 
-TEST(OctreePaper, DifferentialOnTheStudysWorkloads) {
+TEST(OctreePaper, ClampPlacesOutsideObjectsByTheirClippedBounds) {
+  Config c;
+  c.options["outside"] = "clamp";
+  OctreePaper t(c);
+  // Crossing the ground: clipped, it fits the finest cell at the face.
+  EXPECT_EQ(t.node_of(Shape::sphere({62.5, 10, 62.5}, 20)), node(3, 0, 0, 0));
+  // Wholly outside, far away: the corner cell it is clipped to.
+  EXPECT_EQ(t.node_of(Shape::sphere({-1e300, 2e12, 62.5}, 1)), node(3, 0, 7, 0));
+  // Larger than the world: clipped, it is the whole cube.
+  EXPECT_EQ(t.node_of(Shape::sphere({500, 500, 500}, 5000)), 0u);
+  std::vector<Shape> shapes = {
+      Shape::sphere({-1e300, 2e12, 62.5}, 1), Shape::sphere({-1e300, 2e12, 62.5}, 0),
+      Shape::sphere({62.5, 10, 62.5}, 20),    Shape::sphere({62.5, -20, 62.5}, 10),
+      Shape::sphere({-2000, 900, 62.5}, 1e6), Shape::sphere({500, 500, 500}, 5000)};
+  for (std::size_t i = 0; i < shapes.size(); ++i) t.insert(shapes[i], i);
+  t.validate();
+  EXPECT_EQ(pairs_of(t), brute_pairs(shapes));
+  // A query wholly outside still reaches the objects clipped to the face.
+  std::set<std::uint64_t> got;
+  t.query(Shape::sphere({62.5, -25, 62.5}, 6), [&](Handle h) { got.insert(t.user_data(h)); });
+  EXPECT_EQ(got, (std::set<std::uint64_t>{3, 4, 5}));
+}
+
+TEST(OctreePaper, DifferentialOnMixedWorlds) {
   for (std::uint64_t seed = 1; seed <= 3; ++seed)
     testing::differential("octree-paper", testing::World::mixed, 1000 + seed, 1500);
+}
+
+TEST(OctreePaper, DifferentialWithOutsideObjectsClamped) {
+  Config c;
+  c.options["outside"] = "clamp";
+  for (testing::World w :
+       {testing::World::mixed, testing::World::touching, testing::World::far, testing::World::huge})
+    testing::differential("octree-paper", w, 2000 + static_cast<std::uint64_t>(w), 1200, c);
+  testing::differential("octree-paper", testing::World::crowded, 2100, 2000, c);
 }
 
 }  // namespace

@@ -7,7 +7,10 @@
 /// allocated or freed as objects come and go except the nodes' index lists.
 /// An object lives in the deepest node whose cube contains its conservative
 /// bounds; an object that leaves the world cube, or is larger than it, lives
-/// at the root and is tested by every query.
+/// at the root and is tested by every query. Option `outside=clamp` instead
+/// places such an object by its bounds clipped to the cube (an object near a
+/// face goes to a node at that face, a far one to a corner node); this stays
+/// exact because clipping keeps the cell formula monotone.
 ///
 /// Containment and overlap of cubes are decided on integer cell coordinates
 /// at the finest level, computed by one monotone formula (`cell_of`), never
@@ -47,7 +50,8 @@ class OctreePaper {
   static constexpr std::uint32_t kNodeCount = 585;
 
   /// Builds the empty tree over the cube with corner `c.world.lo` and side
-  /// the world box's largest extent. Takes no options.
+  /// the world box's largest extent. Option `outside=root|clamp` (default
+  /// root): where objects not inside the cube go.
   explicit OctreePaper(const Config& c = {});
 
   /// Adds an object to the node its bounds prescribe. Throws InvalidShape.
@@ -117,7 +121,8 @@ class OctreePaper {
   std::array<std::vector<std::uint32_t>, kNodeCount> lists_;  // slot indices per node
   std::array<std::uint32_t, kNodeCount> subtree_count_{};     // objects in each subtree
   Vec3 origin_;
-  double scale_ = 0;  // finest cells per world unit
+  double scale_ = 0;            // finest cells per world unit
+  bool clamp_outside_ = false;  // place outside objects by their clipped bounds
 };
 
 template <class F>

@@ -26,7 +26,9 @@ constexpr std::uint32_t interleave(int x, int y, int z) {
 }  // namespace
 
 OctreePaper::OctreePaper(const Config& c) {
-  OptionReader(c, "octree-paper").finish();
+  OptionReader options(c, "octree-paper");
+  clamp_outside_ = options.choice("outside", "root", {"root", "clamp"}) == "clamp";
+  options.finish();
   origin_ = c.world.lo;
   const Vec3 extent = c.world.hi - c.world.lo;
   const double side = std::max(extent.x, std::max(extent.y, extent.z));
@@ -52,9 +54,11 @@ OctreePaper::CellRange OctreePaper::range_of(const Aabb& b) const {
   for (int a = 0; a < 3; ++a) {
     const int lo = cell_of(b.lo[a], a);
     const int hi = cell_of(b.hi[a], a);
-    if (hi < 0 || lo >= kFinestCells) r.empty = true;
-    r.lo[a] = std::max(lo, 0);
-    r.hi[a] = std::min(hi, kFinestCells - 1);
+    // Objects outside the cube live at the root unless they are clamped
+    // into it, so a range wholly outside reaches no descendant.
+    if (!clamp_outside_ && (hi < 0 || lo >= kFinestCells)) r.empty = true;
+    r.lo[a] = std::clamp(lo, 0, kFinestCells - 1);
+    r.hi[a] = std::clamp(hi, 0, kFinestCells - 1);
   }
   return r;
 }
@@ -65,8 +69,12 @@ std::uint32_t OctreePaper::node_of(const Shape& s) const {
   unsigned straddle = 0;
   for (int a = 0; a < 3; ++a) {
     lo[a] = cell_of(b.lo[a], a);
-    const int hi = cell_of(b.hi[a], a);
-    if (lo[a] < 0 || hi >= kFinestCells) return 0;  // not inside the world cube
+    int hi = cell_of(b.hi[a], a);
+    if (lo[a] < 0 || hi >= kFinestCells) {
+      if (!clamp_outside_) return 0;  // not inside the world cube
+      lo[a] = std::clamp(lo[a], 0, kFinestCells - 1);
+      hi = std::clamp(hi, 0, kFinestCells - 1);
+    }
     straddle |= static_cast<unsigned>(lo[a] ^ hi);
   }
   // The highest bit in which the corners' cells differ is the level at
