@@ -5,12 +5,12 @@
 /// levels share one hash table keyed by (level, cell x, y, z). An object
 /// goes to the finest level whose cell side is at least four times its
 /// largest extent, into the cell of its centre, and is chained into that
-/// cell's bucket through per-object `next` and `prev` indices; it remembers
+/// cell's bucket through per-object `next` and `prev` indices. It remembers
 /// the bucket, so removal unlinks it from that one bucket in O(1), however
 /// crowded the cell (the study's chains were singly linked, and a walk along
-/// a coarse cell's chain costs hundreds of steps at 6400 objects). Cells of the whole integer range
-/// exist (the hash is unbounded): objects outside the world sit in cells
-/// with negative or large coordinates.
+/// a coarse cell's chain costs hundreds of steps at 6400 objects). Cells of
+/// the whole integer range exist (the hash is unbounded): objects outside the
+/// world sit in cells with negative or large coordinates.
 ///
 /// Exactness: several cells can share a bucket, so each entry keeps its
 /// exact cell key and entries of other cells are skipped unseen. A query
