@@ -22,6 +22,13 @@ TEST_P(Differential, MatchesNaiveWithThousandsInOneCell) {
   differential(GetParam(), World::crowded, 42, 2500);
 }
 
+TEST_P(Differential, MatchesNaiveWhereTheArithmeticOverflows) {
+  for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+    differential(GetParam(), World::extreme, 1000 + seed, 500);
+    if (HasFailure()) return;
+  }
+}
+
 TEST_P(Differential, MatchesNaiveInAFarAwayWorld) {
   // The world box itself far from the origin.
   Config c;

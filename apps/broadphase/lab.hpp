@@ -37,6 +37,11 @@ std::string lab_octree_experiments(const LabContext& ctx);   // lab_octrees.cpp
 std::string lab_tunneling(const LabContext& ctx);            // lab_sim.cpp
 std::string lab_performance(const LabContext& ctx);          // lab_fast.cpp
 
+/// The Python interpreter that has matplotlib: $BROADPHASE_PYTHON, else
+/// /usr/bin/python3 (where Debian's python3-matplotlib lives), else the
+/// python3 on PATH; empty when none of them can import matplotlib.
+std::string plot_python();
+
 /// Runs the matplotlib script `tools/<script>` with arguments; returns false
 /// (and says why on stderr) when python3 or matplotlib is missing.
 bool run_plot_script(const std::string& script, const std::vector<std::string>& args);

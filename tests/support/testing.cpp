@@ -73,6 +73,7 @@ const char* to_string(World w) {
     case World::crowded: return "crowded";
     case World::far: return "far";
     case World::huge: return "huge";
+    case World::extreme: return "extreme";
   }
   return "?";
 }
@@ -112,6 +113,19 @@ class ShapeSource {
       case World::huge: {
         const Vec3 c{rng_.uniform(-500, 1500), rng_.uniform(-500, 1500), rng_.uniform(-500, 1500)};
         const double size = rng_.uniform() < 0.05 ? rng_.uniform(1000, 10000) : rng_.uniform(0.5, 50);
+        return shaped(c, size);
+      }
+      case World::extreme: {
+        // Mostly ordinary objects, with some whose coordinates or sizes are
+        // so large that the contract's arithmetic overflows to infinity.
+        auto coord = [&] {
+          const double u = rng_.uniform();
+          if (u < 0.7) return rng_.uniform(0, 1000);
+          return (rng_.uniform() < 0.5 ? -1 : 1) * std::pow(10.0, rng_.uniform(3, 300));
+        };
+        const Vec3 c{coord(), coord(), coord()};
+        const double u = rng_.uniform();
+        const double size = u < 0.7 ? rng_.uniform(0, 50) : std::pow(10.0, rng_.uniform(0, 308));
         return shaped(c, size);
       }
     }

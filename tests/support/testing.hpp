@@ -39,6 +39,7 @@ enum class World {
   crowded,     ///< thousands of objects in one small cell
   far,         ///< coordinates around 1e7 from the origin
   huge,        ///< a few objects larger than the world
+  extreme,     ///< coordinates and sizes up to 1e300, where the predicate overflows
 };
 const char* to_string(World w);
 
