@@ -1,12 +1,18 @@
 #include "../register.hpp"
 
 #include <broadphase/octree.hpp>
+#include <broadphase/octree_linear.hpp>
+#include <broadphase/octree_loose.hpp>
 
 namespace broadphase::detail {
 
 void register_trees(Registry& r) {
   add_structure<Octree>(r, "octree",
                         "adaptive octree: leaves split past split= objects, O(1) removal");
+  add_structure<LooseOctree>(r, "octree-loose",
+                             "loose octree (k=2): node from size and centre in O(1), sparse");
+  add_structure<LinearOctree>(r, "octree-linear",
+                              "linear octree: Morton keys in a hash table, no child links");
 }
 
 }  // namespace broadphase::detail
