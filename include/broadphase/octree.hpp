@@ -70,12 +70,16 @@ class InlineStack {
 };
 
 /// The cube the octrees subdivide: the world hint made cubic (same centre,
-/// side the largest extent). Cell boundaries are `origin + i * (side / 2^d)`:
+/// side the largest extent) and enlarged by kRootGrowth, so that objects
+/// reaching a little over the world's walls still fit below the root
+/// instead of piling up at it, and the cells' faces do not fall on the
+/// walls, where objects often rest. Cell boundaries are `origin + i * (side / 2^d)`:
 /// the product is exact real arithmetic rounded once, so the boundary of a
 /// cell at depth d is bit-identical to the same boundary seen from depth
 /// d + 1 (index 2i), and rounding is monotone; hence every child cell lies
 /// inside its parent, exactly.
 struct Cube {
+  static constexpr double kRootGrowth = 1.25;
   Vec3 origin;
   double side = 1;
 
@@ -87,6 +91,7 @@ struct Cube {
     double side = std::max(world.hi.x - world.lo.x,
                            std::max(world.hi.y - world.lo.y, world.hi.z - world.lo.z));
     if (!(side > 0)) side = 1;
+    side *= kRootGrowth;
     const Vec3 c = (world.lo + world.hi) * 0.5;
     return {c - Vec3{side, side, side} * 0.5, side};
   }
