@@ -58,6 +58,8 @@ class InlineStack {
     return v;
   }
   bool empty() const { return size_ == 0; }
+  std::size_t size() const { return size_; }
+  const T& operator[](std::size_t i) const { return i < N ? inline_[i] : heap_[i - N]; }
   void clear() {
     size_ = 0;
     heap_.clear();
@@ -244,7 +246,12 @@ bool test_against(const ObjectStore& store, const OctItem& a, std::span<const Oc
   const Shape& sa = store.shape(a.slot);
   for (std::size_t j = first; j < items.size(); ++j) {
     const OctItem& b = items[j];
-    if (!a.box.overlaps(b.box)) continue;
+    // Branch-free: most candidates fail, and a chain of short-circuits
+    // mispredicts on nearly every one of them.
+    const bool touch = (a.box.lo[0] <= b.box.hi[0]) & (b.box.lo[0] <= a.box.hi[0]) &
+                       (a.box.lo[1] <= b.box.hi[1]) & (b.box.lo[1] <= a.box.hi[1]) &
+                       (a.box.lo[2] <= b.box.hi[2]) & (b.box.lo[2] <= a.box.hi[2]);
+    if (!touch) continue;
     ++cost.tests;
     if (overlaps(sa, store.shape(b.slot)) &&
         !visit(visitor, store.handle(a.slot), store.handle(b.slot))) {

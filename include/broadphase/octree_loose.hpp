@@ -6,6 +6,7 @@
 /// node, child links let queries descend through occupied nodes only.
 #pragma once
 
+#include <algorithm>
 #include <broadphase/octree.hpp>
 #include <cstdint>
 #include <span>
@@ -110,38 +111,55 @@ class LooseOctree {
 
 template <class V>
 QueryCost LooseOctree::for_each_pair(V&& visitor) const {
-  // Loose cells overlap, so partners may sit anywhere in the tree. Each
-  // object searches from the root, testing only nodes deeper than its own
-  // or at its depth with a larger index; shallower nodes are only passed
-  // through. Every pair is thus met once, from its shallower object.
+  // Loose cells overlap, so partners may sit anywhere in the tree. For each
+  // node, one search from the root collects the nodes whose loose box
+  // touches the node's objects and that are deeper, or at the same depth
+  // with a larger index (shallower nodes are only passed through). Every
+  // pair is thus met once: from its shallower object, or at equal depths
+  // from the node with the smaller index, or inside one node.
   QueryCost cost;
   detail::InlineStack<std::uint32_t, 64> nodes;
   detail::InlineStack<std::uint32_t, 64> sub;
+  detail::InlineStack<std::uint32_t, 256> partners;
   nodes.push(0);
   while (!nodes.empty()) {
     const std::uint32_t n = nodes.pop();
     const Node& node = nodes_[n];
+    for (std::uint32_t c : node.child)
+      if (c != detail::kNoNode) nodes.push(c);
     const std::span<const detail::OctItem> its = node.items;
+    if (its.empty()) continue;
+    AabbF reach = its[0].box;
+    for (const detail::OctItem& it : its)
+      for (int a = 0; a < 3; ++a) {
+        reach.lo[a] = std::min(reach.lo[a], it.box.lo[a]);
+        reach.hi[a] = std::max(reach.hi[a], it.box.hi[a]);
+      }
+    const Aabb rb = detail::to_double(reach);
+    partners.clear();
+    sub.clear();
+    sub.push(0);
+    while (!sub.empty()) {
+      const std::uint32_t m = sub.pop();
+      const Node& other = nodes_[m];
+      if (m != n && !other.items.empty() &&
+          (other.depth > node.depth || (other.depth == node.depth && m > n)))
+        partners.push(m);
+      for (std::uint32_t c : other.child)
+        if (c != detail::kNoNode && nodes_[c].loose.overlaps(rb)) sub.push(c);
+    }
     for (std::size_t i = 0; i < its.size(); ++i) {
       const detail::OctItem& a = its[i];
       if (!detail::test_against(store_, a, its, i + 1, cost, visitor)) return cost;
       const Aabb ab = detail::to_double(a.box);
-      sub.clear();
-      sub.push(0);
-      while (!sub.empty()) {
-        const std::uint32_t m = sub.pop();
-        const Node& other = nodes_[m];
-        if (other.depth > node.depth || (other.depth == node.depth && m > n)) {
-          if (!detail::test_against(store_, a, std::span<const detail::OctItem>(other.items), 0,
-                                    cost, visitor))
-            return cost;
-        }
-        for (std::uint32_t c : other.child)
-          if (c != detail::kNoNode && nodes_[c].loose.overlaps(ab)) sub.push(c);
+      for (std::size_t p = 0; p < partners.size(); ++p) {
+        const Node& other = nodes_[partners[p]];
+        if (other.loose.overlaps(ab) &&
+            !detail::test_against(store_, a, std::span<const detail::OctItem>(other.items), 0, cost,
+                                  visitor))
+          return cost;
       }
     }
-    for (std::uint32_t c : node.child)
-      if (c != detail::kNoNode) nodes.push(c);
   }
   return cost;
 }
