@@ -18,7 +18,9 @@ std::size_t count_pairs(const LooseOctree& t) {
 }
 
 TEST(LooseOctree, SmallObjectsGoDeeperThanLargeOnes) {
-  LooseOctree t;
+  Config c;
+  c.options["depth"] = "10";
+  LooseOctree t(c);
   t.insert(Shape::sphere({100, 100, 100}, 200), 0);
   const std::size_t shallow = t.node_count();
   t.insert(Shape::sphere({100, 100, 100}, 0.01), 1);

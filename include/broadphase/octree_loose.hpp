@@ -33,7 +33,8 @@ namespace broadphase {
 class LooseOctree {
  public:
   /// Options: `k=` (loose factor in [1.1, 8], default 2), `depth=` (deepest
-  /// level, default 10, at most 20).
+  /// level, default 4, at most 20: deeper levels cost more traversal than
+  /// they save, see docs/octrees.md).
   explicit LooseOctree(const Config& c = {});
 
   /// Adds an object. Throws InvalidShape.
@@ -101,7 +102,7 @@ class LooseOctree {
   ObjectStore store_;
   detail::Cube cube_;
   double margin_ = 0;  // (k - 1) / 2 world sides: the margin at depth 0
-  int max_depth_ = 10;
+  int max_depth_ = 4;
   std::vector<Node> nodes_;
   std::vector<std::uint32_t> free_;
   detail::KeyTable table_;              // key -> node
@@ -111,55 +112,96 @@ class LooseOctree {
 
 template <class V>
 QueryCost LooseOctree::for_each_pair(V&& visitor) const {
-  // Loose cells overlap, so partners may sit anywhere in the tree. For each
-  // node, one search from the root collects the nodes whose loose box
-  // touches the node's objects and that are deeper, or at the same depth
-  // with a larger index (shallower nodes are only passed through). Every
-  // pair is thus met once: from its shallower object, or at equal depths
-  // from the node with the smaller index, or inside one node.
+  // Loose cells overlap, so partners may sit in any subtree whose loose box
+  // touches. The pairs are split into disjoint groups by a traversal of the
+  // tree against itself:
+  //  - within(n): the pairs inside n's subtree = the pairs among n's objects
+  //    + n's objects against each child's subtree + within(child) for each
+  //    child + between(ci, cj) for each two children whose loose boxes touch;
+  //  - between(a, b), for disjoint subtrees: a's objects against b's subtree
+  //    + between(child of a, b) for each child of a touching b.
+  // Each pair lands in exactly one group; subtrees are culled by loose boxes,
+  // which hold every object below them (the root, which also holds objects
+  // outside the world, is never culled).
   QueryCost cost;
-  detail::InlineStack<std::uint32_t, 64> nodes;
+  struct Task {
+    std::uint32_t a, b;  // a == b: within(a); else between(a, b)
+  };
+  detail::InlineStack<Task, 128> tasks;
   detail::InlineStack<std::uint32_t, 64> sub;
-  detail::InlineStack<std::uint32_t, 256> partners;
-  nodes.push(0);
-  while (!nodes.empty()) {
-    const std::uint32_t n = nodes.pop();
-    const Node& node = nodes_[n];
-    for (std::uint32_t c : node.child)
-      if (c != detail::kNoNode) nodes.push(c);
-    const std::span<const detail::OctItem> its = node.items;
-    if (its.empty()) continue;
-    AabbF reach = its[0].box;
-    for (const detail::OctItem& it : its)
-      for (int a = 0; a < 3; ++a) {
-        reach.lo[a] = std::min(reach.lo[a], it.box.lo[a]);
-        reach.hi[a] = std::max(reach.hi[a], it.box.hi[a]);
+  // a's objects (at least one) against the subtree of b (b != a, b below
+  // or beside a). Only b itself is not culled: callers check it.
+  auto objects_against = [&](const Node& a, std::uint32_t b) {
+    // Cull by the union of a's objects, often much smaller than a's loose box.
+    AabbF reach = a.items[0].box;
+    for (const detail::OctItem& x : a.items)
+      for (int k = 0; k < 3; ++k) {
+        reach.lo[k] = std::min(reach.lo[k], x.box.lo[k]);
+        reach.hi[k] = std::max(reach.hi[k], x.box.hi[k]);
       }
     const Aabb rb = detail::to_double(reach);
-    partners.clear();
     sub.clear();
-    sub.push(0);
+    sub.push(b);
     while (!sub.empty()) {
-      const std::uint32_t m = sub.pop();
-      const Node& other = nodes_[m];
-      if (m != n && !other.items.empty() &&
-          (other.depth > node.depth || (other.depth == node.depth && m > n)))
-        partners.push(m);
-      for (std::uint32_t c : other.child)
+      const Node& m = nodes_[sub.pop()];
+      if (!m.items.empty())
+        for (const detail::OctItem& x : a.items)
+          if ((a.items.size() == 1 || m.loose.overlaps(detail::to_double(x.box))) &&
+              !detail::test_against(store_, x, std::span<const detail::OctItem>(m.items), 0, cost,
+                                    visitor))
+            return false;
+      for (std::uint32_t c : m.child)
         if (c != detail::kNoNode && nodes_[c].loose.overlaps(rb)) sub.push(c);
     }
-    for (std::size_t i = 0; i < its.size(); ++i) {
-      const detail::OctItem& a = its[i];
-      if (!detail::test_against(store_, a, its, i + 1, cost, visitor)) return cost;
-      const Aabb ab = detail::to_double(a.box);
-      for (std::size_t p = 0; p < partners.size(); ++p) {
-        const Node& other = nodes_[partners[p]];
-        if (other.loose.overlaps(ab) &&
-            !detail::test_against(store_, a, std::span<const detail::OctItem>(other.items), 0, cost,
+    return true;
+  };
+  // The root's loose box does not bound its objects: search all of the
+  // root's subtree for them, culling per object only.
+  auto root_objects_against = [&](std::uint32_t b) {
+    for (const detail::OctItem& x : nodes_[0].items) {
+      const Aabb xb = detail::to_double(x.box);
+      sub.clear();
+      sub.push(b);
+      while (!sub.empty()) {
+        const Node& m = nodes_[sub.pop()];
+        if (!detail::test_against(store_, x, std::span<const detail::OctItem>(m.items), 0, cost,
                                   visitor))
-          return cost;
+          return false;
+        for (std::uint32_t c : m.child)
+          if (c != detail::kNoNode && nodes_[c].loose.overlaps(xb)) sub.push(c);
       }
     }
+    return true;
+  };
+  tasks.push({0, 0});
+  while (!tasks.empty()) {
+    const Task t = tasks.pop();
+    const Node& a = nodes_[t.a];
+    if (t.a == t.b) {
+      const std::span<const detail::OctItem> its = a.items;
+      for (std::size_t i = 0; i + 1 < its.size(); ++i)
+        if (!detail::test_against(store_, its[i], its, i + 1, cost, visitor)) return cost;
+      for (int i = 0; i < 8; ++i) {
+        const std::uint32_t ci = a.child[i];
+        if (ci == detail::kNoNode) continue;
+        if (!its.empty()) {
+          if (t.a == 0 ? !root_objects_against(ci)
+                       : (nodes_[ci].loose.overlaps(a.loose) && !objects_against(a, ci)))
+            return cost;
+        }
+        tasks.push({ci, ci});
+        for (int j = i + 1; j < 8; ++j) {
+          const std::uint32_t cj = a.child[j];
+          if (cj != detail::kNoNode && nodes_[ci].loose.overlaps(nodes_[cj].loose))
+            tasks.push({ci, cj});
+        }
+      }
+      continue;
+    }
+    const Node& b = nodes_[t.b];
+    if (!a.items.empty() && !objects_against(a, t.b)) return cost;
+    for (std::uint32_t c : a.child)
+      if (c != detail::kNoNode && nodes_[c].loose.overlaps(b.loose)) tasks.push({c, t.b});
   }
   return cost;
 }
