@@ -275,15 +275,24 @@ QueryCost nested_tree_pairs(const Tree& t, const ObjectStore& store, V& visitor)
   nodes.push(t.root());
   while (!nodes.empty()) {
     const std::uint32_t n = nodes.pop();
+    // The children and their boxes once per node, not once per object.
+    std::uint32_t kids[8];
+    Aabb kid_box[8];
+    int kid_count = 0;
+    t.for_each_child(n, [&](std::uint32_t c) {
+      kids[kid_count] = c;
+      kid_box[kid_count] = t.box(c);
+      ++kid_count;
+      nodes.push(c);
+    });
     const std::span<const OctItem> items = t.items(n);
     for (std::size_t i = 0; i < items.size(); ++i) {
       const OctItem& a = items[i];
       if (!test_against(store, a, items, i + 1, cost, visitor)) return cost;
       const Aabb ab = to_double(a.box);
       sub.clear();
-      t.for_each_child(n, [&](std::uint32_t c) {
-        if (t.box(c).overlaps(ab)) sub.push(c);
-      });
+      for (int k = 0; k < kid_count; ++k)
+        if (kid_box[k].overlaps(ab)) sub.push(kids[k]);
       while (!sub.empty()) {
         const std::uint32_t m = sub.pop();
         if (!test_against(store, a, t.items(m), 0, cost, visitor)) return cost;
@@ -292,7 +301,6 @@ QueryCost nested_tree_pairs(const Tree& t, const ObjectStore& store, V& visitor)
         });
       }
     }
-    t.for_each_child(n, [&](std::uint32_t c) { nodes.push(c); });
   }
   return cost;
 }
