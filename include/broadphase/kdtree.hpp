@@ -59,10 +59,15 @@ class KdTree {
   template <class V>
   QueryCost for_each_pair(V&& visitor) const;
 
+  /// Objects held. O(1).
   std::size_t size() const { return store_.size(); }
+  /// Bytes held (capacities of every array and table). O(nodes).
   std::size_t memory_bytes() const;
+  /// True when `h` names a live object of this structure. O(1).
   bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's current shape. Throws InvalidHandle. O(1).
   const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The user data given at insertion. Throws InvalidHandle. O(1).
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Checks positions, exact refitted boxes, links and the free list.
   void validate() const;

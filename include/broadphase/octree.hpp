@@ -23,6 +23,7 @@ namespace broadphase {
 
 namespace detail {
 
+/// The null node index.
 inline constexpr std::uint32_t kNoNode = 0xffffffffu;
 
 /// An object as a node stores it: its conservative float box beside its
@@ -43,6 +44,7 @@ inline Aabb to_double(const AabbF& b) {
 template <class T, std::size_t N>
 class InlineStack {
  public:
+  /// Pushes `v`; allocates only beyond N entries.
   void push(const T& v) {
     if (size_ < N)
       inline_[size_] = v;
@@ -50,6 +52,7 @@ class InlineStack {
       heap_.push_back(v);
     ++size_;
   }
+  /// Removes and returns the top entry (the stack must not be empty).
   T pop() {
     --size_;
     if (size_ < N) return inline_[size_];
@@ -57,9 +60,13 @@ class InlineStack {
     heap_.pop_back();
     return v;
   }
+  /// True when nothing is on the stack.
   bool empty() const { return size_ == 0; }
+  /// Entries on the stack.
   std::size_t size() const { return size_; }
+  /// Entry `i`, counted from the bottom.
   const T& operator[](std::size_t i) const { return i < N ? inline_[i] : heap_[i - N]; }
+  /// Empties the stack, keeping any heap capacity.
   void clear() {
     size_ = 0;
     heap_.clear();
@@ -85,6 +92,8 @@ struct Cube {
   Vec3 origin;
   double side = 1;
 
+  /// The enlarged cube around a world hint. Throws std::invalid_argument
+  /// for an empty or non-finite box.
   static Cube around(const Aabb& world) {
     if (!(world.lo.x <= world.hi.x && world.lo.y <= world.hi.y && world.lo.z <= world.hi.z) ||
         !std::isfinite(world.lo.x) || !std::isfinite(world.lo.y) || !std::isfinite(world.lo.z) ||
@@ -182,7 +191,9 @@ class KeyTable {
     keys_[i] = 0;
     --size_;
   }
+  /// Keys held.
   std::size_t size() const { return size_; }
+  /// Bytes held (capacities).
   std::size_t memory_bytes() const {
     return keys_.capacity() * sizeof(std::uint64_t) + values_.capacity() * sizeof(std::uint32_t);
   }
@@ -350,10 +361,15 @@ class Octree {
     return detail::nested_tree_pairs(*this, store_, visitor);
   }
 
+  /// Objects held. O(1).
   std::size_t size() const { return store_.size(); }
+  /// Bytes held (capacities of every array and table). O(nodes).
   std::size_t memory_bytes() const;
+  /// True when `h` names a live object of this structure. O(1).
   bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's current shape. Throws InvalidHandle. O(1).
   const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The user data given at insertion. Throws InvalidHandle. O(1).
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Checks placement, positions, subtree counts, merging and the free list.
   void validate() const;
@@ -361,10 +377,15 @@ class Octree {
   /// Nodes in use (for the lab).
   std::size_t node_count() const { return nodes_.size() - 8 * free_blocks_.size(); }
 
-  // The nested-tree interface of detail::tree_query and nested_tree_pairs.
+  // The nested-tree interface of detail::tree_query and nested_tree_pairs,
+  // public so that those templates can read the nodes; not for users.
+  /// The root node's index.
   std::uint32_t root() const { return 0; }
+  /// The object records held by node `n`.
   std::span<const detail::OctItem> items(std::uint32_t n) const { return nodes_[n].items; }
+  /// A box holding every object below node `n` (not asked of the root).
   const Aabb& box(std::uint32_t n) const { return nodes_[n].cell; }
+  /// Calls `f(child)` for each child of `n` with objects below it.
   template <class F>
   void for_each_child(std::uint32_t n, F&& f) const {
     const std::uint32_t first = nodes_[n].first_child;

@@ -53,10 +53,15 @@ class LinearOctree {
     return detail::nested_tree_pairs(*this, store_, visitor);
   }
 
+  /// Objects held. O(1).
   std::size_t size() const { return store_.size(); }
+  /// Bytes held (capacities of every array and table). O(nodes).
   std::size_t memory_bytes() const;
+  /// True when `h` names a live object of this structure. O(1).
   bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's current shape. Throws InvalidHandle. O(1).
   const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The user data given at insertion. Throws InvalidHandle. O(1).
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Checks placement, positions, child masks, the key table and that no
   /// empty leaf survives.
@@ -65,13 +70,18 @@ class LinearOctree {
   /// Nodes in use (for the lab).
   std::size_t node_count() const { return table_.size(); }
 
-  // The nested-tree interface of detail::tree_query and nested_tree_pairs.
+  // The nested-tree interface of detail::tree_query and nested_tree_pairs,
+  // public so that those templates can read the nodes; not for users.
+  /// The root node's index.
   std::uint32_t root() const { return 0; }
+  /// The object records held by node `n`.
   std::span<const detail::OctItem> items(std::uint32_t n) const { return nodes_[n].items; }
+  /// Node `n`'s cell, recomputed from its indices (not asked of the root).
   Aabb box(std::uint32_t n) const {
     const Node& node = nodes_[n];
     return cube_.cell(node.depth, node.ix, node.iy, node.iz);
   }
+  /// Calls `f(child)` for each existing child of `n` (one table lookup each).
   template <class F>
   void for_each_child(std::uint32_t n, F&& f) const {
     const Node& node = nodes_[n];

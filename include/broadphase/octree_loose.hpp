@@ -53,10 +53,15 @@ class LooseOctree {
   template <class V>
   QueryCost for_each_pair(V&& visitor) const;
 
+  /// Objects held. O(1).
   std::size_t size() const { return store_.size(); }
+  /// Bytes held (capacities of every array and table). O(nodes).
   std::size_t memory_bytes() const;
+  /// True when `h` names a live object of this structure. O(1).
   bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's current shape. Throws InvalidHandle. O(1).
   const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The user data given at insertion. Throws InvalidHandle. O(1).
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Checks placement, positions, loose boxes, links, the key table and
   /// that no empty leaf survives.
@@ -65,10 +70,15 @@ class LooseOctree {
   /// Nodes in use (for the lab).
   std::size_t node_count() const { return nodes_.size() - free_.size(); }
 
-  // The nested-tree interface of detail::tree_query.
+  // The nested-tree interface of detail::tree_query, public so that the
+  // template can read the nodes; not for users.
+  /// The root node's index.
   std::uint32_t root() const { return 0; }
+  /// The object records held by node `n`.
   std::span<const detail::OctItem> items(std::uint32_t n) const { return nodes_[n].items; }
+  /// Node `n`'s loose box, holding every object below it (not the root's).
   const Aabb& box(std::uint32_t n) const { return nodes_[n].loose; }
+  /// Calls `f(child)` for each existing child of `n`.
   template <class F>
   void for_each_child(std::uint32_t n, F&& f) const {
     for (std::uint32_t c : nodes_[n].child)
