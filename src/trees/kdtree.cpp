@@ -192,6 +192,9 @@ void KdTree::build(std::uint32_t node, std::size_t begin, std::size_t end) {
     const std::uint32_t left = new_node(t.node);
     const std::uint32_t right = new_node(t.node);
     Node& n = nodes_[t.node];
+    // An inner node holds no objects: give back the capacity it may have
+    // kept from a life as a leaf (it was a third of the tree's memory).
+    std::vector<OctItem>().swap(n.items);
     n.left = left;
     n.right = right;
     n.axis = static_cast<std::uint8_t>(axis);
