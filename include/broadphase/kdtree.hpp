@@ -1,0 +1,201 @@
+/// \file kdtree.hpp
+/// `kdtree`: a k-d tree over object centres whose nodes carry the bounds of
+/// their subtree. Each node's split axis and plane are chosen by the surface
+/// area heuristic (any axis, not cycled). Motion is absorbed by refitting the
+/// bounds; a rebuild policy decides when the refitted tree has decayed
+/// enough to be rebuilt.
+#pragma once
+
+#include <broadphase/octree.hpp>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace broadphase {
+
+/// A k-d tree with refitted bounds and a rebuild policy.
+///
+/// Objects are partitioned by their centres at build time; afterwards an
+/// object stays in its leaf when it moves, and the leaf's and ancestors'
+/// boxes are refitted (each node's box is exactly the union of its objects'
+/// float boxes). Options:
+///  - `rebuild=refit` never rebuilds for motion; `rebuild=decay` (default)
+///    rebuilds when the sum of the nodes' surface areas exceeds `decay=`
+///    (default 1.5) times its value after the last build; `rebuild=always`
+///    rebuilds after every update call (a bulk update is one call).
+///  - `leaf=` objects per leaf (default 8).
+/// Every policy also rebuilds when the object count has doubled or halved
+/// since the last build, so insertion order does not shape the tree.
+///
+/// insert: O(depth), amortised O(log n) for rebuilds. remove: O(1) to find
+/// the object, O(depth) to refit. update: O(depth) refit; bulk update: one
+/// O(nodes) refit. Rebuild: O(n log n). query: descends touching nodes with
+/// a growable stack. for_each_pair: simultaneous traversal of the tree
+/// against itself with a growable stack, each pair met once. Handles stay
+/// valid until their object is removed. Mutations need exclusive access;
+/// const members may run concurrently.
+class KdTree {
+ public:
+  /// How the tree reacts to motion.
+  enum class Policy : std::uint8_t { refit, decay, always };
+
+  explicit KdTree(const Config& c = {});
+
+  /// Adds an object. Throws InvalidShape.
+  Handle insert(const Shape& s, std::uint64_t user, Motion = Motion::dynamic);
+  /// Removes an object. Throws InvalidHandle.
+  void remove(Handle h);
+  /// Moves or resizes one object (refits its path). Throws InvalidHandle,
+  /// InvalidShape.
+  void update(Handle h, const Shape& s);
+  /// Moves many objects, then refits the whole tree once. Throws
+  /// InvalidHandle, InvalidShape (objects before the bad one are moved).
+  void update(std::span<const Move> moves);
+
+  /// Visits every object overlapping `q`.
+  template <class V>
+  QueryCost query(const Shape& q, V&& visitor) const;
+  /// Visits every overlapping pair once.
+  template <class V>
+  QueryCost for_each_pair(V&& visitor) const;
+
+  /// Objects held. O(1).
+  std::size_t size() const { return store_.size(); }
+  /// Bytes held (capacities of every array and table). O(nodes).
+  std::size_t memory_bytes() const;
+  /// True when `h` names a live object of this structure. O(1).
+  bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's current shape. Throws InvalidHandle. O(1).
+  const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The user data given at insertion. Throws InvalidHandle. O(1).
+  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
+  /// Checks positions, exact refitted boxes, links and the free list.
+  void validate() const;
+
+  /// Rebuilds the tree from scratch with the surface area heuristic.
+  void rebuild();
+  /// How many rebuilds happened (for the lab).
+  std::uint64_t rebuilds() const { return rebuilds_; }
+  /// Sum of the nodes' surface areas now and after the last build.
+  double surface_sum() const { return surface_; }
+  double built_surface_sum() const { return built_surface_; }
+
+ private:
+  struct Node {
+    AabbF box;
+    std::vector<detail::OctItem> items;  // leaves only
+    std::uint32_t parent = detail::kNoNode;
+    std::uint32_t left = detail::kNoNode;  // leaf when kNoNode
+    std::uint32_t right = detail::kNoNode;
+    float split = 0;  // insertion goes left when centre[axis] < split
+    std::uint8_t axis = 0;
+  };
+  bool leaf(std::uint32_t n) const { return nodes_[n].left == detail::kNoNode; }
+
+  std::uint32_t new_node(std::uint32_t parent);
+  void build(std::uint32_t node, std::size_t begin, std::size_t end);
+  void split_leaf(std::uint32_t node);
+  void refit_path(std::uint32_t node);
+  void refit_all();
+  void attach(std::uint32_t node, std::uint32_t slot, const AabbF& box);
+  void after_motion();
+  void after_resize();
+
+  ObjectStore store_;
+  Policy policy_ = Policy::decay;
+  double decay_ = 1.5;
+  std::size_t leaf_size_ = 8;
+  std::vector<Node> nodes_;
+  std::vector<std::uint32_t> free_;
+  std::uint32_t root_ = 0;
+  std::vector<detail::OctItem> scratch_;      // rebuild's working copy
+  std::vector<std::uint32_t> scratch_order_;  // refit_all's node order
+  std::vector<std::uint32_t> node_of_;        // slot -> leaf
+  std::vector<std::uint32_t> pos_of_;         // slot -> position in the leaf
+  double surface_ = 0;
+  double built_surface_ = 0;
+  std::size_t built_size_ = 0;
+  std::uint64_t rebuilds_ = 0;
+};
+
+template <class V>
+QueryCost KdTree::query(const Shape& q, V&& visitor) const {
+  QueryCost cost;
+  const AabbF qf = bounds_f(q);
+  detail::InlineStack<std::uint32_t, 64> stack;
+  stack.push(root_);
+  while (!stack.empty()) {
+    const Node& n = nodes_[stack.pop()];
+    if (!n.box.overlaps(qf)) continue;
+    if (n.left != detail::kNoNode) {
+      stack.push(n.left);
+      stack.push(n.right);
+      continue;
+    }
+    for (const detail::OctItem& it : n.items) {
+      if (!it.box.overlaps(qf)) continue;
+      ++cost.tests;
+      if (overlaps(q, store_.shape(it.slot)) && !visit(visitor, store_.handle(it.slot))) {
+        cost.stopped = true;
+        return cost;
+      }
+    }
+  }
+  return cost;
+}
+
+template <class V>
+QueryCost KdTree::for_each_pair(V&& visitor) const {
+  // Pairs of subtrees: (n, n) stands for the pairs inside n; (a, b) with
+  // a != b for the pairs with one object in each. A node's two children are
+  // disjoint, so every object pair descends to exactly one stack entry.
+  QueryCost cost;
+  struct Task {
+    std::uint32_t a, b;
+  };
+  detail::InlineStack<Task, 128> stack;
+  stack.push({root_, root_});
+  while (!stack.empty()) {
+    const Task t = stack.pop();
+    const Node& a = nodes_[t.a];
+    if (t.a == t.b) {
+      if (a.left == detail::kNoNode) {
+        for (std::size_t i = 0; i < a.items.size(); ++i)
+          if (!detail::test_against(store_, a.items[i], std::span<const detail::OctItem>(a.items),
+                                    i + 1, cost, visitor))
+            return cost;
+        continue;
+      }
+      stack.push({a.left, a.left});
+      stack.push({a.right, a.right});
+      if (nodes_[a.left].box.overlaps(nodes_[a.right].box)) stack.push({a.left, a.right});
+      continue;
+    }
+    const Node& b = nodes_[t.b];
+    const bool a_leaf = a.left == detail::kNoNode;
+    const bool b_leaf = b.left == detail::kNoNode;
+    if (a_leaf && b_leaf) {
+      for (const detail::OctItem& it : a.items)
+        if (!detail::test_against(store_, it, std::span<const detail::OctItem>(b.items), 0, cost,
+                                  visitor))
+          return cost;
+      continue;
+    }
+    // Descend the node with more objects under it, guessed by its box: the
+    // larger box, unless it is a leaf.
+    auto area = [](const AabbF& x) {
+      return (x.hi[0] - x.lo[0]) * (x.hi[1] - x.lo[1]) + (x.hi[1] - x.lo[1]) * (x.hi[2] - x.lo[2]) +
+             (x.hi[2] - x.lo[2]) * (x.hi[0] - x.lo[0]);
+    };
+    if (b_leaf || (!a_leaf && area(a.box) >= area(b.box))) {
+      if (nodes_[a.left].box.overlaps(b.box)) stack.push({a.left, t.b});
+      if (nodes_[a.right].box.overlaps(b.box)) stack.push({a.right, t.b});
+    } else {
+      if (nodes_[b.left].box.overlaps(a.box)) stack.push({t.a, b.left});
+      if (nodes_[b.right].box.overlaps(a.box)) stack.push({t.a, b.right});
+    }
+  }
+  return cost;
+}
+
+}  // namespace broadphase

@@ -1,0 +1,396 @@
+#include <algorithm>
+#include <broadphase/kdtree.hpp>
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace broadphase {
+
+using detail::kNoNode;
+using detail::OctItem;
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+constexpr AabbF kEmpty{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}};
+
+AabbF merged(const AabbF& a, const AabbF& b) {
+  AabbF m;
+  for (int k = 0; k < 3; ++k) {
+    m.lo[k] = std::min(a.lo[k], b.lo[k]);
+    m.hi[k] = std::max(a.hi[k], b.hi[k]);
+  }
+  return m;
+}
+
+bool same(const AabbF& a, const AabbF& b) {
+  for (int k = 0; k < 3; ++k)
+    if (a.lo[k] != b.lo[k] || a.hi[k] != b.hi[k]) return false;
+  return true;
+}
+
+// Half the surface area, in double; 0 for an empty box.
+double area(const AabbF& b) {
+  if (b.lo[0] > b.hi[0]) return 0;
+  const double x = double(b.hi[0]) - b.lo[0];
+  const double y = double(b.hi[1]) - b.lo[1];
+  const double z = double(b.hi[2]) - b.lo[2];
+  return x * y + y * z + z * x;
+}
+
+AabbF union_of(std::span<const OctItem> items) {
+  AabbF b = kEmpty;
+  for (const OctItem& it : items) b = merged(b, it.box);
+  return b;
+}
+
+}  // namespace
+
+KdTree::KdTree(const Config& c) {
+  OptionReader opt(c, "kdtree");
+  const std::string p = opt.choice("rebuild", "decay", {"refit", "decay", "always"});
+  policy_ = p == "refit" ? Policy::refit : (p == "always" ? Policy::always : Policy::decay);
+  decay_ = opt.number("decay", 1.5, 1, 1e6);
+  leaf_size_ = static_cast<std::size_t>(opt.number("leaf", 8, 1, 1024));
+  opt.finish();
+  root_ = new_node(kNoNode);
+  if (c.expected_objects != 0) {
+    node_of_.reserve(c.expected_objects);
+    pos_of_.reserve(c.expected_objects);
+  }
+}
+
+std::uint32_t KdTree::new_node(std::uint32_t parent) {
+  std::uint32_t n;
+  if (!free_.empty()) {
+    n = free_.back();
+    free_.pop_back();
+  } else {
+    n = static_cast<std::uint32_t>(nodes_.size());
+    nodes_.emplace_back();
+  }
+  Node& node = nodes_[n];
+  node.box = kEmpty;
+  node.items.clear();
+  node.parent = parent;
+  node.left = node.right = kNoNode;
+  node.split = 0;
+  node.axis = 0;
+  return n;
+}
+
+void KdTree::attach(std::uint32_t node, std::uint32_t slot, const AabbF& box) {
+  std::vector<OctItem>& items = nodes_[node].items;
+  node_of_[slot] = node;
+  pos_of_[slot] = static_cast<std::uint32_t>(items.size());
+  items.push_back({box, slot});
+}
+
+void KdTree::build(std::uint32_t node, std::size_t begin, std::size_t end) {
+  // Top-down over scratch_[begin, end): each task fills one node, adds its
+  // area to surface_, and either makes it a leaf or splits it in two.
+  struct Task {
+    std::uint32_t node;
+    std::size_t begin, end;
+  };
+  constexpr int kBins = 16;
+  detail::InlineStack<Task, 64> tasks;
+  tasks.push({node, begin, end});
+  while (!tasks.empty()) {
+    const Task t = tasks.pop();
+    const std::span<OctItem> items(scratch_.data() + t.begin, t.end - t.begin);
+    nodes_[t.node].box = union_of(items);
+    surface_ += area(nodes_[t.node].box);
+    const std::size_t count = items.size();
+    auto centre = [this](const OctItem& it, int axis) {
+      return store_.shape(it.slot).center[axis];
+    };
+
+    double cmin[3], cmax[3];
+    for (int a = 0; a < 3; ++a) {
+      cmin[a] = std::numeric_limits<double>::infinity();
+      cmax[a] = -cmin[a];
+    }
+    if (count > leaf_size_)
+      for (const OctItem& it : items)
+        for (int a = 0; a < 3; ++a) {
+          cmin[a] = std::min(cmin[a], centre(it, a));
+          cmax[a] = std::max(cmax[a], centre(it, a));
+        }
+
+    // Binned surface area heuristic over all three axes.
+    int best_axis = -1;
+    double best_split = 0, best_cost = std::numeric_limits<double>::infinity();
+    int widest = -1;
+    double widest_extent = 0;
+    for (int a = 0; a < 3 && count > leaf_size_; ++a) {
+      const double extent = cmax[a] - cmin[a];
+      if (!(extent > 0)) continue;
+      if (extent > widest_extent) {
+        widest = a;
+        widest_extent = extent;
+      }
+      if (!std::isfinite(extent)) continue;
+      std::size_t n[kBins] = {};
+      AabbF box[kBins];
+      std::fill(std::begin(box), std::end(box), kEmpty);
+      const double scale = kBins / extent;
+      for (const OctItem& it : items) {
+        const int b = std::min(kBins - 1, static_cast<int>((centre(it, a) - cmin[a]) * scale));
+        ++n[b];
+        box[b] = merged(box[b], it.box);
+      }
+      double right_area[kBins];
+      std::size_t right_n[kBins];
+      AabbF acc = kEmpty;
+      std::size_t acc_n = 0;
+      for (int b = kBins - 1; b > 0; --b) {
+        acc = merged(acc, box[b]);
+        acc_n += n[b];
+        right_area[b] = area(acc);
+        right_n[b] = acc_n;
+      }
+      acc = kEmpty;
+      acc_n = 0;
+      for (int b = 0; b < kBins - 1; ++b) {
+        acc = merged(acc, box[b]);
+        acc_n += n[b];
+        if (acc_n == 0 || right_n[b + 1] == 0) continue;
+        const double cost = area(acc) * double(acc_n) + right_area[b + 1] * double(right_n[b + 1]);
+        if (cost < best_cost) {
+          best_cost = cost;
+          best_axis = a;
+          best_split = cmin[a] + (b + 1) / scale;
+        }
+      }
+    }
+    if (widest < 0) {  // few objects, or all centres equal: a leaf
+      for (const OctItem& it : items) attach(t.node, it.slot, it.box);
+      continue;
+    }
+
+    std::size_t mid = 0;
+    float split = 0;
+    int axis = best_axis;
+    if (axis >= 0) {
+      split = static_cast<float>(best_split);
+      const auto part = std::partition(items.begin(), items.end(), [&](const OctItem& it) {
+        return centre(it, axis) < static_cast<double>(split);
+      });
+      mid = static_cast<std::size_t>(part - items.begin());
+    }
+    if (mid == 0 || mid == count) {
+      // Rounding emptied a side (or the centres overflow the bins): split
+      // at the median of the widest axis instead.
+      axis = widest;
+      mid = count / 2;
+      std::nth_element(
+          items.begin(), items.begin() + static_cast<std::ptrdiff_t>(mid), items.end(),
+          [&](const OctItem& x, const OctItem& y) { return centre(x, axis) < centre(y, axis); });
+      split = static_cast<float>(centre(items[mid], axis));
+    }
+    const std::uint32_t left = new_node(t.node);
+    const std::uint32_t right = new_node(t.node);
+    Node& n = nodes_[t.node];
+    // An inner node holds no objects: give back the capacity it may have
+    // kept from a life as a leaf (it was a third of the tree's memory).
+    std::vector<OctItem>().swap(n.items);
+    n.left = left;
+    n.right = right;
+    n.axis = static_cast<std::uint8_t>(axis);
+    n.split = split;
+    tasks.push({left, t.begin, t.begin + mid});
+    tasks.push({right, t.begin + mid, t.end});
+  }
+}
+
+void KdTree::rebuild() {
+  scratch_.clear();
+  for (std::uint32_t slot = 0; slot < store_.slot_count(); ++slot)
+    if (store_.slots().alive(slot))
+      scratch_.push_back({nodes_[node_of_[slot]].items[pos_of_[slot]].box, slot});
+  free_.clear();
+  for (std::uint32_t i = static_cast<std::uint32_t>(nodes_.size()); i-- > 0;) free_.push_back(i);
+  surface_ = 0;
+  root_ = new_node(kNoNode);
+  build(root_, 0, scratch_.size());
+  built_surface_ = surface_;
+  built_size_ = store_.size();
+  ++rebuilds_;
+}
+
+void KdTree::split_leaf(std::uint32_t node) {
+  std::vector<OctItem>& items = nodes_[node].items;
+  scratch_.assign(items.begin(), items.end());
+  items.clear();
+  surface_ -= area(nodes_[node].box);
+  build(node, 0, scratch_.size());
+}
+
+void KdTree::refit_path(std::uint32_t node) {
+  for (std::uint32_t n = node; n != kNoNode; n = nodes_[n].parent) {
+    Node& x = nodes_[n];
+    const AabbF fresh =
+        x.left == kNoNode ? union_of(x.items) : merged(nodes_[x.left].box, nodes_[x.right].box);
+    if (same(fresh, x.box)) return;
+    surface_ += area(fresh) - area(x.box);
+    x.box = fresh;
+  }
+}
+
+void KdTree::refit_all() {
+  // Children before parents: reverse of a pre-order walk.
+  scratch_order_.clear();
+  scratch_order_.push_back(root_);
+  for (std::size_t i = 0; i < scratch_order_.size(); ++i) {
+    const Node& n = nodes_[scratch_order_[i]];
+    if (n.left != kNoNode) {
+      scratch_order_.push_back(n.left);
+      scratch_order_.push_back(n.right);
+    }
+  }
+  surface_ = 0;
+  for (std::size_t i = scratch_order_.size(); i-- > 0;) {
+    Node& x = nodes_[scratch_order_[i]];
+    x.box = x.left == kNoNode ? union_of(x.items) : merged(nodes_[x.left].box, nodes_[x.right].box);
+    surface_ += area(x.box);
+  }
+}
+
+void KdTree::after_motion() {
+  if (policy_ == Policy::always || (policy_ == Policy::decay && surface_ > decay_ * built_surface_))
+    rebuild();
+}
+
+void KdTree::after_resize() {
+  const std::size_t n = store_.size();
+  if ((n > 2 * built_size_ && n > leaf_size_) || 2 * n < built_size_) rebuild();
+}
+
+Handle KdTree::insert(const Shape& s, std::uint64_t user, Motion) {
+  const Handle h = store_.insert(s, user);
+  if (h.index >= node_of_.size()) {
+    node_of_.resize(h.index + 1);
+    pos_of_.resize(h.index + 1);
+  }
+  std::uint32_t n = root_;
+  while (!leaf(n)) {
+    const Node& x = nodes_[n];
+    n = s.center[x.axis] < static_cast<double>(x.split) ? x.left : x.right;
+  }
+  const AabbF f = bounds_f(s);
+  attach(n, h.index, f);
+  for (std::uint32_t m = n; m != kNoNode; m = nodes_[m].parent) {
+    const AabbF grown = merged(nodes_[m].box, f);
+    if (same(grown, nodes_[m].box)) break;
+    surface_ += area(grown) - area(nodes_[m].box);
+    nodes_[m].box = grown;
+  }
+  if (nodes_[n].items.size() > leaf_size_) split_leaf(n);
+  after_resize();
+  return h;
+}
+
+void KdTree::remove(Handle h) {
+  const std::uint32_t slot = store_.erase(h);
+  const std::uint32_t n = node_of_[slot];
+  std::vector<OctItem>& items = nodes_[n].items;
+  const std::uint32_t p = pos_of_[slot];
+  items[p] = items.back();
+  pos_of_[items[p].slot] = p;
+  items.pop_back();
+  refit_path(n);
+  if (items.empty() && n != root_) {
+    // Replace the parent by the sibling: the parent's box equals the
+    // sibling's now, so nothing above changes.
+    const std::uint32_t parent = nodes_[n].parent;
+    const std::uint32_t sibling =
+        nodes_[parent].left == n ? nodes_[parent].right : nodes_[parent].left;
+    const std::uint32_t grand = nodes_[parent].parent;
+    surface_ -= area(nodes_[parent].box);
+    nodes_[sibling].parent = grand;
+    if (grand == kNoNode)
+      root_ = sibling;
+    else if (nodes_[grand].left == parent)
+      nodes_[grand].left = sibling;
+    else
+      nodes_[grand].right = sibling;
+    free_.push_back(n);
+    free_.push_back(parent);
+  }
+  after_resize();
+}
+
+void KdTree::update(Handle h, const Shape& s) {
+  const std::uint32_t slot = store_.set_shape(h, s);
+  const std::uint32_t n = node_of_[slot];
+  nodes_[n].items[pos_of_[slot]].box = bounds_f(s);
+  refit_path(n);
+  after_motion();
+}
+
+void KdTree::update(std::span<const Move> moves) {
+  try {
+    for (const Move& m : moves) {
+      const std::uint32_t slot = store_.set_shape(m.handle, m.shape);
+      nodes_[node_of_[slot]].items[pos_of_[slot]].box = bounds_f(m.shape);
+    }
+  } catch (...) {
+    refit_all();  // the moves made before the bad one stand
+    throw;
+  }
+  refit_all();
+  after_motion();
+}
+
+std::size_t KdTree::memory_bytes() const {
+  std::size_t bytes =
+      store_.memory_bytes() + nodes_.capacity() * sizeof(Node) +
+      scratch_.capacity() * sizeof(OctItem) +
+      (free_.capacity() + scratch_order_.capacity() + node_of_.capacity() + pos_of_.capacity()) *
+          sizeof(std::uint32_t);
+  for (const Node& n : nodes_) bytes += n.items.capacity() * sizeof(OctItem);
+  return bytes;
+}
+
+void KdTree::validate() const {
+  store_.validate();
+  auto fail = [](const std::string& what) { throw std::logic_error("kdtree: " + what); };
+  std::size_t placed = 0;
+  for (std::uint32_t slot = 0; slot < store_.slot_count(); ++slot) {
+    if (!store_.slots().alive(slot)) continue;
+    ++placed;
+    const std::uint32_t n = node_of_[slot];
+    if (n >= nodes_.size() || !leaf(n) || pos_of_[slot] >= nodes_[n].items.size() ||
+        nodes_[n].items[pos_of_[slot]].slot != slot)
+      fail("an object's leaf and position disagree with the leaf's items");
+    if (!same(nodes_[n].items[pos_of_[slot]].box, bounds_f(store_.shape(slot))))
+      fail("stale stored box");
+  }
+  std::size_t reachable = 0, items = 0;
+  std::vector<std::uint32_t> stack{root_};
+  if (nodes_[root_].parent != kNoNode) fail("root has a parent");
+  while (!stack.empty()) {
+    const std::uint32_t n = stack.back();
+    stack.pop_back();
+    ++reachable;
+    const Node& x = nodes_[n];
+    items += x.items.size();
+    if (x.left == kNoNode) {
+      if (x.right != kNoNode) fail("half a leaf");
+      if (!same(x.box, union_of(x.items))) fail("leaf box is not the union of its objects");
+      if (x.items.empty() && n != root_) fail("empty leaf below the root");
+      continue;
+    }
+    if (!x.items.empty()) fail("objects in an inner node");
+    if (nodes_[x.left].parent != n || nodes_[x.right].parent != n) fail("child links");
+    if (!same(x.box, merged(nodes_[x.left].box, nodes_[x.right].box)))
+      fail("inner box is not the union of its children");
+    stack.push_back(x.left);
+    stack.push_back(x.right);
+  }
+  if (items != placed) fail("object count");
+  if (reachable + free_.size() != nodes_.size()) fail("node pool and free list");
+}
+
+}  // namespace broadphase

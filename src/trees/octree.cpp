@@ -1,0 +1,260 @@
+#include <broadphase/octree.hpp>
+#include <string>
+
+namespace broadphase {
+
+using detail::kNoNode;
+
+Octree::Octree(const Config& c) : cube_(detail::Cube::around(c.world)) {
+  OptionReader opt(c, "octree");
+  split_ = static_cast<std::size_t>(opt.number("split", 32, 1, 1e6));
+  opt.finish();
+  nodes_.emplace_back();
+  nodes_[0].cell = cube_.cell(0, 0, 0, 0);
+  if (c.expected_objects != 0) {
+    node_of_.reserve(c.expected_objects);
+    pos_of_.reserve(c.expected_objects);
+  }
+}
+
+Vec3 Octree::mid(const Node& n) const {
+  const int d = n.depth + 1;
+  return {cube_.boundary(0, d, 2ull * n.ix + 1), cube_.boundary(1, d, 2ull * n.iy + 1),
+          cube_.boundary(2, d, 2ull * n.iz + 1)};
+}
+
+namespace {
+
+// True when `b` may live at a node with this cell: inside it, and touching
+// none of its faces that is a midplane of an ancestor (faces on the world
+// cube's boundary may be touched, as the root's containment test allows).
+bool inside(const Aabb& cell, int depth, const std::uint32_t (&idx)[3], const Aabb& b) {
+  const std::uint64_t last = (1ull << depth) - 1;
+  for (int a = 0; a < 3; ++a) {
+    if (idx[a] == 0 ? b.lo[a] < cell.lo[a] : b.lo[a] <= cell.lo[a]) return false;
+    if (idx[a] == last ? b.hi[a] > cell.hi[a] : b.hi[a] >= cell.hi[a]) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+std::uint32_t Octree::descend(std::uint32_t from, const Aabb& b) const {
+  std::uint32_t n = from;
+  while (nodes_[n].first_child != kNoNode) {
+    const int o = detail::strict_octant(b, mid(nodes_[n]));
+    if (o < 0) break;
+    n = nodes_[n].first_child + static_cast<std::uint32_t>(o);
+  }
+  return n;
+}
+
+void Octree::place(std::uint32_t node, std::uint32_t slot, const AabbF& box) {
+  std::vector<detail::OctItem>& items = nodes_[node].items;
+  node_of_[slot] = node;
+  pos_of_[slot] = static_cast<std::uint32_t>(items.size());
+  items.push_back({box, slot});
+}
+
+void Octree::detach(std::uint32_t slot) {
+  const std::uint32_t n = node_of_[slot];
+  std::vector<detail::OctItem>& items = nodes_[n].items;
+  const std::uint32_t p = pos_of_[slot];
+  items[p] = items.back();
+  pos_of_[items[p].slot] = p;
+  items.pop_back();
+  add_count(n, -1);
+}
+
+void Octree::add_count(std::uint32_t node, int delta) {
+  for (std::uint32_t n = node; n != kNoNode; n = nodes_[n].parent)
+    nodes_[n].subtree = static_cast<std::uint32_t>(static_cast<int>(nodes_[n].subtree) + delta);
+}
+
+std::uint32_t Octree::allocate_children(std::uint32_t parent) {
+  std::uint32_t first;
+  if (!free_blocks_.empty()) {
+    first = free_blocks_.back();
+    free_blocks_.pop_back();
+  } else {
+    first = static_cast<std::uint32_t>(nodes_.size());
+    nodes_.resize(nodes_.size() + 8);
+  }
+  const Node& p = nodes_[parent];
+  const int depth = p.depth + 1;
+  const std::uint32_t px = p.ix, py = p.iy, pz = p.iz;
+  for (std::uint32_t o = 0; o < 8; ++o) {
+    Node& c = nodes_[first + o];
+    c.ix = 2 * px + (o & 1);
+    c.iy = 2 * py + ((o >> 1) & 1);
+    c.iz = 2 * pz + ((o >> 2) & 1);
+    c.depth = static_cast<std::uint8_t>(depth);
+    c.cell = cube_.cell(depth, c.ix, c.iy, c.iz);
+    c.parent = parent;
+    c.first_child = kNoNode;
+    c.subtree = 0;
+    c.items.clear();
+  }
+  nodes_[parent].first_child = first;
+  return first;
+}
+
+int Octree::child_octant(std::uint32_t node, std::uint32_t slot, const Vec3& m) const {
+  const Aabb b = bounds(store_.shape(slot));
+  // The root also holds the objects outside the world cube: they stay.
+  if (node == 0 && !nodes_[0].cell.contains(b)) return -1;
+  return detail::strict_octant(b, m);
+}
+
+void Octree::split(std::uint32_t node) {
+  // Split only when at least one object would move down: a split that moves
+  // nothing would leave eight empty children to be merged right back.
+  const Vec3 m = mid(nodes_[node]);
+  bool any = false;
+  for (const detail::OctItem& it : nodes_[node].items)
+    if (child_octant(node, it.slot, m) >= 0) {
+      any = true;
+      break;
+    }
+  if (!any) return;
+  const std::uint32_t first = allocate_children(node);
+  std::vector<detail::OctItem>& items = nodes_[node].items;
+  for (std::size_t i = 0; i < items.size();) {
+    const detail::OctItem it = items[i];
+    const int o = child_octant(node, it.slot, m);
+    if (o < 0) {
+      ++i;
+      continue;
+    }
+    items[i] = items.back();
+    pos_of_[items[i].slot] = static_cast<std::uint32_t>(i);
+    items.pop_back();
+    const std::uint32_t c = first + static_cast<std::uint32_t>(o);
+    place(c, it.slot, it.box);
+    ++nodes_[c].subtree;
+  }
+  for (std::uint32_t c = first; c < first + 8; ++c)
+    if (nodes_[c].items.size() > split_ && nodes_[c].depth < kMaxDepth) split(c);
+}
+
+void Octree::free_children(std::uint32_t node) {
+  const std::uint32_t first = nodes_[node].first_child;
+  for (std::uint32_t c = first; c < first + 8; ++c) {
+    if (nodes_[c].first_child != kNoNode) free_children(c);
+    nodes_[c].items.clear();
+  }
+  free_blocks_.push_back(first);
+  nodes_[node].first_child = kNoNode;
+}
+
+void Octree::merge_empty_above(std::uint32_t node) {
+  std::uint32_t top = kNoNode;
+  for (std::uint32_t n = node; n != kNoNode; n = nodes_[n].parent)
+    if (nodes_[n].first_child != kNoNode && nodes_[n].subtree == nodes_[n].items.size()) top = n;
+  if (top != kNoNode) free_children(top);
+}
+
+Handle Octree::insert(const Shape& s, std::uint64_t user, Motion) {
+  const Handle h = store_.insert(s, user);
+  if (h.index >= node_of_.size()) {
+    node_of_.resize(h.index + 1);
+    pos_of_.resize(h.index + 1);
+  }
+  const Aabb b = bounds(s);
+  const std::uint32_t n = nodes_[0].cell.contains(b) ? descend(0, b) : 0;
+  place(n, h.index, bounds_f(s));
+  add_count(n, +1);
+  if (nodes_[n].first_child == kNoNode && nodes_[n].items.size() > split_ &&
+      nodes_[n].depth < kMaxDepth)
+    split(n);
+  return h;
+}
+
+void Octree::remove(Handle h) {
+  const std::uint32_t slot = store_.erase(h);
+  const std::uint32_t n = node_of_[slot];
+  detach(slot);
+  merge_empty_above(n);
+}
+
+void Octree::update(Handle h, const Shape& s) {
+  const std::uint32_t slot = store_.set_shape(h, s);
+  const Aabb b = bounds(s);
+  const std::uint32_t n = node_of_[slot];
+  // Climb to the nearest cell that may hold the new box, then go down again.
+  std::uint32_t a = n;
+  while (a != 0) {
+    const Node& an = nodes_[a];
+    const std::uint32_t idx[3] = {an.ix, an.iy, an.iz};
+    if (inside(an.cell, an.depth, idx, b)) break;
+    a = an.parent;
+  }
+  const std::uint32_t target = (a != 0 || nodes_[0].cell.contains(b)) ? descend(a, b) : 0;
+  if (target == n) {
+    nodes_[n].items[pos_of_[slot]].box = bounds_f(s);
+    return;
+  }
+  detach(slot);
+  place(target, slot, bounds_f(s));
+  add_count(target, +1);
+  if (nodes_[target].first_child == kNoNode && nodes_[target].items.size() > split_ &&
+      nodes_[target].depth < kMaxDepth)
+    split(target);
+  merge_empty_above(n);
+}
+
+std::size_t Octree::memory_bytes() const {
+  std::size_t bytes = store_.memory_bytes() + nodes_.capacity() * sizeof(Node) +
+                      free_blocks_.capacity() * sizeof(std::uint32_t) +
+                      (node_of_.capacity() + pos_of_.capacity()) * sizeof(std::uint32_t);
+  for (const Node& n : nodes_) bytes += n.items.capacity() * sizeof(detail::OctItem);
+  return bytes;
+}
+
+void Octree::validate() const {
+  store_.validate();
+  auto fail = [](const std::string& what) { throw std::logic_error("octree: " + what); };
+  std::size_t placed = 0;
+  for (std::uint32_t slot = 0; slot < store_.slot_count(); ++slot) {
+    if (!store_.slots().alive(slot)) continue;
+    ++placed;
+    const std::uint32_t n = node_of_[slot];
+    if (n >= nodes_.size() || pos_of_[slot] >= nodes_[n].items.size() ||
+        nodes_[n].items[pos_of_[slot]].slot != slot)
+      fail("an object's node and position disagree with the node's items");
+    const detail::OctItem& it = nodes_[n].items[pos_of_[slot]];
+    const AabbF f = bounds_f(store_.shape(slot));
+    for (int a = 0; a < 3; ++a)
+      if (it.box.lo[a] != f.lo[a] || it.box.hi[a] != f.hi[a]) fail("stale stored box");
+    const Aabb b = bounds(store_.shape(slot));
+    const std::uint32_t want = nodes_[0].cell.contains(b) ? descend(0, b) : 0;
+    if (want != n) fail("object " + std::to_string(slot) + " is not at its smallest cell");
+  }
+  // Walk the tree: counts, parents, cells and merging.
+  std::size_t reachable = 0, items = 0;
+  std::vector<std::uint32_t> stack{0};
+  while (!stack.empty()) {
+    const std::uint32_t n = stack.back();
+    stack.pop_back();
+    ++reachable;
+    const Node& node = nodes_[n];
+    items += node.items.size();
+    std::size_t sum = node.items.size();
+    if (node.first_child != kNoNode) {
+      if (node.depth >= kMaxDepth) fail("node below the maximum depth");
+      for (std::uint32_t c = node.first_child; c < node.first_child + 8; ++c) {
+        const Node& child = nodes_[c];
+        if (child.parent != n || child.depth != node.depth + 1) fail("child links");
+        if (!node.cell.contains(child.cell)) fail("child cell outside its parent");
+        sum += child.subtree;
+        stack.push_back(c);
+      }
+      if (sum == node.items.size()) fail("children left unmerged with an empty subtree");
+    }
+    if (sum != node.subtree) fail("subtree count");
+  }
+  if (items != placed || nodes_[0].subtree != store_.size()) fail("object count");
+  if (reachable + 8 * free_blocks_.size() != nodes_.size()) fail("node pool and free list");
+}
+
+}  // namespace broadphase

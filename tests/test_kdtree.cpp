@@ -1,0 +1,143 @@
+// The k-d tree: refitting, the rebuild policies, collapsing emptied leaves,
+// coincident centres, and failed bulk updates.
+#include <gtest/gtest.h>
+
+#include <broadphase/kdtree.hpp>
+#include <cstdint>
+#include <vector>
+
+#include "testing.hpp"
+
+namespace broadphase {
+namespace {
+
+std::size_t count_pairs(const KdTree& t) {
+  std::size_t n = 0;
+  t.for_each_pair([&](Handle, Handle) { ++n; });
+  return n;
+}
+
+struct Filled {
+  KdTree tree;
+  std::vector<Handle> handles;
+  std::vector<Shape> shapes;
+};
+
+Filled filled(const char* policy, int n) {
+  Config c;
+  c.options["rebuild"] = policy;
+  Filled f{KdTree(c), {}, {}};
+  Rng rng(21);
+  for (int i = 0; i < n; ++i) {
+    f.shapes.push_back(
+        Shape::sphere({rng.uniform(0, 1000), rng.uniform(0, 1000), rng.uniform(0, 1000)}, 2));
+    f.handles.push_back(f.tree.insert(f.shapes.back(), static_cast<std::uint64_t>(i)));
+  }
+  return f;
+}
+
+// Scatters every object to a fresh random place, as one bulk update.
+void scatter(Filled& f, std::uint64_t seed) {
+  Rng rng(seed);
+  std::vector<Move> moves;
+  for (std::size_t i = 0; i < f.handles.size(); ++i)
+    moves.push_back(
+        {f.handles[i],
+         Shape::sphere({rng.uniform(0, 1000), rng.uniform(0, 1000), rng.uniform(0, 1000)}, 2)});
+  f.tree.update(moves);
+}
+
+TEST(KdTree, RefitOnlyNeverRebuildsForMotionAndDecays) {
+  Filled f = filled("refit", 500);
+  const std::uint64_t built = f.tree.rebuilds();
+  scatter(f, 1);
+  f.tree.validate();
+  EXPECT_EQ(f.tree.rebuilds(), built);
+  EXPECT_GT(f.tree.surface_sum(), 2 * f.tree.built_surface_sum());
+}
+
+TEST(KdTree, DecayPolicyRebuildsWhenSurfaceGrows) {
+  Filled f = filled("decay", 500);
+  const std::uint64_t built = f.tree.rebuilds();
+  scatter(f, 1);
+  f.tree.validate();
+  EXPECT_EQ(f.tree.rebuilds(), built + 1);
+  EXPECT_LE(f.tree.surface_sum(), 1.5 * f.tree.built_surface_sum());
+  // A tiny move keeps the tree.
+  f.tree.update(f.handles[0], Shape::sphere(f.shapes[0].center + Vec3{0.001, 0, 0}, 2));
+  EXPECT_EQ(f.tree.rebuilds(), built + 1);
+}
+
+TEST(KdTree, AlwaysPolicyRebuildsOnEveryUpdateCall) {
+  Filled f = filled("always", 200);
+  const std::uint64_t built = f.tree.rebuilds();
+  scatter(f, 2);
+  f.tree.update(f.handles[3], Shape::sphere({1, 2, 3}, 4));
+  f.tree.validate();
+  EXPECT_EQ(f.tree.rebuilds(), built + 2);
+}
+
+TEST(KdTree, RebuildsWhenTheCountDoublesOrHalves) {
+  Filled f = filled("refit", 1000);
+  const std::uint64_t built = f.tree.rebuilds();
+  EXPECT_EQ(built, 7u);  // at 9, 19, 39, ... 639 objects
+  for (int i = 0; i < 700; ++i) f.tree.remove(f.handles[static_cast<std::size_t>(i)]);
+  f.tree.validate();
+  EXPECT_EQ(f.tree.rebuilds(), built + 1);
+}
+
+TEST(KdTree, EmptiedLeavesCollapseIntoTheirSibling) {
+  Config c;
+  c.options["leaf"] = "1";
+  KdTree t(c);
+  std::vector<Handle> hs;
+  for (int i = 0; i < 64; ++i)
+    hs.push_back(t.insert(Shape::sphere({10.0 * i, 10.0 * (i % 7), 5}, 8), i));
+  const std::size_t pairs = count_pairs(t);
+  EXPECT_GT(pairs, 50u);
+  for (int i = 0; i < 64; i += 2) {
+    t.remove(hs[static_cast<std::size_t>(i)]);
+    t.validate();
+  }
+  for (int i = 1; i < 64; i += 2) {
+    t.remove(hs[static_cast<std::size_t>(i)]);
+    t.validate();
+  }
+  EXPECT_EQ(t.size(), 0u);
+  EXPECT_EQ(count_pairs(t), 0u);
+}
+
+TEST(KdTree, CoincidentCentresMakeOneBigLeaf) {
+  KdTree t;
+  for (int i = 0; i < 1500; ++i) t.insert(Shape::sphere({7, 7, 7}, i % 3), i);
+  t.validate();
+  EXPECT_EQ(count_pairs(t), 1500u * 1499u / 2);
+}
+
+TEST(KdTree, FailedBulkUpdateLeavesAValidTree) {
+  Filled f = filled("decay", 100);
+  std::vector<Move> moves{{f.handles[0], Shape::sphere({5, 5, 5}, 1)},
+                          {Handle{12345, 1}, Shape::sphere({5, 5, 5}, 1)}};
+  EXPECT_THROW(f.tree.update(moves), InvalidHandle);
+  f.tree.validate();
+  EXPECT_EQ(f.tree.shape(f.handles[0]).center, (Vec3{5, 5, 5}));
+}
+
+TEST(KdTree, RejectsBadOptions) {
+  EXPECT_THROW(make_structure("kdtree:rebuild=sometimes"), UnknownStructure);
+  EXPECT_THROW(make_structure("kdtree:decay=0.5"), UnknownStructure);
+  EXPECT_THROW(make_structure("kdtree:leaf=0"), UnknownStructure);
+}
+
+TEST(KdTree, MatchesNaiveUnderEveryPolicy) {
+  for (const char* spec :
+       {"kdtree:rebuild=refit", "kdtree:rebuild=always,leaf=1", "kdtree:leaf=64,decay=1"}) {
+    for (auto w : {testing::World::mixed, testing::World::touching, testing::World::huge}) {
+      testing::differential(spec, w, 19, 500);
+      if (HasFailure()) return;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace broadphase
