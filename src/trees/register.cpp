@@ -1,5 +1,6 @@
 #include "../register.hpp"
 
+#include <broadphase/aabb_tree.hpp>
 #include <broadphase/sap.hpp>
 #include <broadphase/sort_sweep.hpp>
 
@@ -12,6 +13,16 @@ void register_trees(Registry& r) {
   add_structure<SortSweep>(r, "sort-sweep",
                            "batch sweep-and-prune: radix sort on the axis of largest variance "
                            "each frame, then sweep");
+  add_structure<AabbTree>(r, "aabb-tree",
+                          "dynamic AABB tree: fat leaves, surface-area insertion, rotations, "
+                          "self-traversal (options margin, order, max_depth, front)");
+  r.add({"aabb-tree-front",
+         "aabb-tree keeping the traversal front between frames (front=basic; also deferred)", false,
+         [](const Config& c) -> std::unique_ptr<AnyBroadPhase> {
+           Config with_front = c;
+           with_front.options.try_emplace("front", "basic");
+           return std::make_unique<Erased<AabbTree>>(with_front, "aabb-tree-front");
+         }});
 }
 
 }  // namespace broadphase::detail
