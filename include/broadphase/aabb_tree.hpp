@@ -66,6 +66,9 @@ struct TraversalStats {
 /// - `margin=M` (default 0.002 x the largest edge of Config::world): world
 ///   units added around a moving object's box; moves inside it cost O(1).
 ///   Objects inserted as Motion::fixed get no margin until first moved.
+/// - `predict=K` (default 2): when a leaf is refreshed its fat box is also
+///   stretched by K times the object's last displacement, in the direction
+///   of motion (0: no prediction).
 /// - `order=leaves-first|smaller-first|hit-ratio|near-far|none` (default
 ///   leaves-first): which child every traversal descends into first, fixed
 ///   whenever a node is (re)built: a leaf before a subtree, the subtree with
@@ -145,6 +148,7 @@ class AabbTree {
 
  private:
   static constexpr std::uint32_t kNull = 0xffffffffu;
+  static constexpr int kSiblingBudget = 64;  // nodes the sibling search may visit
 
   // One cache line: the box first (what every traversal step reads), then
   // the links. Leaves carry the object's slot; internal nodes kNull.
@@ -157,6 +161,7 @@ class AabbTree {
     std::uint16_t height;  // 0 for a leaf
     std::uint8_t first;    // index of the child to descend first
     std::uint8_t live;
+    float area;  // area(box), cached for the traversal's split choice
     bool is_leaf() const { return object != kNull; }
   };
   static_assert(sizeof(Node) == 64, "a node is one cache line");
@@ -177,7 +182,7 @@ class AabbTree {
 
   std::uint32_t allocate_node();
   void free_node(std::uint32_t n);
-  AabbF fat_box(std::uint32_t slot) const;
+  AabbF fat_box(std::uint32_t slot, const Vec3& displacement) const;
   void insert_leaf(std::uint32_t leaf);
   void remove_leaf(std::uint32_t leaf);
   std::uint32_t best_sibling(const AabbF& box) const;
@@ -191,9 +196,24 @@ class AabbTree {
   void discard_front() { front_valid_ = false; }
 
   static bool boxes_overlap(const AabbF& a, const AabbF& b) { return a.overlaps(b); }
-  static float area(const AabbF& b);
-  static AabbF merged(const AabbF& a, const AabbF& b);
-  static bool holds(const AabbF& outer, const AabbF& inner);
+  // Half the surface area; only compared, so the factor 2 is dropped.
+  static float area(const AabbF& b) {
+    const float x = b.hi[0] - b.lo[0], y = b.hi[1] - b.lo[1], z = b.hi[2] - b.lo[2];
+    return x * y + y * z + z * x;
+  }
+  static AabbF merged(const AabbF& a, const AabbF& b) {
+    AabbF m;
+    for (int k = 0; k < 3; ++k) {
+      m.lo[k] = a.lo[k] < b.lo[k] ? a.lo[k] : b.lo[k];
+      m.hi[k] = a.hi[k] > b.hi[k] ? a.hi[k] : b.hi[k];
+    }
+    return m;
+  }
+  static bool holds(const AabbF& outer, const AabbF& inner) {
+    for (int k = 0; k < 3; ++k)
+      if (!(outer.lo[k] <= inner.lo[k] && inner.hi[k] <= outer.hi[k])) return false;
+    return true;
+  }
 
   // Tests two leaves' objects: tight boxes, then the exact predicate.
   template <class V>
@@ -218,6 +238,7 @@ class AabbTree {
   std::uint32_t free_ = kNull;
   std::uint32_t node_count_ = 0;
   double margin_ = 0;
+  double predict_ = 2;
   Order order_ = Order::leaves_first;
   FrontMode front_mode_ = FrontMode::off;
   std::uint32_t max_depth_ = 0;
@@ -318,9 +339,31 @@ bool AabbTree::brute(std::uint32_t a, std::uint32_t b, V& visitor, QueryCost& co
 
 template <bool Record, class V>
 bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& stats) const {
+  // Without a front to record, child pairs are tested before they are
+  // pushed, so the stack only ever holds overlapping pairs (half the pushes
+  // and pops, and each node is read while its parent is still in cache).
+  // `parent` then marks a pair as already tested.
+  constexpr std::uint32_t kTested = 0xfffffffeu;
   detail::InlineStack<Task, 128> stack;
   stack.push(start);
   const bool limited = max_depth_ != 0;
+  const bool count = order_ == Order::hit_ratio;
+  auto test = [&](std::uint32_t a, std::uint32_t b) {
+    ++stats.node_tests;
+    const bool hit = boxes_overlap(nodes_[a].box, nodes_[b].box);
+    if (count) {
+      count_hit(a, hit);
+      count_hit(b, hit);
+    }
+    return hit;
+  };
+  auto push = [&](std::uint32_t a, std::uint32_t b, std::uint32_t depth, std::uint32_t parent) {
+    if constexpr (Record) {
+      stack.push({a, b, depth, parent});
+    } else if (test(a, b)) {
+      stack.push({a, b, depth, kTested});
+    }
+  };
   while (!stack.empty()) {
     const Task t = stack.pop();
     const Node& na = nodes_[t.a];
@@ -339,18 +382,13 @@ bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& 
         next_inner_.push_back({t.a, t.b, t.depth, t.parent});
       }
       const std::uint32_t c0 = na.child[na.first], c1 = na.child[1 - na.first];
-      stack.push({c0, c1, t.depth + 1, me});
+      push(c0, c1, t.depth + 1, me);
       stack.push({c1, c1, t.depth + 1, me});
       stack.push({c0, c0, t.depth + 1, me});
       continue;
     }
     const Node& nb = nodes_[t.b];
-    ++stats.node_tests;
-    const bool hit = boxes_overlap(na.box, nb.box);
-    if (order_ == Order::hit_ratio) {
-      count_hit(t.a, hit);
-      count_hit(t.b, hit);
-    }
+    const bool hit = (!Record && t.parent == kTested) || test(t.a, t.b);
     const bool terminal =
         !hit || (na.is_leaf() && nb.is_leaf()) || (limited && t.depth >= max_depth_);
     if (terminal) {
@@ -370,13 +408,12 @@ bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& 
     }
     // Split the larger box (a leaf cannot be split), so that the two sides
     // of each test stay of similar size.
-    const bool split_a = nb.is_leaf() || (!na.is_leaf() && area(na.box) >= area(nb.box));
-    if (split_a) {
-      stack.push({na.child[1 - na.first], t.b, t.depth + 1, me});
-      stack.push({na.child[na.first], t.b, t.depth + 1, me});
+    if (nb.is_leaf() || (!na.is_leaf() && na.area >= nb.area)) {
+      push(na.child[1 - na.first], t.b, t.depth + 1, me);
+      push(na.child[na.first], t.b, t.depth + 1, me);
     } else {
-      stack.push({t.a, nb.child[1 - nb.first], t.depth + 1, me});
-      stack.push({t.a, nb.child[nb.first], t.depth + 1, me});
+      push(t.a, nb.child[1 - nb.first], t.depth + 1, me);
+      push(t.a, nb.child[nb.first], t.depth + 1, me);
     }
   }
   return true;

@@ -33,6 +33,7 @@ AabbTree::AabbTree(const Config& c, const std::string& name) {
   margin_ = r.number("margin", 0.002 * edge, 0, 1e30);
   order_ = parse_order(r.choice(
       "order", "leaves-first", {"leaves-first", "smaller-first", "hit-ratio", "near-far", "none"}));
+  predict_ = r.number("predict", 2, 0, 1e6);
   max_depth_ = static_cast<std::uint32_t>(r.number("max_depth", 0, 0, 1e6));
   front_mode_ = parse_front(r.choice("front", "off", {"off", "basic", "deferred"}));
   r.finish();
@@ -41,27 +42,6 @@ AabbTree::AabbTree(const Config& c, const std::string& name) {
     leaf_.reserve(c.expected_objects);
     tight_.reserve(c.expected_objects);
   }
-}
-
-float AabbTree::area(const AabbF& b) {
-  // Half the surface area; only compared, so the factor 2 is dropped.
-  const float x = b.hi[0] - b.lo[0], y = b.hi[1] - b.lo[1], z = b.hi[2] - b.lo[2];
-  return x * y + y * z + z * x;
-}
-
-AabbF AabbTree::merged(const AabbF& a, const AabbF& b) {
-  AabbF m;
-  for (int k = 0; k < 3; ++k) {
-    m.lo[k] = std::min(a.lo[k], b.lo[k]);
-    m.hi[k] = std::max(a.hi[k], b.hi[k]);
-  }
-  return m;
-}
-
-bool AabbTree::holds(const AabbF& outer, const AabbF& inner) {
-  for (int k = 0; k < 3; ++k)
-    if (!(outer.lo[k] <= inner.lo[k] && inner.hi[k] <= outer.hi[k])) return false;
-  return true;
 }
 
 std::uint32_t AabbTree::allocate_node() {
@@ -93,13 +73,16 @@ void AabbTree::free_node(std::uint32_t n) {
   --node_count_;
 }
 
-AabbF AabbTree::fat_box(std::uint32_t slot) const {
+AabbF AabbTree::fat_box(std::uint32_t slot, const Vec3& displacement) const {
   const AabbF& t = tight_[slot];
-  if (!moved_[slot] || margin_ == 0) return t;
+  if (!moved_[slot] || (margin_ == 0 && predict_ == 0)) return t;
   AabbF f;
   for (int a = 0; a < 3; ++a) {
-    f.lo[a] = round_down(static_cast<double>(t.lo[a]) - margin_);
-    f.hi[a] = round_up(static_cast<double>(t.hi[a]) + margin_);
+    // Stretched along the last displacement, as Box2D and Bullet do, so an
+    // object moving steadily keeps its box for several frames.
+    const double ahead = predict_ * displacement[a];
+    f.lo[a] = round_down(static_cast<double>(t.lo[a]) - margin_ + std::min(ahead, 0.0));
+    f.hi[a] = round_up(static_cast<double>(t.hi[a]) + margin_ + std::max(ahead, 0.0));
   }
   return f;
 }
@@ -145,6 +128,7 @@ void AabbTree::refit(std::uint32_t n) {
   const Node& c0 = nodes_[node.child[0]];
   const Node& c1 = nodes_[node.child[1]];
   node.box = merged(c0.box, c1.box);
+  node.area = area(node.box);
   node.leaves = c0.leaves + c1.leaves;
   node.height = static_cast<std::uint16_t>(1 + std::max(c0.height, c1.height));
 }
@@ -212,6 +196,10 @@ std::uint32_t AabbTree::best_sibling(const AabbF& box) const {
   // the growth this causes in every ancestor of S (inherited cost). Below S
   // the cost is at least area(box) + inherited + growth of S itself, so a
   // subtree whose lower bound is not below the best cost found is skipped.
+  // Depth first, the child that grows less first, so the first path is the
+  // greedy one; a visit budget bounds the search in crowded regions (an
+  // explosion's core), where the bound prunes little and any sibling is
+  // still a valid choice.
   const float leaf_area = area(box);
   std::uint32_t best = root_;
   float best_cost = area(merged(nodes_[root_].box, box));
@@ -221,7 +209,7 @@ std::uint32_t AabbTree::best_sibling(const AabbF& box) const {
   };
   detail::InlineStack<Item, 64> stack;
   stack.push({root_, 0.0f});
-  while (!stack.empty()) {
+  for (int budget = kSiblingBudget; !stack.empty() && budget > 0; --budget) {
     const Item it = stack.pop();
     const Node& node = nodes_[it.node];
     const float direct = area(merged(node.box, box));
@@ -300,7 +288,8 @@ Handle AabbTree::insert(const Shape& s, std::uint64_t user, Motion m) {
   moved_[i] = m == Motion::dynamic ? 1 : 0;
   const std::uint32_t leaf = allocate_node();
   nodes_[leaf].object = i;
-  nodes_[leaf].box = fat_box(i);
+  nodes_[leaf].box = fat_box(i, {});
+  nodes_[leaf].area = area(nodes_[leaf].box);
   leaf_[i] = leaf;
   insert_leaf(leaf);
   return h;
@@ -315,15 +304,21 @@ void AabbTree::remove(Handle h) {
 }
 
 void AabbTree::update(Handle h, const Shape& s) {
+  const Vec3 before = store_.shape_of(h).center;
   const std::uint32_t i = store_.set_shape(h, s);
   tight_[i] = bounds_f(s);
   const std::uint32_t leaf = leaf_[i];
   if (holds(nodes_[leaf].box, tight_[i])) return;
   moved_[i] = 1;
+  // A jump far beyond the box size is a teleport, not a motion to predict.
+  Vec3 d = s.center - before;
+  for (int a = 0; a < 3; ++a)
+    if (!(std::fabs(d[a]) <= 4 * (s.half[a] + margin_))) d = {};
   if (front_mode_ != FrontMode::off) {
     // Refit in place: the topology, and so the front, stays valid. Stop as
     // soon as an ancestor's box does not change.
-    nodes_[leaf].box = fat_box(i);
+    nodes_[leaf].box = fat_box(i, d);
+    nodes_[leaf].area = area(nodes_[leaf].box);
     for (std::uint32_t n = nodes_[leaf].parent; n != kNull; n = nodes_[n].parent) {
       const AabbF before = nodes_[n].box;
       refit(n);
@@ -336,7 +331,8 @@ void AabbTree::update(Handle h, const Shape& s) {
     return;
   }
   remove_leaf(leaf);
-  nodes_[leaf].box = fat_box(i);
+  nodes_[leaf].box = fat_box(i, d);
+  nodes_[leaf].area = area(nodes_[leaf].box);
   insert_leaf(leaf);
 }
 
@@ -374,6 +370,7 @@ void AabbTree::validate() const {
     stack.pop_back();
     const Node& node = nodes_[n];
     if (!node.live) fail("reached a free node");
+    if (node.area != area(node.box)) fail("cached area");
     if (++reached > node_count_) fail("cycle");
     if (node.is_leaf()) {
       ++leaves;
