@@ -77,6 +77,26 @@ TEST(Sap, CoherentMotionCrossesFewEndpoints) {
   EXPECT_LT(per_mover_per_frame, 40.0);
 }
 
+TEST(Sap, IncoherentBatchesRebuildAndStayExact) {
+  Scene scene = generate(Distribution::explosion, 1500, 6);
+  Sap s;
+  std::vector<Handle> h;
+  for (std::size_t i = 0; i < scene.size(); ++i) h.push_back(s.insert(scene.objects[i], i));
+  for (int f = 0; f < 14; ++f) {
+    step(scene);
+    std::vector<Move> moves;
+    for (std::size_t i = 0; i < scene.size(); ++i) moves.push_back({h[i], scene.objects[i]});
+    s.update(moves);
+    s.validate();
+    FrameDigest d;
+    s.for_each_pair([&](Handle x, Handle y) {
+      d.add(static_cast<std::uint32_t>(s.user_data(x)), static_cast<std::uint32_t>(s.user_data(y)));
+    });
+    ASSERT_EQ(d, testing::brute_force(scene.objects)) << "frame " << f;
+  }
+  EXPECT_GT(s.rebuilds(), 0u);
+}
+
 TEST(Sap, LargeObjectsComeAndGo) {
   Sap s;
   std::vector<Handle> small;

@@ -10,6 +10,7 @@
 #include <array>
 #include <atomic>
 #include <broadphase/broad_phase.hpp>
+#include <broadphase/pair_cache.hpp>
 #include <broadphase/registry.hpp>
 #include <cstdint>
 #include <mutex>
@@ -161,7 +162,8 @@ class AabbTree {
     std::uint16_t height;  // 0 for a leaf
     std::uint8_t first;    // index of the child to descend first
     std::uint8_t live;
-    float area;  // area(box), cached for the traversal's split choice
+    float area;          // area(box), cached for the traversal's split choice
+    std::uint8_t fixed;  // every leaf below is a never-moved Motion::fixed object
     bool is_leaf() const { return object != kNull; }
   };
   static_assert(sizeof(Node) == 64, "a node is one cache line");
@@ -194,6 +196,13 @@ class AabbTree {
   void set_order(std::uint32_t n);
   void count_hit(std::uint32_t n, bool hit) const;
   void discard_front() { front_valid_ = false; }
+  // Calls f(slot) for every object whose tight box overlaps b.
+  template <class F>
+  void for_each_overlapping_leaf(const AabbF& b, F&& f) const;
+  // A fixed object moves for the first time: its cached pairs go, and the
+  // traversal must now look at it.
+  void make_dynamic(std::uint32_t slot);
+  void set_fixed_flags(std::uint32_t leaf);
 
   static bool boxes_overlap(const AabbF& a, const AabbF& b) { return a.overlaps(b); }
   // Half the surface area; only compared, so the factor 2 is dropped.
@@ -244,6 +253,10 @@ class AabbTree {
   std::uint32_t max_depth_ = 0;
   int near_axis_ = 0;
   mutable std::vector<HitStats> hit_stats_;  // per node, order=hit-ratio only
+  // Exactly overlapping pairs of never-moved fixed objects: they cannot
+  // change until one of the two moves or goes, so the traversal skips node
+  // pairs that hold only such objects and all-pairs reports these directly.
+  detail::PairTable fixed_pairs_;
 
   // Front tracking state: a cache of the last traversal, guarded by the
   // mutex because const all-pairs passes rewrite it.
@@ -290,6 +303,7 @@ QueryCost AabbTree::query(const Shape& q, V&& visitor, TraversalStats& stats) co
 
 template <class V>
 bool AabbTree::leaf_pair(std::uint32_t x, std::uint32_t y, V& visitor, QueryCost& cost) const {
+  if (nodes_[x].fixed && nodes_[y].fixed) return true;  // in fixed_pairs_
   const std::uint32_t ox = nodes_[x].object, oy = nodes_[y].object;
   if (!boxes_overlap(tight_[ox], tight_[oy])) return true;
   ++cost.tests;
@@ -358,6 +372,7 @@ bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& 
     return hit;
   };
   auto push = [&](std::uint32_t a, std::uint32_t b, std::uint32_t depth, std::uint32_t parent) {
+    if (nodes_[a].fixed && nodes_[b].fixed) return;
     if constexpr (Record) {
       stack.push({a, b, depth, parent});
     } else if (test(a, b)) {
@@ -370,7 +385,7 @@ bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& 
     if (t.a == t.b) {
       // A subtree against itself always "overlaps": split it into both
       // children against themselves and the children against each other.
-      if (na.is_leaf()) continue;
+      if (na.is_leaf() || na.fixed) continue;
       if (limited && t.depth >= max_depth_) {
         if constexpr (Record) next_front_.push_back({t.a, t.b, t.depth, t.parent});
         if (!brute(t.a, t.b, visitor, cost, stats)) return false;
@@ -383,11 +398,12 @@ bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& 
       }
       const std::uint32_t c0 = na.child[na.first], c1 = na.child[1 - na.first];
       push(c0, c1, t.depth + 1, me);
-      stack.push({c1, c1, t.depth + 1, me});
-      stack.push({c0, c0, t.depth + 1, me});
+      if (!nodes_[c1].fixed) stack.push({c1, c1, t.depth + 1, me});
+      if (!nodes_[c0].fixed) stack.push({c0, c0, t.depth + 1, me});
       continue;
     }
     const Node& nb = nodes_[t.b];
+    if (na.fixed && nb.fixed) continue;
     const bool hit = (!Record && t.parent == kTested) || test(t.a, t.b);
     const bool terminal =
         !hit || (na.is_leaf() && nb.is_leaf()) || (limited && t.depth >= max_depth_);
@@ -422,8 +438,17 @@ bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& 
 template <class V>
 QueryCost AabbTree::for_each_pair(V&& visitor, TraversalStats& stats) const {
   QueryCost cost;
+  for (const detail::PairTable::Pair& p : fixed_pairs_.pairs()) {
+    if (!visit(visitor, store_.handle(p.a), store_.handle(p.b))) {
+      cost.stopped = true;
+      return cost;
+    }
+  }
   if (root_ == kNull) return cost;
-  if (front_mode_ != FrontMode::off) return pairs_with_front(visitor, stats);
+  if (front_mode_ != FrontMode::off) {
+    const QueryCost c = pairs_with_front(visitor, stats);
+    return {cost.tests + c.tests, c.stopped};
+  }
   descend<false>({root_, root_, 0, kNull}, visitor, cost, stats);
   return cost;
 }

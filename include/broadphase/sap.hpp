@@ -23,7 +23,8 @@ namespace broadphase {
 /// predicate over that set only.
 ///
 /// Complexity: update: O(log n + endpoints crossed) (coherent motion crosses
-/// few); insert/remove: O(log n + k) search plus an O(n) memmove of 8-byte
+/// few; a bulk update falls back to a rebuild when crossings exceed a few per
+/// endpoint); insert/remove: O(log n + k) search plus an O(n) memmove of 8-byte
 /// endpoints per axis, where k is the number of objects whose lower endpoint
 /// lies within the largest extent of the new box on the best axis;
 /// for_each_pair: O(pairs of overlapping boxes); query: O(log n + k).
@@ -41,7 +42,9 @@ class Sap {
   /// Moves an object: insertion sort of its six endpoints, pair set updated
   /// at every crossing. Throws InvalidHandle, InvalidShape.
   void update(Handle h, const Shape& s);
-  /// Moves many objects (each as `update`).
+  /// Moves many objects, each as `update`; when the batch has crossed more
+  /// than a few endpoints per object (incoherent motion), the rest of it is
+  /// applied at once and the lists and pairs are rebuilt: O(n log n + k).
   void update(std::span<const Move> moves);
 
   /// Visits every object overlapping `q` exactly.
@@ -85,6 +88,8 @@ class Sap {
   std::size_t box_pairs() const { return pairs_.size(); }
   /// Endpoint crossings since construction (the incremental work done).
   std::uint64_t swaps() const { return swaps_; }
+  /// Batches that switched to a full rebuild.
+  std::uint64_t rebuilds() const { return rebuilds_; }
 
   /// Checks sorted lists, endpoint presence, and that the pair set is
   /// exactly the set of overlapping boxes (counted by a sweep).
@@ -112,6 +117,10 @@ class Sap {
 
   // Moves one endpoint from key `from` to key `to`, handling each crossing.
   void move_endpoint(int axis, std::uint64_t from, std::uint64_t to);
+  void rebuild(std::span<const Move> rest);
+  // Crossings per endpoint after which a batch is cheaper to rebuild.
+  static constexpr std::uint64_t kRebuildCrossings = 2;
+  static constexpr std::uint64_t kRetryEvery = 8;
   void crossing(std::uint32_t self, bool begins, std::uint32_t other);
   void grow_extent(const AabbF& b);
   int scan_axis() const;
@@ -139,7 +148,10 @@ class Sap {
   std::array<std::vector<std::uint64_t>, 3> ep_;  // sorted endpoint keys per axis
   std::array<float, 3> max_extent_{};             // upper bound of hi - lo per axis
   detail::PairTable pairs_;                       // slots whose boxes overlap
+  std::vector<std::uint32_t> sweep_lows_;         // rebuild scratch: slots by lower end
   std::uint64_t swaps_ = 0;
+  std::uint64_t rebuilds_ = 0;
+  std::uint64_t incoherent_batches_ = 0;  // consecutive batches that rebuilt early
 };
 
 }  // namespace broadphase

@@ -61,6 +61,7 @@ std::uint32_t AabbTree::allocate_node() {
   node.height = 0;
   node.first = 0;
   node.live = 1;
+  node.fixed = 0;
   if (order_ == Order::hit_ratio) hit_stats_[n] = {};
   ++node_count_;
   return n;
@@ -130,6 +131,7 @@ void AabbTree::refit(std::uint32_t n) {
   node.box = merged(c0.box, c1.box);
   node.area = area(node.box);
   node.leaves = c0.leaves + c1.leaves;
+  node.fixed = c0.fixed & c1.fixed;
   node.height = static_cast<std::uint16_t>(1 + std::max(c0.height, c1.height));
 }
 
@@ -290,13 +292,56 @@ Handle AabbTree::insert(const Shape& s, std::uint64_t user, Motion m) {
   nodes_[leaf].object = i;
   nodes_[leaf].box = fat_box(i, {});
   nodes_[leaf].area = area(nodes_[leaf].box);
+  nodes_[leaf].fixed = moved_[i] ? 0 : 1;
   leaf_[i] = leaf;
   insert_leaf(leaf);
+  if (!moved_[i]) {
+    const Shape& me = store_.shape(i);
+    for_each_overlapping_leaf(tight_[i], [&](std::uint32_t o) {
+      if (o != i && !moved_[o] && overlaps(me, store_.shape(o))) fixed_pairs_.insert(i, o);
+    });
+  }
   return h;
+}
+
+template <class F>
+void AabbTree::for_each_overlapping_leaf(const AabbF& b, F&& f) const {
+  if (root_ == kNull) return;
+  detail::InlineStack<std::uint32_t, 64> stack;
+  stack.push(root_);
+  while (!stack.empty()) {
+    const Node& node = nodes_[stack.pop()];
+    if (!boxes_overlap(node.box, b)) continue;
+    if (node.is_leaf()) {
+      if (boxes_overlap(tight_[node.object], b)) f(node.object);
+      continue;
+    }
+    stack.push(node.child[0]);
+    stack.push(node.child[1]);
+  }
+}
+
+void AabbTree::set_fixed_flags(std::uint32_t leaf) {
+  nodes_[leaf].fixed = moved_[nodes_[leaf].object] ? 0 : 1;
+  for (std::uint32_t n = nodes_[leaf].parent; n != kNull; n = nodes_[n].parent) {
+    const std::uint8_t f = nodes_[nodes_[n].child[0]].fixed & nodes_[nodes_[n].child[1]].fixed;
+    if (nodes_[n].fixed == f) break;
+    nodes_[n].fixed = f;
+  }
+}
+
+void AabbTree::make_dynamic(std::uint32_t i) {
+  for_each_overlapping_leaf(tight_[i], [&](std::uint32_t o) {
+    if (o != i) fixed_pairs_.erase(i, o);
+  });
+  moved_[i] = 1;
+  set_fixed_flags(leaf_[i]);
+  discard_front();
 }
 
 void AabbTree::remove(Handle h) {
   const std::uint32_t i = store_.index_of(h);
+  if (!moved_[i]) make_dynamic(i);
   const std::uint32_t leaf = leaf_[i];
   remove_leaf(leaf);
   free_node(leaf);
@@ -305,11 +350,14 @@ void AabbTree::remove(Handle h) {
 
 void AabbTree::update(Handle h, const Shape& s) {
   const Vec3 before = store_.shape_of(h).center;
+  if (const std::uint32_t k = store_.index_of(h); !moved_[k]) {
+    require_valid(s);
+    make_dynamic(k);
+  }
   const std::uint32_t i = store_.set_shape(h, s);
   tight_[i] = bounds_f(s);
   const std::uint32_t leaf = leaf_[i];
   if (holds(nodes_[leaf].box, tight_[i])) return;
-  moved_[i] = 1;
   // A jump far beyond the box size is a teleport, not a motion to predict.
   Vec3 d = s.center - before;
   for (int a = 0; a < 3; ++a)
@@ -346,7 +394,8 @@ std::size_t AabbTree::memory_bytes() const {
          moved_.capacity() + hit_stats_.capacity() * sizeof(HitStats) +
          (inner_.capacity() + front_.capacity() + next_inner_.capacity() + next_front_.capacity()) *
              sizeof(FrontPair) +
-         inner_state_.capacity() + inner_map_.capacity() * sizeof(std::uint32_t);
+         inner_state_.capacity() + inner_map_.capacity() * sizeof(std::uint32_t) +
+         fixed_pairs_.memory_bytes();
 }
 
 void AabbTree::validate() const {
@@ -381,6 +430,7 @@ void AabbTree::validate() const {
         fail("tight box is not the shape's bounds");
       if (!holds(node.box, t)) fail("fat box does not hold the object");
       if (node.leaves != 1 || node.height != 0) fail("leaf count or height of a leaf");
+      if (node.fixed != (moved_[o] ? 0 : 1)) fail("fixed flag of a leaf");
       continue;
     }
     for (int k = 0; k < 2; ++k) {
@@ -394,11 +444,25 @@ void AabbTree::validate() const {
     if (!std::equal(m.lo, m.lo + 3, node.box.lo) || !std::equal(m.hi, m.hi + 3, node.box.hi))
       fail("node box is not the union of its children");
     if (node.leaves != c0.leaves + c1.leaves) fail("leaf count");
+    if (node.fixed != (c0.fixed & c1.fixed)) fail("fixed flag");
     if (node.height != 1 + std::max(c0.height, c1.height)) fail("height");
     if (node.first > 1) fail("child order");
   }
   if (reached != node_count_) fail("unreachable nodes");
   if (leaves != store_.size()) fail("leaf count differs from object count");
+  fixed_pairs_.validate();
+  for (const auto& p : fixed_pairs_.pairs())
+    if (!store_.slots().alive(p.a) || !store_.slots().alive(p.b) || moved_[p.a] || moved_[p.b] ||
+        !overlaps(store_.shape(p.a), store_.shape(p.b)))
+      fail("cached fixed pair is not an overlapping pair of fixed objects");
+  std::size_t fixed_overlaps = 0;
+  for (std::uint32_t o = 0; o < store_.slot_count(); ++o) {
+    if (!store_.slots().alive(o) || moved_[o]) continue;
+    for_each_overlapping_leaf(tight_[o], [&](std::uint32_t x) {
+      fixed_overlaps += x != o && !moved_[x] && overlaps(store_.shape(o), store_.shape(x));
+    });
+  }
+  if (fixed_overlaps != 2 * fixed_pairs_.size()) fail("cached fixed pairs incomplete");
   std::lock_guard<std::mutex> lock(front_mutex_);
   if (front_valid_) {
     for (const auto* list : {&inner_, &front_})

@@ -147,12 +147,70 @@ void Sap::update(Handle h, const Shape& s) {
 }
 
 void Sap::update(std::span<const Move> moves) {
-  for (const Move& m : moves) update(m.handle, m.shape);
+  // Coherent batches go object by object. When a batch has crossed more
+  // endpoints than a full rebuild would cost (incoherent motion: an
+  // explosion), the rest of it is applied at once and the lists and the pair
+  // set are rebuilt by sorting and one sweep. Every single update leaves
+  // the structure complete, so switching midway is safe.
+  // After a batch that had to rebuild early, the next ones rebuild at once,
+  // retrying the incremental path every few batches to notice coherence.
+  const std::uint64_t budget = swaps_ + kRebuildCrossings * (2 * store_.size() + 64);
+  std::size_t k = 0;
+  if (incoherent_batches_ == 0 || incoherent_batches_ % kRetryEvery == 0)
+    for (; k < moves.size() && swaps_ <= budget; ++k) update(moves[k].handle, moves[k].shape);
+  if (k < moves.size()) {
+    rebuild(moves.subspan(k));
+    incoherent_batches_ += 2 * k < moves.size() ? 1 : 0;
+  } else {
+    incoherent_batches_ = 0;
+  }
   // The largest extents only grow object by object; tighten them once per
   // batch so that a vanished large object stops widening every scan.
   max_extent_ = {};
   for (std::uint32_t i = 0; i < store_.slot_count(); ++i)
     if (store_.slots().alive(i)) grow_extent(box_[i]);
+}
+
+void Sap::rebuild(std::span<const Move> rest) {
+  for (const Move& m : rest) {
+    const std::uint32_t i = store_.set_shape(m.handle, m.shape);
+    box_[i] = normalized_bounds(m.shape);
+  }
+  ++rebuilds_;
+  // Along the axis where the centres spread most, few boxes share a slab.
+  std::array<double, 3> sum{}, sum2{};
+  for (int a = 0; a < 3; ++a) {
+    auto& e = ep_[a];
+    e.clear();
+    for (std::uint32_t i = 0; i < store_.slot_count(); ++i) {
+      if (!store_.slots().alive(i)) continue;
+      e.push_back(key(box_[i].lo[a], false, i));
+      e.push_back(key(box_[i].hi[a], true, i));
+      const double c =
+          0.5 * (static_cast<double>(box_[i].lo[a]) + static_cast<double>(box_[i].hi[a]));
+      sum[a] += c;
+      sum2[a] += c * c;
+    }
+    std::sort(e.begin(), e.end());
+  }
+  const double n = static_cast<double>(std::max<std::size_t>(1, store_.size()));
+  int axis = 0;
+  for (int a = 1; a < 3; ++a)
+    if (sum2[a] / n - (sum[a] / n) * (sum[a] / n) >
+        sum2[axis] / n - (sum[axis] / n) * (sum[axis] / n))
+      axis = a;
+  pairs_.clear();
+  sweep_lows_.clear();
+  for (const std::uint64_t k : ep_[axis])
+    if (!is_upper(k)) sweep_lows_.push_back(slot_of(k));
+  for (std::size_t x = 0; x < sweep_lows_.size(); ++x) {
+    const AabbF& bx = box_[sweep_lows_[x]];
+    for (std::size_t y = x + 1; y < sweep_lows_.size(); ++y) {
+      const AabbF& by = box_[sweep_lows_[y]];
+      if (by.lo[axis] > bx.hi[axis]) break;
+      if (boxes_overlap(bx, by)) pairs_.insert(sweep_lows_[x], sweep_lows_[y]);
+    }
+  }
 }
 
 std::size_t Sap::memory_bytes() const {
