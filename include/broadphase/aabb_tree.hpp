@@ -84,7 +84,9 @@ struct TraversalStats {
 ///   `deferred` only lowers it and rebuilds it from the root when it has
 ///   grown to twice its rebuilt size. With a front, a leaf that leaves its
 ///   fat box is refitted in place (no reinsertion) so the topology, and the
-///   front, survive moves; insert and remove discard the front.
+///   front, survive moves; once half the leaves have been refitted they are
+///   all reinserted to restore the tree's quality, which, like insert and
+///   remove, discards the front.
 ///
 /// Complexity: insert O(log n) typical (branch and bound over the tree);
 /// remove O(depth); update O(1) inside the fat box, else O(log n) typical;
@@ -243,6 +245,11 @@ class AabbTree {
   std::vector<std::uint32_t> leaf_;  // slot -> leaf node
   std::vector<AabbF> tight_;         // slot -> the object's own float box
   std::vector<std::uint8_t> moved_;  // slot -> has been updated (gets the margin)
+  // Leaves refitted in place (front tracking) since the last reinsertion.
+  std::vector<std::uint32_t> refitted_;
+  std::vector<std::uint8_t> refitted_flag_;
+  std::size_t refits_ = 0;
+  static constexpr std::size_t kRefitsPerLeaf = 1;
   std::uint32_t root_ = kNull;
   std::uint32_t free_ = kNull;
   std::uint32_t node_count_ = 0;

@@ -285,6 +285,7 @@ Handle AabbTree::insert(const Shape& s, std::uint64_t user, Motion m) {
     leaf_.resize(i + 1);
     tight_.resize(i + 1);
     moved_.resize(i + 1);
+    refitted_flag_.resize(i + 1);
   }
   tight_[i] = bounds_f(s);
   moved_[i] = m == Motion::dynamic ? 1 : 0;
@@ -376,6 +377,23 @@ void AabbTree::update(Handle h, const Shape& s) {
           std::equal(before.hi, before.hi + 3, after.hi))
         break;
     }
+    // Refitting never restructures, so the tree slowly loses quality as
+    // objects travel. After as many refits as there are leaves, reinsert
+    // the refitted leaves (here, not later) and start a new front.
+    if (!refitted_flag_[i]) {
+      refitted_flag_[i] = 1;
+      refitted_.push_back(i);
+    }
+    if (++refits_ > std::max<std::size_t>(64, kRefitsPerLeaf * store_.size())) {
+      refits_ = 0;
+      for (const std::uint32_t o : refitted_) {
+        refitted_flag_[o] = 0;
+        if (!store_.slots().alive(o)) continue;
+        remove_leaf(leaf_[o]);
+        insert_leaf(leaf_[o]);
+      }
+      refitted_.clear();
+    }
     return;
   }
   remove_leaf(leaf);
@@ -395,7 +413,8 @@ std::size_t AabbTree::memory_bytes() const {
          (inner_.capacity() + front_.capacity() + next_inner_.capacity() + next_front_.capacity()) *
              sizeof(FrontPair) +
          inner_state_.capacity() + inner_map_.capacity() * sizeof(std::uint32_t) +
-         fixed_pairs_.memory_bytes();
+         fixed_pairs_.memory_bytes() + refitted_.capacity() * sizeof(std::uint32_t) +
+         refitted_flag_.capacity();
 }
 
 void AabbTree::validate() const {
