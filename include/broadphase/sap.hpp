@@ -119,7 +119,7 @@ class Sap {
   void move_endpoint(int axis, std::uint64_t from, std::uint64_t to);
   void rebuild(std::span<const Move> rest);
   // Crossings per endpoint after which a batch is cheaper to rebuild.
-  static constexpr std::uint64_t kRebuildCrossings = 2;
+  static constexpr std::uint64_t kRebuildCrossings = 4;
   static constexpr std::uint64_t kRetryEvery = 8;
   void crossing(std::uint32_t self, bool begins, std::uint32_t other);
   void grow_extent(const AabbF& b);

@@ -148,13 +148,16 @@ void Sap::update(Handle h, const Shape& s) {
 
 void Sap::update(std::span<const Move> moves) {
   // Coherent batches go object by object. When a batch has crossed more
-  // endpoints than a full rebuild would cost (incoherent motion: an
+  // endpoints than a full rebuild would roughly cost (incoherent motion: an
   // explosion), the rest of it is applied at once and the lists and the pair
   // set are rebuilt by sorting and one sweep. Every single update leaves
   // the structure complete, so switching midway is safe.
   // After a batch that had to rebuild early, the next ones rebuild at once,
   // retrying the incremental path every few batches to notice coherence.
-  const std::uint64_t budget = swaps_ + kRebuildCrossings * (2 * store_.size() + 64);
+  // A rebuild sorts 2n endpoints per axis and re-enters every box pair, so
+  // that is the crossing budget before giving up on the incremental path.
+  const std::uint64_t budget =
+      swaps_ + kRebuildCrossings * (2 * store_.size() + 64) + 2 * pairs_.size();
   std::size_t k = 0;
   if (incoherent_batches_ == 0 || incoherent_batches_ % kRetryEvery == 0)
     for (; k < moves.size() && swaps_ <= budget; ++k) update(moves[k].handle, moves[k].shape);
