@@ -236,7 +236,9 @@ class AabbTree {
   // The self-traversal from `start`; records inner and terminal pairs when
   // `Record` (front tracking). Returns false when the visitor stopped.
   template <bool Record, class V>
-  bool descend(Task start, V& visitor, QueryCost& cost, TraversalStats& stats) const;
+  // `start_hits`: the start pair is already known to overlap.
+  bool descend(Task start, V& visitor, QueryCost& cost, TraversalStats& stats,
+               bool start_hits = false) const;
   template <class V>
   QueryCost pairs_with_front(V& visitor, TraversalStats& stats) const;
 
@@ -273,6 +275,7 @@ class AabbTree {
   mutable std::vector<FrontPair> inner_, front_, next_inner_, next_front_;
   mutable std::vector<std::uint8_t> inner_state_;  // per inner pair: see pairs_with_front
   mutable std::vector<std::uint32_t> inner_map_;
+  mutable std::vector<std::uint8_t> front_hits_;  // per terminal pair, this pass
 };
 
 // ---------------------------------------------------------------------------
@@ -359,7 +362,8 @@ bool AabbTree::brute(std::uint32_t a, std::uint32_t b, V& visitor, QueryCost& co
 }
 
 template <bool Record, class V>
-bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& stats) const {
+bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& stats,
+                       bool start_hits) const {
   // Without a front to record, child pairs are tested before they are
   // pushed, so the stack only ever holds overlapping pairs (half the pushes
   // and pops, and each node is read while its parent is still in cache).
@@ -367,6 +371,7 @@ bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& 
   constexpr std::uint32_t kTested = 0xfffffffeu;
   detail::InlineStack<Task, 128> stack;
   stack.push(start);
+  bool first = start_hits;
   const bool limited = max_depth_ != 0;
   const bool count = order_ == Order::hit_ratio;
   auto test = [&](std::uint32_t a, std::uint32_t b) {
@@ -390,6 +395,7 @@ bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& 
     const Task t = stack.pop();
     const Node& na = nodes_[t.a];
     if (t.a == t.b) {
+      first = false;
       // A subtree against itself always "overlaps": split it into both
       // children against themselves and the children against each other.
       if (na.is_leaf() || na.fixed) continue;
@@ -411,7 +417,8 @@ bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& 
     }
     const Node& nb = nodes_[t.b];
     if (na.fixed && nb.fixed) continue;
-    const bool hit = (!Record && t.parent == kTested) || test(t.a, t.b);
+    const bool hit = (!Record && t.parent == kTested) || first || test(t.a, t.b);
+    first = false;
     const bool terminal =
         !hit || (na.is_leaf() && nb.is_leaf()) || (limited && t.depth >= max_depth_);
     if (terminal) {
@@ -482,11 +489,23 @@ QueryCost AabbTree::pairs_with_front(V& visitor, TraversalStats& stats) const {
   // the ones whose boxes overlapped. The topology has not changed since it
   // was built (insert and remove discard it), only boxes have.
   //
-  // inner_state_ per inner pair: 0 not yet tested, 1 overlaps, 2 separated,
+  // inner_state_ per inner pair: 0 not yet known, 1 overlaps, 2 separated,
   // 3 raised (separated, parent overlaps: becomes terminal), 4 dropped (below
   // a raised pair).
   const std::size_t ni = inner_.size();
   inner_state_.assign(ni, 0);
+  // Every terminal pair is tested once. One that overlaps proves that all
+  // the inner pairs above it overlap (boxes nest), so they need no test.
+  front_hits_.resize(front_.size());
+  for (std::size_t k = 0; k < front_.size(); ++k) {
+    const FrontPair& e = front_[k];
+    ++stats.node_tests;
+    const bool hit = boxes_overlap(nodes_[e.a].box, nodes_[e.b].box);
+    front_hits_[k] = hit;
+    if (hit && front_mode_ == FrontMode::basic)
+      for (std::uint32_t p = e.parent; p != kNull && inner_state_[p] != 1; p = inner_[p].parent)
+        inner_state_[p] = 1;
+  }
   auto test_inner = [&](std::uint32_t i) {
     if (inner_state_[i] == 0) {
       const FrontPair& p = inner_[i];
@@ -502,8 +521,9 @@ QueryCost AabbTree::pairs_with_front(V& visitor, TraversalStats& stats) const {
   // Raising (basic): from every terminal pair that separated, climb while
   // the parent pair separated too; the highest separated one is raised.
   if (front_mode_ == FrontMode::basic) {
-    for (const FrontPair& e : front_) {
-      if (e.parent == kNull) continue;
+    for (std::size_t k = 0; k < front_.size(); ++k) {
+      const FrontPair& e = front_[k];
+      if (front_hits_[k] || e.parent == kNull) continue;
       std::uint32_t i = e.parent;
       if (inner_state_[i] >= 3 || test_inner(i)) continue;
       while (inner_[i].parent != kNull && !test_inner(inner_[i].parent) &&
@@ -532,14 +552,15 @@ QueryCost AabbTree::pairs_with_front(V& visitor, TraversalStats& stats) const {
   }
   // Lowering: terminal pairs that overlap again descend from where they are.
   bool go_on = true;
-  for (const FrontPair& e : front_) {
+  for (std::size_t k = 0; k < front_.size(); ++k) {
+    const FrontPair& e = front_[k];
     if (e.parent != kNull && inner_state_[e.parent] >= 3) continue;
     const std::uint32_t up = e.parent == kNull ? kNull : inner_map_[e.parent];
-    if (!go_on) {
+    if (!go_on || !front_hits_[k]) {
       next_front_.push_back({e.a, e.b, e.depth, up});
       continue;
     }
-    go_on = descend<true>({e.a, e.b, e.depth, up}, visitor, cost, stats);
+    go_on = descend<true>({e.a, e.b, e.depth, up}, visitor, cost, stats, true);
   }
   std::swap(inner_, next_inner_);
   std::swap(front_, next_front_);

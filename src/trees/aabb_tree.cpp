@@ -412,9 +412,9 @@ std::size_t AabbTree::memory_bytes() const {
          moved_.capacity() + hit_stats_.capacity() * sizeof(HitStats) +
          (inner_.capacity() + front_.capacity() + next_inner_.capacity() + next_front_.capacity()) *
              sizeof(FrontPair) +
-         inner_state_.capacity() + inner_map_.capacity() * sizeof(std::uint32_t) +
-         fixed_pairs_.memory_bytes() + refitted_.capacity() * sizeof(std::uint32_t) +
-         refitted_flag_.capacity();
+         inner_state_.capacity() + front_hits_.capacity() +
+         inner_map_.capacity() * sizeof(std::uint32_t) + fixed_pairs_.memory_bytes() +
+         refitted_.capacity() * sizeof(std::uint32_t) + refitted_flag_.capacity();
 }
 
 void AabbTree::validate() const {
