@@ -28,6 +28,7 @@ namespace detail {
 template <class T, std::size_t N>
 class InlineStack {
  public:
+  /// Adds an element; never fails short of memory exhaustion.
   void push(const T& v) {
     if (size_ < N)
       inline_[size_] = v;
@@ -35,6 +36,7 @@ class InlineStack {
       heap_.push_back(v);
     ++size_;
   }
+  /// Removes and returns the top element (the stack must not be empty).
   T pop() {
     --size_;
     if (size_ < N) return inline_[size_];
@@ -42,7 +44,9 @@ class InlineStack {
     heap_.pop_back();
     return v;
   }
+  /// True when no element is left.
   bool empty() const { return size_ == 0; }
+  /// Number of elements.
   std::size_t size() const { return size_; }
 
  private:
@@ -97,7 +101,9 @@ struct TraversalStats {
 /// traversals update per-node counters atomically.
 class AabbTree {
  public:
+  /// Which child every traversal descends into first (option `order`).
   enum class Order : std::uint8_t { none, leaves_first, smaller_first, hit_ratio, near_far };
+  /// Front tracking between all-pairs passes (option `front`).
   enum class FrontMode : std::uint8_t { off, basic, deferred };
 
   /// Reads the options above; `name` is used in option errors.
@@ -135,14 +141,21 @@ class AabbTree {
   template <class V>
   QueryCost for_each_pair(V&& visitor, TraversalStats& stats) const;
 
+  /// Number of live objects.
   std::size_t size() const { return store_.size(); }
+  /// Bytes held (capacities of every array and table).
   std::size_t memory_bytes() const;
+  /// True when `h` names a live object.
   bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's shape. Throws InvalidHandle.
   const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The object's user data. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Height of the tree (0 when empty, 1 for a single leaf).
   int height() const { return root_ == kNull ? 0 : nodes_[root_].height + 1; }
+  /// The child ordering chosen at construction.
   Order order() const { return order_; }
+  /// The front-tracking mode chosen at construction.
   FrontMode front_mode() const { return front_mode_; }
 
   /// Checks links, boxes (each parent holds its children, each leaf holds

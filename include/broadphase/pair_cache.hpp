@@ -35,17 +35,20 @@ class PairTable {
   bool contains(std::uint32_t a, std::uint32_t b) const { return find(key(a, b)) != kEmpty; }
   /// The members, in no particular order (invalidated by insert and erase).
   std::span<const Pair> pairs() const { return dense_; }
+  /// Number of members.
   std::size_t size() const { return dense_.size(); }
   /// Removes every member; keeps the capacity.
   void clear();
   /// Grows the table so that `n` members fit without rehashing.
   void reserve(std::size_t n);
+  /// Bytes held (capacities).
   std::size_t memory_bytes() const {
     return slots_.capacity() * sizeof(Slot) + dense_.capacity() * sizeof(Pair);
   }
   /// Throws std::logic_error when the table and the dense array disagree.
   void validate() const;
 
+  /// The 64-bit key of the unordered pair {a, b}: smaller id in the high half.
   static std::uint64_t key(std::uint32_t a, std::uint32_t b) {
     return a < b ? (std::uint64_t(a) << 32) | b : (std::uint64_t(b) << 32) | a;
   }
@@ -95,13 +98,17 @@ class PairCache {
   /// Convenience: one whole frame from a list of pairs.
   void frame(std::span<const HandlePair> pairs);
 
+  /// Pairs of the last completed frame that did not overlap in the one before.
   std::span<const HandlePair> begun() const { return begun_; }
+  /// Pairs that overlapped in both of the last two completed frames.
   std::span<const HandlePair> persisting() const { return persisting_; }
+  /// Pairs of the frame before the last that no longer overlap.
   std::span<const HandlePair> ended() const { return ended_; }
   /// Pairs of the last completed frame.
   std::size_t size() const { return current_.size(); }
   /// True when the pair overlapped in the last completed frame.
   bool contains(Handle a, Handle b) const;
+  /// Bytes held (capacities of both frames' tables and the event lists).
   std::size_t memory_bytes() const;
 
  private:

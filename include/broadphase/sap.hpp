@@ -79,10 +79,15 @@ class Sap {
     return cost;
   }
 
+  /// Number of live objects.
   std::size_t size() const { return store_.size(); }
+  /// Bytes held (capacities of every array and table).
   std::size_t memory_bytes() const;
+  /// True when `h` names a live object.
   bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's shape. Throws InvalidHandle.
   const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The object's user data. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Pairs of overlapping boxes currently in the set (candidates).
   std::size_t box_pairs() const { return pairs_.size(); }
