@@ -20,8 +20,11 @@ def read(path):
         return list(csv.DictReader(f))
 
 
-def bars(ax, labels, values, title, ylabel):
+def bars(ax, labels, values, title, ylabel, log=False):
     ax.bar(range(len(values)), values, color="#4c72b0")
+    if log:
+        # The explosion dwarfs the coherent scene; a log axis keeps both legible.
+        ax.set_yscale("log")
     ax.set_xticks(range(len(labels)))
     ax.set_xticklabels(labels, rotation=30, ha="right", fontsize=8)
     ax.set_title(title, fontsize=10)
@@ -43,9 +46,10 @@ def main():
     rows = read(os.path.join(out, "tree_front.csv"))
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
     labels = [f'{r["scene"]}\n{r["front"]}' for r in rows]
-    bars(axes[0], labels, [float(r["pairs_ms"]) for r in rows], "front tracking", "all pairs ms")
+    bars(axes[0], labels, [float(r["pairs_ms"]) for r in rows], "front tracking", "all pairs ms",
+         log=True)
     bars(axes[1], labels, [float(r["node_tests"]) for r in rows], "front tracking",
-         "node-pair tests")
+         "node-pair tests", log=True)
     fig.tight_layout()
     fig.savefig(os.path.join(out, "trees_front.png"), dpi=110)
 
@@ -53,7 +57,7 @@ def main():
     fig, ax = plt.subplots(figsize=(7, 3.6))
     labels = [f'{r["scene"]}\n{r["algo"]}' for r in rows]
     bars(ax, labels, [float(r["frame_ms"]) for r in rows], "update + all pairs",
-         "median frame ms")
+         "median frame ms", log=True)
     fig.tight_layout()
     fig.savefig(os.path.join(out, "trees_sweeps.png"), dpi=110)
 
