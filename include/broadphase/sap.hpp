@@ -1,0 +1,162 @@
+/// \file sap.hpp
+/// `sap`: incremental three-axis sweep-and-prune. Every axis keeps a sorted
+/// list of box endpoints; a move re-sorts only the moved object's endpoints
+/// by insertion sort (temporal coherence: small moves cross few endpoints),
+/// and every crossing of a lower and an upper endpoint adds or removes a pair
+/// in a set kept up to date by the mutations themselves.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <broadphase/broad_phase.hpp>
+#include <broadphase/pair_cache.hpp>
+#include <broadphase/registry.hpp>
+#include <cstdint>
+#include <vector>
+
+namespace broadphase {
+
+/// Incremental sweep-and-prune over float endpoints (rounded outwards from
+/// the conservative bounds), with an incrementally maintained set of pairs
+/// whose boxes overlap on all three axes. `for_each_pair` runs the exact
+/// predicate over that set only.
+///
+/// Complexity: update: O(log n + endpoints crossed) (coherent motion crosses
+/// few; a bulk update falls back to a rebuild when crossings exceed a few per
+/// endpoint); insert/remove: O(log n + k) search plus an O(n) memmove of 8-byte
+/// endpoints per axis, where k is the number of objects whose lower endpoint
+/// lies within the largest extent of the new box on the best axis;
+/// for_each_pair: O(pairs of overlapping boxes); query: O(log n + k).
+/// Handles stay valid until their object is removed. Const members may run
+/// concurrently; mutations need exclusive access.
+class Sap {
+ public:
+  /// Options: none.
+  explicit Sap(const Config& c = {});
+
+  /// Adds an object and finds its overlapping boxes. Throws InvalidShape.
+  Handle insert(const Shape& s, std::uint64_t user, Motion m = Motion::dynamic);
+  /// Removes an object and its pairs. Throws InvalidHandle.
+  void remove(Handle h);
+  /// Moves an object: insertion sort of its six endpoints, pair set updated
+  /// at every crossing. Throws InvalidHandle, InvalidShape.
+  void update(Handle h, const Shape& s);
+  /// Moves many objects, each as `update`; when the batch has crossed more
+  /// than a few endpoints per object (incoherent motion), the rest of it is
+  /// applied at once and the lists and pairs are rebuilt: O(n log n + k).
+  void update(std::span<const Move> moves);
+
+  /// Visits every object overlapping `q` exactly.
+  template <class V>
+  QueryCost query(const Shape& q, V&& visitor) const {
+    QueryCost cost;
+    const AabbF b = normalized_bounds(q);
+    scan(b, [&](std::uint32_t o) {
+      ++cost.tests;
+      if (overlaps(q, store_.shape(o)) && !visit(visitor, store_.handle(o))) {
+        cost.stopped = true;
+        return false;
+      }
+      return true;
+    });
+    return cost;
+  }
+
+  /// Visits every overlapping pair once: the exact predicate over the pairs
+  /// whose boxes overlap on all three axes.
+  template <class V>
+  QueryCost for_each_pair(V&& visitor) const {
+    QueryCost cost;
+    for (const detail::PairTable::Pair& p : pairs_.pairs()) {
+      ++cost.tests;
+      if (overlaps(store_.shape(p.a), store_.shape(p.b)) &&
+          !visit(visitor, store_.handle(p.a), store_.handle(p.b))) {
+        cost.stopped = true;
+        break;
+      }
+    }
+    return cost;
+  }
+
+  /// Number of live objects.
+  std::size_t size() const { return store_.size(); }
+  /// Bytes held (capacities of every array and table).
+  std::size_t memory_bytes() const;
+  /// True when `h` names a live object.
+  bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's shape. Throws InvalidHandle.
+  const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The object's user data. Throws InvalidHandle.
+  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
+  /// Pairs of overlapping boxes currently in the set (candidates).
+  std::size_t box_pairs() const { return pairs_.size(); }
+  /// Endpoint crossings since construction (the incremental work done).
+  std::uint64_t swaps() const { return swaps_; }
+  /// Batches that switched to a full rebuild.
+  std::uint64_t rebuilds() const { return rebuilds_; }
+
+  /// Checks sorted lists, endpoint presence, and that the pair set is
+  /// exactly the set of overlapping boxes (counted by a sweep).
+  void validate() const;
+
+  /// The conservative float box with -0 turned into +0, so that the order
+  /// of the endpoint keys agrees with float comparison.
+  static AabbF normalized_bounds(const Shape& s);
+
+ private:
+  // An endpoint is one 64-bit key: order-preserving float bits, then the
+  // upper/lower flag (lower first, so touching boxes overlap), then the slot.
+  static std::uint32_t ordered(float f) {
+    const std::uint32_t u = std::bit_cast<std::uint32_t>(f);
+    return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+  }
+  static std::uint64_t key(float v, bool upper, std::uint32_t slot) {
+    return (std::uint64_t(ordered(v)) << 32) | (std::uint64_t(upper) << 31) | slot;
+  }
+  static std::uint32_t slot_of(std::uint64_t k) {
+    return static_cast<std::uint32_t>(k & 0x7fffffffu);
+  }
+  static bool is_upper(std::uint64_t k) { return (k >> 31) & 1u; }
+  static bool boxes_overlap(const AabbF& a, const AabbF& b) { return a.overlaps(b); }
+
+  // Moves one endpoint from key `from` to key `to`, handling each crossing.
+  void move_endpoint(int axis, std::uint64_t from, std::uint64_t to);
+  void rebuild(std::span<const Move> rest);
+  // Crossings per endpoint after which a batch is cheaper to rebuild.
+  static constexpr std::uint64_t kRebuildCrossings = 4;
+  static constexpr std::uint64_t kRetryEvery = 8;
+  void crossing(std::uint32_t self, bool begins, std::uint32_t other);
+  void grow_extent(const AabbF& b);
+  int scan_axis() const;
+
+  // Calls f(o) for every object o whose box overlaps b (f returns false to stop).
+  template <class F>
+  void scan(const AabbF& b, F&& f) const {
+    if (store_.size() == 0) return;
+    const int a = scan_axis();
+    const std::vector<std::uint64_t>& e = ep_[a];
+    const float start = lower_limit(b.lo[a], max_extent_[a]);
+    auto it = std::lower_bound(e.begin(), e.end(), key(start, false, 0));
+    const std::uint64_t end = key(b.hi[a], false, 0x7fffffffu);
+    for (; it != e.end() && *it <= end; ++it) {
+      if (is_upper(*it)) continue;
+      const std::uint32_t o = slot_of(*it);
+      if (boxes_overlap(box_[o], b) && !f(o)) return;
+    }
+  }
+  // A float at or below lo - extent (so every box reaching lo starts above it).
+  static float lower_limit(float lo, float extent);
+
+  ObjectStore store_;
+  std::vector<AabbF> box_;                        // slot -> normalized float box
+  std::array<std::vector<std::uint64_t>, 3> ep_;  // sorted endpoint keys per axis
+  std::array<float, 3> max_extent_{};             // upper bound of hi - lo per axis
+  detail::PairTable pairs_;                       // slots whose boxes overlap
+  std::vector<std::uint32_t> sweep_lows_;         // rebuild scratch: slots by lower end
+  std::uint64_t swaps_ = 0;
+  std::uint64_t rebuilds_ = 0;
+  std::uint64_t incoherent_batches_ = 0;  // consecutive batches that rebuilt early
+};
+
+}  // namespace broadphase
