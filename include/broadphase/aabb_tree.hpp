@@ -10,6 +10,7 @@
 #include <array>
 #include <atomic>
 #include <broadphase/broad_phase.hpp>
+#include <broadphase/detail/inline_stack.hpp>
 #include <broadphase/pair_cache.hpp>
 #include <broadphase/registry.hpp>
 #include <cstdint>
@@ -19,43 +20,6 @@
 #include <vector>
 
 namespace broadphase {
-
-namespace detail {
-
-/// A LIFO stack that lives on the C++ stack for its first N elements and
-/// spills to the heap beyond: deep traversals never drop work, shallow ones
-/// never allocate. Not thread-safe (one per traversal).
-template <class T, std::size_t N>
-class InlineStack {
- public:
-  /// Adds an element; never fails short of memory exhaustion.
-  void push(const T& v) {
-    if (size_ < N)
-      inline_[size_] = v;
-    else
-      heap_.push_back(v);
-    ++size_;
-  }
-  /// Removes and returns the top element (the stack must not be empty).
-  T pop() {
-    --size_;
-    if (size_ < N) return inline_[size_];
-    T v = heap_.back();
-    heap_.pop_back();
-    return v;
-  }
-  /// True when no element is left.
-  bool empty() const { return size_ == 0; }
-  /// Number of elements.
-  std::size_t size() const { return size_; }
-
- private:
-  std::array<T, N> inline_;
-  std::vector<T> heap_;
-  std::size_t size_ = 0;
-};
-
-}  // namespace detail
 
 /// What a tree traversal cost beyond the exact tests.
 struct TraversalStats {

@@ -11,6 +11,7 @@
 
 #include <array>
 #include <broadphase/broad_phase.hpp>
+#include <broadphase/detail/inline_stack.hpp>
 #include <broadphase/registry.hpp>
 #include <cmath>
 #include <cstddef>
@@ -37,46 +38,6 @@ struct OctItem {
 inline Aabb to_double(const AabbF& b) {
   return {{b.lo[0], b.lo[1], b.lo[2]}, {b.hi[0], b.hi[1], b.hi[2]}};
 }
-
-/// A stack that keeps its first N entries inline and grows on the heap
-/// beyond them, so deep traversals are never truncated and shallow ones
-/// never allocate.
-template <class T, std::size_t N>
-class InlineStack {
- public:
-  /// Pushes `v`; allocates only beyond N entries.
-  void push(const T& v) {
-    if (size_ < N)
-      inline_[size_] = v;
-    else
-      heap_.push_back(v);
-    ++size_;
-  }
-  /// Removes and returns the top entry (the stack must not be empty).
-  T pop() {
-    --size_;
-    if (size_ < N) return inline_[size_];
-    T v = heap_.back();
-    heap_.pop_back();
-    return v;
-  }
-  /// True when nothing is on the stack.
-  bool empty() const { return size_ == 0; }
-  /// Entries on the stack.
-  std::size_t size() const { return size_; }
-  /// Entry `i`, counted from the bottom.
-  const T& operator[](std::size_t i) const { return i < N ? inline_[i] : heap_[i - N]; }
-  /// Empties the stack, keeping any heap capacity.
-  void clear() {
-    size_ = 0;
-    heap_.clear();
-  }
-
- private:
-  std::array<T, N> inline_;
-  std::vector<T> heap_;
-  std::size_t size_ = 0;
-};
 
 /// The cube the octrees subdivide: the world hint made cubic (same centre,
 /// side the largest extent) and enlarged by kRootGrowth, so that objects
