@@ -106,6 +106,7 @@ struct History {
   std::vector<std::pair<std::size_t, CellCosts>> points;
   double overhead = 1;  // wall time / modelled time at the last size (setup, teardown)
   bool skipped = false;
+  bool failed = false;
 };
 
 // The modelled wall time of one size (both placements) from its parts.
@@ -322,6 +323,33 @@ void run_paper(const PaperOptions& o) {
       const double e = elapsed();
       bar.update(what, e / (e + left), left);
     };
+    // Decide who is over the cap before generating the scenes: a million
+    // objects take seconds to generate, for nobody when all are skipped.
+    bool anyone = false;
+    for (std::size_t si = 0; si < structures.size(); ++si) {
+      History& h = hist[si];
+      if (h.skipped) {
+        res.skips.push_back({structures[si].spec, n, 0, info.cell_cap_seconds,
+                             h.failed ? "failed at a smaller size" : "skipped at a smaller size"});
+        continue;
+      }
+      double exponent = 1;
+      const double projected = project(h, n, reps, mo.min_rep_seconds, &exponent);
+      if (!h.points.empty() && projected > info.cell_cap_seconds) {
+        h.skipped = true;
+        char why[256];
+        std::snprintf(why, sizeof why,
+                      "projected %s (from N=%zu, growth up to N^%.2g) exceeds the cap of %s per "
+                      "structure and size",
+                      seconds_text(projected).c_str(), h.points.back().first, exponent,
+                      seconds_text(info.cell_cap_seconds).c_str());
+        res.skips.push_back({structures[si].spec, n, projected, info.cell_cap_seconds, why});
+        bar.message("skipping " + structures[si].spec + " at N=" + std::to_string(n) + ": " + why);
+        continue;
+      }
+      anyone = true;
+    }
+    if (!anyone) continue;
     show("study: generating the scenes of N=" + std::to_string(n), study_left(ni, 0) + hooks_left);
     const PaperScene scenes[2] = {make_paper_scene(n, false, scaled, o.seed),
                                   make_paper_scene(n, true, scaled, o.seed)};
@@ -334,28 +362,14 @@ void run_paper(const PaperOptions& o) {
     for (std::size_t si = 0; si < structures.size(); ++si) {
       const Selected& sel = structures[si];
       History& h = hist[si];
-      if (h.skipped) {
-        res.skips.push_back({sel.spec, n, 0, info.cell_cap_seconds, "skipped at a smaller size"});
-        continue;
-      }
-      double exponent = 1;
-      const double projected = project(h, n, reps, mo.min_rep_seconds, &exponent);
+      if (h.skipped) continue;  // over the cap, or before this size: recorded above
+      const double projected = project(h, n, reps, mo.min_rep_seconds);
       const double budget_left = info.study_budget_seconds - study_elapsed();
-      if (!h.points.empty() && (projected > info.cell_cap_seconds || projected > budget_left)) {
+      if (!h.points.empty() && projected > budget_left) {
         h.skipped = true;
-        char why[256];
-        const std::size_t from = h.points.back().first;
-        if (projected > info.cell_cap_seconds) {
-          std::snprintf(why, sizeof why,
-                        "projected %s (from N=%zu, growth up to N^%.2g) exceeds the cap of %s per "
-                        "structure and size",
-                        seconds_text(projected).c_str(), from, exponent,
-                        seconds_text(info.cell_cap_seconds).c_str());
-        } else {
-          std::snprintf(why, sizeof why, "projected %s exceeds the %s left of the study's budget",
-                        seconds_text(projected).c_str(),
-                        seconds_text(std::max(0.0, budget_left)).c_str());
-        }
+        const std::string why = "projected " + seconds_text(projected) + " exceeds the " +
+                                seconds_text(std::max(0.0, budget_left)) +
+                                " left of the study's budget";
         res.skips.push_back({sel.spec, n, projected, info.cell_cap_seconds, why});
         bar.message("skipping " + sel.spec + " at N=" + std::to_string(n) + ": " + why);
         continue;
@@ -382,7 +396,7 @@ void run_paper(const PaperOptions& o) {
           res.mismatches.push_back(
               {n, ps.even ? "even" : "uneven", "error", sel.spec, e.what(), "no error", ""});
           bar.message("error: " + sel.spec + " at N=" + std::to_string(n) + ": " + e.what());
-          h.skipped = true;
+          h.skipped = h.failed = true;
           break;
         }
       }
@@ -467,8 +481,6 @@ void run_paper(const PaperOptions& o) {
   }
   bar.finish("broadphase paper: done");
 
-  std::size_t skipped_structures = 0;
-  for (const History& h : hist) skipped_structures += h.skipped ? 1 : 0;
   std::printf("%s: %zu structures, %zu results, %zu skips, %zu of %zu results disagree%s\n",
               (out_dir / "REPORT.md").c_str(), structures.size(), res.rows.size(), res.skips.size(),
               res.mismatches.size(), res.comparisons, info.plots ? "" : ", plots skipped");

@@ -612,7 +612,8 @@ std::string report_markdown(const PaperResults& res) {
 
   auto section = [&](const std::string& title, const std::string& what, const std::string& test,
                      const std::string& placement, double scale = 1) {
-    md << "### " << title << "\n\n" << what << "\n\n" << ix.table(test, placement, scale) << "\n";
+    md << "### " << title << "\n\n"
+       << (what.empty() ? "" : what + "\n\n") << ix.table(test, placement, scale) << "\n";
   };
   md << "## Tests 1 and 2: time of one overlap query\n\n";
   section("Test 1: uneven placement", "Median ns per query of a moving object.", "query_time",
