@@ -123,6 +123,71 @@ TEST(LabReport, MismatchIsAnErrorInRed) {
   EXPECT_NE(md.find("MISMATCH"), std::string::npos);
 }
 
+// Synthetic results shaped like the study's: every finding must be found.
+PaperResults study_shaped() {
+  PaperResults res;
+  res.info.structures = {"naive", "octree-paper", "hgrid-paper", "peer-x"};
+  res.info.peers = {false, false, false, true};
+  res.info.registered = res.info.structures;
+  res.info.study_sizes = {50, 100, 200, 400, 800, 1600, 3200, 6400};
+  auto add = [&res](const std::string& s, const std::string& test, const std::string& pl,
+                    std::size_t n, double v) {
+    Row r;
+    r.structure = s;
+    r.peer = s == "peer-x";
+    r.test = test;
+    r.placement = pl;
+    r.n = n;
+    r.stat = summarize({v, v * 1.1, v * 0.9});
+    res.rows.push_back(r);
+  };
+  for (std::size_t n : res.info.study_sizes) {
+    const double x = static_cast<double>(n);
+    for (const char* pl : {"uneven", "even"}) {
+      const double even = pl[0] == 'e' ? 1.5 : 1.0;
+      add("naive", "query_tests", pl, n, x);
+      add("octree-paper", "query_tests", pl, n, 20 * even + x / 50);
+      add("hgrid-paper", "query_tests", pl, n, 10 + x / 100);
+      add("naive", "query_time", pl, n, x);
+      // The octree is faster up to 200 objects, the hgrid from 400 on.
+      add("octree-paper", "query_time", pl, n, n <= 200 ? 50 : 400 + x / 10);
+      add("hgrid-paper", "query_time", pl, n, 100 + x / 100);
+    }
+    add("naive", "insert_time", "even", n, 10);
+    add("octree-paper", "insert_time", "even", n, 100);
+    add("hgrid-paper", "insert_time", "even", n, 300);
+    add("naive", "remove_time", "even", n, 100);
+    add("octree-paper", "remove_time", "even", n, 200);
+    add("hgrid-paper", "remove_time", "even", n, 20);
+    add("naive", "frame_time", "even", n, x / 100);
+    add("peer-x", "frame_time", "even", n, x / 400);
+  }
+  return res;
+}
+
+TEST(LabReport, StudyShapedResultsReproduceEveryFinding) {
+  const std::string md = report_markdown(study_shaped());
+  std::size_t reproduced = 0;
+  for (std::size_t at = md.find("| **Reproduced** |"); at != std::string::npos;
+       at = md.find("| **Reproduced** |", at + 1))
+    ++reproduced;
+  EXPECT_EQ(reproduced, 5u) << md.substr(md.find("## The study's findings"), 3000);
+  EXPECT_NE(md.find("the hgrid is faster from N=400"), std::string::npos);
+  // Versus peers: naive takes 4 times the fastest peer's frame time.
+  EXPECT_NE(md.find("### Versus peers"), std::string::npos);
+  EXPECT_NE(md.find("| naive | 4.00 |"), std::string::npos)
+      << md.substr(md.find("### Versus peers"), 1500);
+}
+
+TEST(LabReport, ContraryResultsAreNotReproduced) {
+  PaperResults res = study_shaped();
+  for (Row& r : res.rows)
+    if (r.structure == "hgrid-paper" && r.test == "query_tests") r.stat.median *= 1000;
+  const std::string md = report_markdown(res);
+  EXPECT_NE(md.find("fewest narrow-phase tests at every N | **Not reproduced**"),
+            std::string::npos);
+}
+
 TEST(LabProgress, FormatsSeconds) {
   EXPECT_EQ(ProgressBar::format_seconds(42), "42s");
   EXPECT_EQ(ProgressBar::format_seconds(185), "3m05s");

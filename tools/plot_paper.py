@@ -140,7 +140,8 @@ def memory_plots(rows, styles, peers, out):
     fig, ax = plt.subplots(figsize=(8, 4.8))
     for s in order(data, peers):
         pts = data[s]
-        ax.plot([p[0] for p in pts], [p[1] for p in pts], label=s, **styles(s))
+        ax.plot([p[0] for p in pts], [p[1] for p in pts],
+                label=s + (" (peer)" if s in peers else ""), **styles(s))
         if s in FORMULA:
             st = dict(styles(s))
             st.update(linestyle=":", marker=None, linewidth=1.5)
@@ -150,7 +151,8 @@ def memory_plots(rows, styles, peers, out):
     fig, ax = plt.subplots(figsize=(8, 4.8))
     for s in order(data, peers):
         pts = data[s]
-        ax.plot([p[0] for p in pts], [p[1] / p[0] for p in pts], label=s, **styles(s))
+        ax.plot([p[0] for p in pts], [p[1] / p[0] for p in pts],
+                label=s + (" (peer)" if s in peers else ""), **styles(s))
     finish(fig, ax, out, "fig3_8_memory_per_object", "Figure 3.8: memory per object (even placement)",
            "bytes per object")
 
