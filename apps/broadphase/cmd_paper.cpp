@@ -380,6 +380,11 @@ void run_paper(const PaperOptions& o) {
       for (int p = 0; p < 2; ++p) {
         const PaperScene& ps = scenes[p];
         mo.churn = ps.even;
+        // The second placement gets what the first left of the cap, so a
+        // structure much slower than projected stops after one repetition.
+        mo.cell_cap_seconds =
+            std::max(0.0, info.cell_cap_seconds -
+                              std::chrono::duration<double>(Clock::now() - t_cell).count());
         const std::string where = "study: " + sel.spec + " N=" + std::to_string(n) + " " +
                                   (ps.even ? "even" : "uneven") + " ";
         auto tick = [&](const std::string& step) {
@@ -443,7 +448,8 @@ void run_paper(const PaperOptions& o) {
     }
   }
 
-  bar.update("plots: tools/plot_paper.py", 0.99, 1);
+  // The plot script and its messages write to stderr too: no bar under them.
+  bar.clear();
   info.plots = run_plot_script(
       "plot_paper.py", {"--csv", (out_dir / "results.csv").string(), "--out", out_dir.string()});
   if (info.plots) {

@@ -90,6 +90,12 @@ void ProgressBar::clear_line() {
   drawn_ = false;
 }
 
+void ProgressBar::clear() {
+  if (quiet_) return;
+  clear_line();
+  last_draw_ = std::chrono::steady_clock::now() - std::chrono::hours(1);
+}
+
 void ProgressBar::message(const std::string& line) {
   if (quiet_) return;
   clear_line();

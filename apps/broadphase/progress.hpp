@@ -27,6 +27,9 @@ class ProgressBar {
   /// Prints a line of its own (a warning, a skipped step) without garbling
   /// the bar.
   void message(const std::string& line);
+  /// Erases the bar so that other code can print to the same stream; the
+  /// next update draws it again.
+  void clear();
   /// Clears the bar and prints the total time (once; the destructor calls it).
   void finish(const std::string& what = "done");
 
