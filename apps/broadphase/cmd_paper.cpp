@@ -279,8 +279,8 @@ void run_paper(const PaperOptions& o) {
   mo.min_rep_seconds = o.quick ? 5e-4 : 4e-3;
   mo.cell_cap_seconds = info.cell_cap_seconds;
   info.min_rep_seconds = mo.min_rep_seconds;
-  auto reps_at = [&](std::size_t n) { return o.quick ? 2 : (n > 102400 ? 3 : 5); };
-  info.reps_rule = o.quick ? "2 per measurement" : "5 per measurement up to N = 102 400, 3 above";
+  auto reps_at = [&](std::size_t n) { return o.quick ? 3 : (n > 102400 ? 3 : 5); };
+  info.reps_rule = o.quick ? "3 per measurement" : "5 per measurement up to N = 102 400, 3 above";
 
   const Hook hooks[] = {{"cell-size sweep", lab_cell_size_sweep},
                         {"tree experiments", lab_tree_experiments},

@@ -138,7 +138,7 @@ SceneResult measure_scene(const Registry& registry, const std::string& structure
     // until the clock has something to measure.
     tick("queries " + std::to_string(rep + 1) + "/" + std::to_string(o.reps));
     std::uint64_t hits = 0, tests = 0;
-    int passes = 0;
+    std::vector<double> pass_times;
     double spent = 0;
     const auto& objects = replay.scene().objects;
     do {
@@ -149,16 +149,19 @@ SceneResult measure_scene(const Registry& registry, const std::string& structure
       };
       t0 = Clock::now();
       for (std::uint32_t i : moving) pass_tests += bp->query(objects[i], visitor).tests;
-      spent += timed_part(t0);
-      if (passes == 0) {
+      pass_times.push_back(timed_part(t0));
+      spent += pass_times.back();
+      if (pass_times.size() == 1) {
         hits = pass_hits;
         tests = pass_tests;
       }
-      ++passes;
     } while (spent < o.min_rep_seconds && !moving.empty());
-    pass_wall += spent / passes;
+    // The median pass, not the mean: on a shared machine one preempted pass
+    // would otherwise count for all the others.
+    const double pass = summarize(pass_times).median;
+    pass_wall += pass;
     const double m = static_cast<double>(std::max<std::size_t>(moving.size(), 1));
-    query_ns.push_back(spent / passes / m * 1e9);
+    query_ns.push_back(pass / m * 1e9);
     query_tests.push_back(static_cast<double>(tests) / m);
     out.query_hits.push_back(hits);
     ++reps_done;
@@ -192,29 +195,29 @@ SceneResult measure_scene(const Registry& registry, const std::string& structure
     const std::string churn_note = o.reps > reps_done ? out.note : std::string{};
     for (int rep = 0; rep < reps_done; ++rep) {
       tick("insert/remove " + std::to_string(rep + 1) + "/" + std::to_string(reps_done));
-      double removing = 0, inserting = 0;
-      std::size_t ops = 0;
+      std::vector<double> removing, inserting;
+      double spent = 0;
       const auto t_rep = Clock::now();
-      int batches = 0;
       do {
         for (std::size_t j = 0; j < k; ++j) std::swap(order[j], order[j + rng.below(n - j)]);
         t0 = Clock::now();
         for (std::size_t j = 0; j < k; ++j) bp->remove(handles[order[j]]);
-        removing += timed_part(t0);
+        removing.push_back(timed_part(t0));
         t0 = Clock::now();
         for (std::size_t j = 0; j < k; ++j) {
           const std::uint32_t id = order[j];
           handles[id] = bp->insert(scene.objects[id], id,
                                    scene.is_moving(id) ? Motion::dynamic : Motion::fixed);
         }
-        inserting += timed_part(t0);
-        ops += k;
-        ++batches;
-      } while (removing + inserting < o.min_rep_seconds);
+        inserting.push_back(timed_part(t0));
+        spent += removing.back() + inserting.back();
+      } while (spent < o.min_rep_seconds);
       batch_wall += since(t_rep);
-      batches_total += batches;
-      insert_ns.push_back(inserting / static_cast<double>(ops) * 1e9);
-      remove_ns.push_back(removing / static_cast<double>(ops) * 1e9);
+      batches_total += static_cast<int>(removing.size());
+      // Median batch, as for the queries: robust to a preempted batch.
+      const double per = 1e9 / static_cast<double>(k);
+      insert_ns.push_back(summarize(inserting).median * per);
+      remove_ns.push_back(summarize(removing).median * per);
     }
     out.costs.churn = batches_total > 0 ? batch_wall / batches_total : 0;
     add_row("insert_time", 5, "ns", insert_ns, churn_note);

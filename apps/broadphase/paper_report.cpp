@@ -607,8 +607,10 @@ std::string report_markdown(const PaperResults& res) {
         "Tests 5 and 6 (even placement only, as in the study): a batch of k = N/10 objects (at "
         "least 4, at most 1024), chosen at random, is removed (timed: Test 6) and the same objects "
         "inserted again (timed: Test 5), so the structure holds between N − k and N objects; "
-        "batches repeat until the timed part exceeds the minimum loop time. Times are per "
-        "object, the clock's own overhead subtracted. See docs/lab.md.\n\n";
+        "batches repeat until the timed part exceeds the minimum loop time. Query passes and "
+        "batches are timed one by one and a repetition reports the median one, so that a "
+        "preempted pass does not count for the others. Times are per object, the clock's own "
+        "overhead subtracted. See docs/lab.md.\n\n";
 
   auto section = [&](const std::string& title, const std::string& what, const std::string& test,
                      const std::string& placement, double scale = 1) {
