@@ -1,10 +1,528 @@
+// `paper`: the lab. Runs the study's six tests, memory and the engine frame
+// on every structure, checks that all of them agree on every pair, and
+// writes CSV, JSON, figures and REPORT.md.
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <map>
+
 #include "commands.hpp"
+#include "lab.hpp"
+#include "paper_measure.hpp"
+#include "paper_report.hpp"
+#include "progress.hpp"
 
 namespace broadphase::app {
 
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+struct PaperOptions {
+  bool quick = false;
+  std::string out;
+  std::vector<std::string> algos;
+  std::size_t max_n = 0;
+  bool max_n_given = false;
+  std::uint64_t seed = 1;
+  double budget = 0;
+  bool peers = true;
+};
+
+struct Selected {
+  std::string spec;
+  bool peer = false;
+};
+
+// "--algos a,b:k=1,j=2,c" names a, b (with two options) and c: a piece
+// with '=' and no ':' continues the options of the structure before it.
+std::vector<std::string> split_specs(const std::vector<std::string>& raw) {
+  std::vector<std::string> out;
+  for (const std::string& arg : raw) {
+    std::size_t start = 0;
+    while (start <= arg.size()) {
+      std::size_t comma = arg.find(',', start);
+      if (comma == std::string::npos) comma = arg.size();
+      const std::string piece = arg.substr(start, comma - start);
+      const std::size_t eq = piece.find('='), colon = piece.find(':');
+      if (!piece.empty() && eq != std::string::npos && colon == std::string::npos && !out.empty() &&
+          out.back().find(':') != std::string::npos) {
+        out.back() += "," + piece;
+      } else if (!piece.empty()) {
+        out.push_back(piece);
+      }
+      start = comma + 1;
+    }
+  }
+  return out;
+}
+
+std::vector<Selected> select_structures(const PaperOptions& o) {
+  const Registry& reg = registry();
+  std::vector<Selected> out;
+  if (o.algos.empty()) {
+    for (const StructureInfo& e : reg.entries())
+      if (!e.peer || o.peers) out.push_back({e.name, e.peer});
+    if (out.empty()) throw UsageError("no structure is registered in this build");
+    return out;
+  }
+  const std::vector<std::string> specs = split_specs(o.algos);
+  if (specs.empty()) throw UsageError("--algos: no structure named; valid: " + reg.names());
+  for (const std::string& spec : specs) {
+    const std::string name = spec.substr(0, spec.find(':'));
+    const StructureInfo* info = reg.find(name);
+    if (info == nullptr)
+      throw UsageError("--algos: unknown structure '" + name + "'; valid: " + reg.names());
+    try {
+      reg.make(spec);  // rejects bad options now rather than an hour into the run
+    } catch (const UnknownStructure& e) {
+      throw UsageError(std::string("--algos: ") + e.what());
+    }
+    if (std::none_of(out.begin(), out.end(), [&](const Selected& s) { return s.spec == spec; }))
+      out.push_back({spec, info->peer});
+  }
+  return out;
+}
+
+std::string today_and_host() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char date[32];
+  std::strftime(date, sizeof date, "%Y-%m-%d", &tm);
+  char host[256] = {};
+  if (gethostname(host, sizeof host - 1) != 0) std::snprintf(host, sizeof host, "unknown-host");
+  return std::string(date) + "-" + host;
+}
+
+// What one structure has cost so far, to project the next size.
+struct History {
+  std::vector<std::pair<std::size_t, CellCosts>> points;
+  double overhead = 1;  // wall time / modelled time at the last size (setup, teardown)
+  bool skipped = false;
+  bool failed = false;
+};
+
+// The modelled wall time of one size (both placements) from its parts.
+double model(const CellCosts& c, int reps, double min_rep) {
+  return c.build + (reps + 1) * c.frame + reps * std::max(2 * min_rep, c.pass) +
+         reps * std::max(min_rep, c.churn);
+}
+
+// A part of the cost at size n, grown from the last size by the growth
+// observed between the last two (an exponent clamped to [1, 3]; 2 when
+// there is only one size yet).
+double grow(const History& h, double CellCosts::*part, std::size_t n, double* exponent) {
+  const auto& [n1, c1] = h.points.back();
+  const double x1 = c1.*part;
+  double e = 2;
+  if (h.points.size() >= 2) {
+    const auto& [n0, c0] = h.points[h.points.size() - 2];
+    const double x0 = c0.*part;
+    if (x0 > 0 && x1 > 0 && n1 > n0)
+      e = std::clamp(
+          std::log(x1 / x0) / std::log(static_cast<double>(n1) / static_cast<double>(n0)), 1.0,
+          3.0);
+  }
+  if (exponent != nullptr) *exponent = std::max(*exponent, e);
+  return x1 * std::pow(static_cast<double>(n) / static_cast<double>(n1), e);
+}
+
+double project(const History& h, std::size_t n, int reps, double min_rep,
+               double* exponent = nullptr) {
+  if (h.points.empty()) return 2e-6 * static_cast<double>(n) * (reps + 2) + 1e-3;
+  CellCosts c;
+  c.build = grow(h, &CellCosts::build, n, exponent);
+  c.frame = grow(h, &CellCosts::frame, n, exponent);
+  c.pass = grow(h, &CellCosts::pass, n, exponent);
+  c.churn = grow(h, &CellCosts::churn, n, exponent);
+  return model(c, reps, min_rep) * h.overhead;
+}
+
+std::string seconds_text(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, s >= 10 ? "%.0f s" : "%.2g s", s);
+  return buf;
+}
+
+// Compares what every structure reported on one scene: frame digests and
+// query results. The reference is naive's result when it ran, else the
+// most common one.
+void compare(const std::vector<Selected>& structures, std::size_t n, const PaperScene& ps,
+             const std::vector<std::vector<FrameDigest>>& digests,
+             const std::vector<std::vector<std::uint64_t>>& hits, PaperResults& res) {
+  SceneSummary summary;
+  summary.n = n;
+  summary.placement = ps.even ? "even" : "uneven";
+  summary.dist = std::string(to_string(ps.dist));
+  summary.world = ps.scene.world;
+  summary.moving = ps.moving;
+  summary.seed = ps.seed;
+  std::size_t frames = 0, passes = 0;
+  for (std::size_t s = 0; s < structures.size(); ++s) {
+    frames = std::max(frames, digests[s].size());
+    passes = std::max(passes, hits[s].size());
+    summary.structures += digests[s].empty() ? 0 : 1;
+  }
+  auto check = [&](std::size_t count, auto get, auto text, const std::string& what, auto record) {
+    for (std::size_t f = 0; f < count; ++f) {
+      std::map<decltype(get(0, 0)), std::vector<std::size_t>> by_value;
+      for (std::size_t s = 0; s < structures.size(); ++s)
+        if (f < (what == "frame" ? digests[s].size() : hits[s].size()))
+          by_value[get(s, f)].push_back(s);
+      if (by_value.empty()) continue;
+      auto ref = by_value.begin();
+      for (auto it = by_value.begin(); it != by_value.end(); ++it) {
+        const bool naive_here =
+            std::any_of(it->second.begin(), it->second.end(),
+                        [&](std::size_t s) { return structures[s].spec == "naive"; });
+        if (naive_here) {
+          ref = it;
+          break;
+        }
+        if (it->second.size() > ref->second.size()) ref = it;
+      }
+      std::string names;
+      for (std::size_t s : ref->second) names += (names.empty() ? "" : ", ") + structures[s].spec;
+      for (const auto& [value, who] : by_value) {
+        res.comparisons += who.size();
+        if (value == ref->first) continue;
+        for (std::size_t s : who)
+          res.mismatches.push_back({n, summary.placement, what + " " + std::to_string(f),
+                                    structures[s].spec, text(value), text(ref->first), names});
+      }
+      record(ref->first);
+    }
+  };
+  check(
+      frames,
+      [&](std::size_t s, std::size_t f) {
+        return std::make_pair(digests[s][f].pairs, digests[s][f].hash);
+      },
+      [](const std::pair<std::uint64_t, std::uint64_t>& v) {
+        return std::to_string(v.first) + " pairs, hash " + hex16(v.second);
+      },
+      "frame",
+      [&](const std::pair<std::uint64_t, std::uint64_t>& v) {
+        FrameDigest d;
+        d.pairs = v.first;
+        d.hash = v.second;
+        summary.frames.push_back(d);
+      });
+  check(
+      passes, [&](std::size_t s, std::size_t f) { return hits[s][f]; },
+      [](std::uint64_t v) { return std::to_string(v) + " objects found"; }, "query pass",
+      [](std::uint64_t) {});
+  res.scenes.push_back(std::move(summary));
+}
+
+struct Hook {
+  const char* name;
+  std::string (*run)(const LabContext&);
+};
+
+void run_paper(const PaperOptions& o) {
+  // Check everything the user asked for before any work.
+  if (o.max_n_given && o.max_n < 50)
+    throw UsageError("--max-n " + std::to_string(o.max_n) +
+                     ": must be at least 50, the study's smallest size");
+  if (o.budget < 0 || !std::isfinite(o.budget))
+    throw UsageError("--budget: must be a positive number of seconds");
+  const std::vector<Selected> structures = select_structures(o);
+  std::vector<std::size_t> study_sizes =
+      o.quick ? std::vector<std::size_t>{50, 100, 200, 400, 800, 1600}
+              : std::vector<std::size_t>{50, 100, 200, 400, 800, 1600, 3200, 6400};
+  std::vector<std::size_t> scaled_sizes =
+      o.quick ? std::vector<std::size_t>{3200}
+              : std::vector<std::size_t>{25600, 102400, 409600, 1024000};
+  if (o.max_n_given) {
+    std::erase_if(study_sizes, [&](std::size_t n) { return n > o.max_n; });
+    std::erase_if(scaled_sizes, [&](std::size_t n) { return n > o.max_n; });
+  }
+  const fs::path out_dir = o.out.empty() ? fs::path("results") / today_and_host() : fs::path(o.out);
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec || !fs::is_directory(out_dir))
+    throw UsageError("--out " + out_dir.string() + ": cannot create the directory" +
+                     (ec ? ": " + ec.message() : std::string{}));
+
+  ProgressBar bar;
+  bar.set_plain_interval(o.quick ? 5 : 15);
+  const auto t_start = Clock::now();
+  auto elapsed = [&] { return std::chrono::duration<double>(Clock::now() - t_start).count(); };
+
+  PaperResults res;
+  RunInfo& info = res.info;
+  fill_provenance(info);
+  info.quick = o.quick;
+  info.seed = o.seed;
+  info.budget_seconds = o.budget > 0 ? o.budget : (o.quick ? 50 : 1200);
+  info.study_budget_seconds = info.budget_seconds * (o.quick ? 0.6 : 0.7);
+  info.cell_cap_seconds = std::min(
+      info.study_budget_seconds / static_cast<double>(structures.size()) / 2, o.quick ? 5.0 : 60.0);
+  info.study_sizes = study_sizes;
+  info.scaled_sizes = scaled_sizes;
+  for (const Selected& s : structures) {
+    info.structures.push_back(s.spec);
+    info.peers.push_back(s.peer);
+  }
+  for (const StructureInfo& e : registry().entries()) info.registered.push_back(e.name);
+
+  MeasureOptions mo;
+  mo.seed = o.seed;
+  mo.min_rep_seconds = o.quick ? 5e-4 : 4e-3;
+  mo.cell_cap_seconds = info.cell_cap_seconds;
+  info.min_rep_seconds = mo.min_rep_seconds;
+  auto reps_at = [&](std::size_t n) { return o.quick ? 3 : (n > 102400 ? 3 : 5); };
+  info.reps_rule = o.quick ? "3 per measurement" : "5 per measurement up to N = 102 400, 3 above";
+
+  const Hook hooks[] = {{"cell-size sweep", lab_cell_size_sweep},
+                        {"tree experiments", lab_tree_experiments},
+                        {"octree experiments", lab_octree_experiments},
+                        {"tunneling", lab_tunneling},
+                        {"performance", lab_performance}};
+  constexpr std::size_t kHooks = std::size(hooks);
+  const double hook_budget = (info.budget_seconds - info.study_budget_seconds) / kHooks;
+
+  std::vector<std::size_t> sizes = study_sizes;
+  sizes.insert(sizes.end(), scaled_sizes.begin(), scaled_sizes.end());
+  std::vector<History> hist(structures.size());
+
+  // Seconds left in the six tests: every structure's projected time at the
+  // sizes still to come, up to the first it will be skipped at.
+  auto study_left = [&](std::size_t size_index, std::size_t next_structure) {
+    double left = 0;
+    for (std::size_t s = 0; s < structures.size(); ++s) {
+      if (hist[s].skipped) continue;
+      for (std::size_t k = size_index + (s < next_structure ? 1 : 0); k < sizes.size(); ++k) {
+        const double p = project(hist[s], sizes[k], reps_at(sizes[k]), mo.min_rep_seconds);
+        if (p > info.cell_cap_seconds) break;
+        left += p;
+      }
+    }
+    return left;
+  };
+
+  const auto t_study = Clock::now();
+  auto study_elapsed = [&] {
+    return std::chrono::duration<double>(Clock::now() - t_study).count();
+  };
+  for (std::size_t ni = 0; ni < sizes.size(); ++ni) {
+    const std::size_t n = sizes[ni];
+    const bool scaled = ni >= study_sizes.size();
+    const int reps = reps_at(n);
+    mo.reps = reps;
+    const double hooks_left = hook_budget * kHooks;
+    auto show = [&](const std::string& what, double left) {
+      const double e = elapsed();
+      bar.update(what, e / (e + left), left);
+    };
+    // Decide who is over the cap before generating the scenes: a million
+    // objects take seconds to generate, for nobody when all are skipped.
+    bool anyone = false;
+    for (std::size_t si = 0; si < structures.size(); ++si) {
+      History& h = hist[si];
+      if (h.skipped) {
+        res.skips.push_back({structures[si].spec, n, 0, info.cell_cap_seconds,
+                             h.failed ? "failed at a smaller size" : "skipped at a smaller size"});
+        continue;
+      }
+      double exponent = 1;
+      const double projected = project(h, n, reps, mo.min_rep_seconds, &exponent);
+      if (!h.points.empty() && projected > info.cell_cap_seconds) {
+        h.skipped = true;
+        char why[256];
+        std::snprintf(why, sizeof why,
+                      "projected %s (from N=%zu, growth up to N^%.2g) exceeds the cap of %s per "
+                      "structure and size",
+                      seconds_text(projected).c_str(), h.points.back().first, exponent,
+                      seconds_text(info.cell_cap_seconds).c_str());
+        res.skips.push_back({structures[si].spec, n, projected, info.cell_cap_seconds, why});
+        bar.message("skipping " + structures[si].spec + " at N=" + std::to_string(n) + ": " + why);
+        continue;
+      }
+      anyone = true;
+    }
+    if (!anyone) continue;
+    show("study: generating the scenes of N=" + std::to_string(n), study_left(ni, 0) + hooks_left);
+    const PaperScene scenes[2] = {make_paper_scene(n, false, scaled, o.seed),
+                                  make_paper_scene(n, true, scaled, o.seed)};
+    std::vector<std::vector<FrameDigest>> digests[2];
+    std::vector<std::vector<std::uint64_t>> hits[2];
+    for (int p = 0; p < 2; ++p) {
+      digests[p].resize(structures.size());
+      hits[p].resize(structures.size());
+    }
+    for (std::size_t si = 0; si < structures.size(); ++si) {
+      const Selected& sel = structures[si];
+      History& h = hist[si];
+      if (h.skipped) continue;  // over the cap, or before this size: recorded above
+      const double projected = project(h, n, reps, mo.min_rep_seconds);
+      const double budget_left = info.study_budget_seconds - study_elapsed();
+      if (!h.points.empty() && projected > budget_left) {
+        h.skipped = true;
+        const std::string why = "projected " + seconds_text(projected) + " exceeds the " +
+                                seconds_text(std::max(0.0, budget_left)) +
+                                " left of the study's budget";
+        res.skips.push_back({sel.spec, n, projected, info.cell_cap_seconds, why});
+        bar.message("skipping " + sel.spec + " at N=" + std::to_string(n) + ": " + why);
+        continue;
+      }
+      const double rest = study_left(ni, si + 1) + hooks_left;
+      const auto t_cell = Clock::now();
+      CellCosts costs;
+      for (int p = 0; p < 2; ++p) {
+        const PaperScene& ps = scenes[p];
+        mo.churn = ps.even;
+        // The second placement gets what the first left of the cap, so a
+        // structure much slower than projected stops after one repetition.
+        mo.cell_cap_seconds =
+            std::max(0.0, info.cell_cap_seconds -
+                              std::chrono::duration<double>(Clock::now() - t_cell).count());
+        const std::string where = "study: " + sel.spec + " N=" + std::to_string(n) + " " +
+                                  (ps.even ? "even" : "uneven") + " ";
+        auto tick = [&](const std::string& step) {
+          const double cell = std::chrono::duration<double>(Clock::now() - t_cell).count();
+          show(where + step, std::max(0.0, projected - cell) + rest);
+        };
+        try {
+          SceneResult r = measure_scene(registry(), sel.spec, sel.peer, ps, mo, tick);
+          for (Row& row : r.rows) res.rows.push_back(std::move(row));
+          digests[p][si] = std::move(r.digests);
+          hits[p][si] = std::move(r.query_hits);
+          costs += r.costs;
+        } catch (const std::exception& e) {
+          res.mismatches.push_back(
+              {n, ps.even ? "even" : "uneven", "error", sel.spec, e.what(), "no error", ""});
+          bar.message("error: " + sel.spec + " at N=" + std::to_string(n) + ": " + e.what());
+          h.skipped = h.failed = true;
+          break;
+        }
+      }
+      if (h.skipped) continue;
+      h.points.push_back({n, costs});
+      const double modelled = model(costs, reps, mo.min_rep_seconds);
+      h.overhead = modelled > 0 ? std::clamp(costs.total / modelled, 1.0, 3.0) : 1.0;
+    }
+    for (int p = 0; p < 2; ++p) compare(structures, n, scenes[p], digests[p], hits[p], res);
+  }
+  info.study_seconds = study_elapsed();
+
+  write_csv(out_dir / "results.csv", res.rows);
+
+  // The other families' experiments, each with its share of the budget.
+  bool hook_failed = false;
+  for (std::size_t k = 0; k < kHooks; ++k) {
+    LabContext ctx;
+    ctx.out_dir = out_dir;
+    ctx.quick = o.quick;
+    ctx.seed = o.seed;
+    if (!o.algos.empty())
+      for (const Selected& s : structures)
+        if (!s.peer) ctx.algos.push_back(s.spec);
+    const double left = info.budget_seconds - elapsed();
+    ctx.budget_seconds = std::max(o.quick ? 2.0 : 15.0,
+                                  std::min(hook_budget, left / static_cast<double>(kHooks - k)));
+    const double after = hook_budget * static_cast<double>(kHooks - k - 1);
+    const std::string name = hooks[k].name;
+    ctx.progress = [&, name, budget = ctx.budget_seconds](const std::string& what, double f) {
+      const double left_here = std::max(0.0, 1 - f) * budget;
+      const double e = elapsed();
+      bar.update(name + ": " + what, e / (e + left_here + after), left_here + after);
+    };
+    ctx.progress("starting", 0);
+    try {
+      res.sections.push_back(hooks[k].run(ctx));
+    } catch (const std::exception& e) {
+      hook_failed = true;
+      res.sections.push_back("## " + name +
+                             "\n\n<span style=\"color:red\">**The experiment failed: " +
+                             std::string(e.what()) + "**</span>\n");
+      bar.message("error: " + name + ": " + e.what());
+    }
+  }
+
+  // The plot script and its messages write to stderr too: no bar under them.
+  bar.clear();
+  info.plots = run_plot_script(
+      "plot_paper.py", {"--csv", (out_dir / "results.csv").string(), "--out", out_dir.string()});
+  if (info.plots) {
+    for (const auto& entry : fs::directory_iterator(out_dir)) {
+      const std::string f = entry.path().filename().string();
+      if (entry.path().extension() == ".png" &&
+          (f.rfind("fig", 0) == 0 || f.rfind("frame", 0) == 0))
+        res.figures.push_back(f);
+    }
+    std::sort(res.figures.begin(), res.figures.end(),
+              [](const std::string& a, const std::string& b) {
+                // fig3_2 before fig3_10: compare the numbers, not the text.
+                auto key = [](const std::string& s) {
+                  int major = 99, minor = 99;
+                  std::sscanf(s.c_str(), "fig%d_%d", &major, &minor);
+                  return std::make_tuple(major, minor, s);
+                };
+                return key(a) < key(b);
+              });
+  } else {
+    info.plots_note =
+        "python3 with matplotlib was not available, or tools/plot_paper.py failed (the reason is "
+        "on stderr)";
+  }
+
+  info.elapsed_seconds = elapsed();
+  write_json(out_dir / "results.json", res);
+  {
+    const fs::path report = out_dir / "REPORT.md";
+    std::FILE* f = std::fopen(report.c_str(), "w");
+    if (f == nullptr) throw std::runtime_error(report.string() + ": cannot write");
+    const std::string md = report_markdown(res);
+    const bool ok = std::fwrite(md.data(), 1, md.size(), f) == md.size();
+    if (std::fclose(f) != 0 || !ok) throw std::runtime_error(report.string() + ": write failed");
+  }
+  bar.finish("broadphase paper: done");
+
+  std::printf("%s: %zu structures, %zu results, %zu skips, %zu of %zu results disagree%s\n",
+              (out_dir / "REPORT.md").c_str(), structures.size(), res.rows.size(), res.skips.size(),
+              res.mismatches.size(), res.comparisons, info.plots ? "" : ", plots skipped");
+  std::fflush(stdout);
+  if (!res.mismatches.empty()) {
+    std::fprintf(
+        stderr,
+        "\x1b[31mbroadphase paper: %zu results disagree between structures (see %s)\x1b[0m\n",
+        res.mismatches.size(), (out_dir / "REPORT.md").c_str());
+    throw std::runtime_error("structures disagree on pairs or query results");
+  }
+  if (hook_failed) throw std::runtime_error("an experiment failed (see REPORT.md)");
+}
+
+}  // namespace
+
 void add_paper_command(CLI::App& app) {
-  app.add_subcommand("paper", "(not yet available)")->callback([] {
-    throw UsageError("'paper' is not available in this build yet");
+  auto* cmd = app.add_subcommand(
+      "paper", "Run the study's tests on every structure and write results, figures and REPORT.md");
+  auto o = std::make_shared<PaperOptions>();
+  cmd->add_flag("--quick", o->quick,
+                "Small sizes and few repetitions: under a minute (what CI runs)");
+  cmd->add_option("--out", o->out, "Output directory (default results/<date>-<host>/)");
+  cmd->add_option("--algos", o->algos,
+                  "Structures to run, comma-separated, with options as name:key=value,... "
+                  "(default: every registered structure)");
+  auto* max_n =
+      cmd->add_option("--max-n", o->max_n, "Largest number of objects to run (at least 50)");
+  cmd->add_option("--seed", o->seed, "Random seed of the scenes")->default_val(1);
+  cmd->add_option("--budget", o->budget,
+                  "Seconds the whole run should take at most (default 1200, 50 with --quick); "
+                  "structures whose projected time does not fit are skipped at large sizes");
+  cmd->add_flag("--peers,!--no-peers", o->peers, "Include the peer libraries (default: yes)");
+  cmd->callback([o, max_n] {
+    o->max_n_given = max_n->count() > 0;
+    run_paper(*o);
   });
 }
 

@@ -1,0 +1,126 @@
+#!/usr/bin/env bash
+# `broadphase paper --quick` end to end: the outputs exist and agree with
+# each other, figures are made when matplotlib is there, and bad options
+# fail with a clear message and a non-zero exit.
+set -u
+cli=$1
+fail=0
+pass=0
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+check() {  # check NAME COMMAND...
+  local name=$1; shift
+  if "$@"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: $name"; fi
+}
+
+out=$tmp/run
+start=$(date +%s)
+"$cli" paper --quick --out "$out" >"$tmp/stdout" 2>"$tmp/stderr"
+rc=$?
+took=$(( $(date +%s) - start ))
+check "paper --quick exits 0 (exit $rc: $(tail -3 "$tmp/stderr"))" test $rc -eq 0
+check "paper --quick takes under a minute (took ${took}s)" test "$took" -lt 60
+for f in results.csv results.json REPORT.md; do
+  check "$f written" test -s "$out/$f"
+done
+check "stdout is one summary line naming the report" \
+  test "$(wc -l <"$tmp/stdout")" -eq 1 -a -n "$(grep -F "$out/REPORT.md" "$tmp/stdout")"
+
+# The CSV, the JSON and the report describe the same run.
+cat >"$tmp/consistent.py" <<'PY'
+import csv, json, sys
+out = sys.argv[1]
+rows = list(csv.DictReader(open(out + "/results.csv")))
+j = json.load(open(out + "/results.json"))
+report = open(out + "/REPORT.md").read()
+errors = []
+if not rows:
+    errors.append("results.csv has no rows")
+if len(rows) != len(j["rows"]):
+    errors.append("csv has %d rows, json %d" % (len(rows), len(j["rows"])))
+for r, k in zip(rows, j["rows"]):
+    if (r["structure"], r["test"], r["placement"], int(r["n"])) != (k["structure"], k["test"], k["placement"], k["n"]):
+        errors.append("row order differs: %s vs %s" % (r, k)); break
+    if abs(float(r["median"]) - k["median"]) > 1e-5 * max(1.0, abs(k["median"])):
+        errors.append("medians differ: %s vs %s" % (r["median"], k["median"])); break
+    if not (float(r["min"]) <= float(r["median"]) <= float(r["max"])):
+        errors.append("median outside [min, max]: %s" % r); break
+tests = {r["test"] for r in rows}
+for t in ("query_time", "query_tests", "insert_time", "remove_time", "memory", "frame_time"):
+    if t not in tests:
+        errors.append("no %s rows" % t)
+for s in j["run"]["structures"]:
+    if ("| " + s) not in report:
+        errors.append("structure %s missing from REPORT.md" % s)
+    if not any(r["structure"] == s for r in rows) and s not in [k["structure"] for k in j["skipped"]]:
+        errors.append("structure %s has neither rows nor a skip" % s)
+for k in j["skipped"]:
+    if k["structure"] not in report.split("## Skipped")[1]:
+        errors.append("skip of %s not reported" % k["structure"])
+if j["mismatches"]:
+    errors.append("structures disagree: %s" % j["mismatches"][:3])
+if j["comparisons"] <= 0:
+    errors.append("no results were compared")
+for needle in ("## The study's findings, checked", "(a) the hgrid", "(e) the octree", "## Memory",
+               "## Exactness", "| commit |", "| machine |", "| compiler |", "| command |", "paper --quick"):
+    if needle not in report:
+        errors.append("REPORT.md lacks %r" % needle)
+# Medians of the study's tests are positive where they are times.
+for r in rows:
+    if r["test"] in ("query_time", "frame_time") and float(r["median"]) <= 0:
+        errors.append("non-positive time: %s" % r); break
+if j["run"]["plots"]:
+    for f in j["figures"]:
+        if ("(" + f + ")") not in report:
+            errors.append("figure %s not in REPORT.md" % f)
+else:
+    if "Plots were skipped" not in report:
+        errors.append("plots missing but the report does not say so")
+if errors:
+    print("\n".join(errors))
+sys.exit(1 if errors else 0)
+PY
+check "CSV, JSON and REPORT.md agree" python3 "$tmp/consistent.py" "$out"
+
+# Figures, whenever the python3 the CLI runs has matplotlib.
+if python3 -c 'import matplotlib' >/dev/null 2>&1; then
+  for f in fig3_1_query_time_uneven fig3_4_query_tests_even fig3_5_insert_time fig3_10_query_tests_placement frame_time_even; do
+    check "figure $f.png" test -s "$out/$f.png"
+    check "figure $f.svg" test -s "$out/$f.svg"
+  done
+else
+  check "report says plots were skipped" grep -q "Plots were skipped" "$out/REPORT.md"
+fi
+
+# Bad options: a clear message, a non-zero exit, nothing on stdout, no crash.
+expect_error() {  # expect_error NAME PATTERN ARGS...
+  local name=$1 pattern=$2; shift 2
+  "$cli" "$@" >"$tmp/out" 2>"$tmp/err"
+  local rc=$?
+  if [ $rc -ne 0 ] && [ $rc -lt 128 ] && grep -q -- "$pattern" "$tmp/err" && [ ! -s "$tmp/out" ]; then
+    pass=$((pass + 1))
+  else
+    fail=$((fail + 1)); echo "FAIL: $name (exit $rc): $(cat "$tmp/err")"
+  fi
+}
+expect_error "unknown structure" "unknown structure 'nope'; valid: .*naive" paper --quick --algos nope --out "$tmp/bad"
+expect_error "unknown structure in a list" "unknown structure 'nope'" paper --quick --algos naive,nope --out "$tmp/bad"
+expect_error "bad structure option" "naive" paper --quick --algos naive:foo=1 --out "$tmp/bad"
+expect_error "max-n 0" "max-n" paper --quick --max-n 0 --out "$tmp/bad"
+expect_error "max-n not a number" "max-n" paper --quick --max-n lots --out "$tmp/bad"
+expect_error "negative budget" "budget" paper --quick --budget -3 --out "$tmp/bad"
+touch "$tmp/file"
+expect_error "out is a file" "cannot create" paper --quick --out "$tmp/file"
+check "no output directory for rejected runs" test ! -e "$tmp/bad"
+
+# A small explicit run: --max-n caps the sizes, --algos picks structures.
+"$cli" paper --quick --algos naive --max-n 100 --no-peers --out "$tmp/small" >/dev/null 2>"$tmp/err"
+check "small run exits 0" test $? -eq 0
+check "small run stops at N=100" python3 -c "
+import csv, sys
+ns = {int(r['n']) for r in csv.DictReader(open('$tmp/small/results.csv'))}
+sys.exit(0 if ns == {50, 100} else 1)"
+
+echo "$pass passed, $fail failed"
+[ $fail -eq 0 ]

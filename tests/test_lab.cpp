@@ -1,0 +1,199 @@
+// The lab's building blocks: statistics, batch sizes, scenes and one
+// structure measured on one scene.
+#include <gtest/gtest.h>
+
+#include <broadphase/naive.hpp>
+#include <broadphase/registry.hpp>
+
+#include "commands.hpp"
+#include "paper_measure.hpp"
+#include "paper_report.hpp"
+#include "progress.hpp"
+
+namespace broadphase::app {
+namespace {
+
+TEST(LabStat, MedianQuartilesAndSpread) {
+  const Stat s = summarize({5, 1, 4, 2, 3});
+  EXPECT_EQ(s.median, 3);
+  EXPECT_EQ(s.min, 1);
+  EXPECT_EQ(s.max, 5);
+  EXPECT_EQ(s.q1, 2);
+  EXPECT_EQ(s.q3, 4);
+  EXPECT_EQ(s.reps, 5);
+  EXPECT_EQ(summarize({1, 2}).median, 1.5);
+  EXPECT_EQ(summarize({}).reps, 0);
+}
+
+TEST(LabChurn, BatchIsATenthWithinBounds) {
+  EXPECT_EQ(churn_batch(50), 5u);
+  EXPECT_EQ(churn_batch(20), 4u);
+  EXPECT_EQ(churn_batch(3), 3u);
+  EXPECT_EQ(churn_batch(6400), 640u);
+  EXPECT_EQ(churn_batch(1024000), 1024u);
+}
+
+TEST(LabScene, DeterministicAndScaled) {
+  const PaperScene a = make_paper_scene(400, false, false, 9);
+  const PaperScene b = make_paper_scene(400, false, false, 9);
+  EXPECT_EQ(a.scene.objects, b.scene.objects);
+  EXPECT_EQ(a.moving, 80u);
+  EXPECT_EQ(a.dist, Distribution::uneven);
+  const PaperScene even = make_paper_scene(400, true, false, 9);
+  EXPECT_NE(even.scene.objects, a.scene.objects);
+  const PaperScene scaled = make_paper_scene(51200, true, true, 9);
+  EXPECT_EQ(scaled.dist, Distribution::scaled_even);
+  EXPECT_NEAR(scaled.scene.world, 2000.0, 1e-9);
+}
+
+TEST(LabMeasure, NaiveOnOneScene) {
+  const PaperScene ps = make_paper_scene(200, true, false, 3);
+  MeasureOptions o;
+  o.reps = 3;
+  o.min_rep_seconds = 1e-4;
+  int ticks = 0;
+  const SceneResult r =
+      measure_scene(registry(), "naive", false, ps, o, [&ticks](const std::string&) { ++ticks; });
+  EXPECT_GT(ticks, 0);
+  ASSERT_EQ(r.digests.size(), 4u);  // frame 0 and one per repetition
+  ASSERT_EQ(r.query_hits.size(), 3u);
+  // Every moving object finds at least itself.
+  for (std::uint64_t h : r.query_hits) EXPECT_GE(h, ps.moving);
+  std::map<std::string, const Row*> by_test;
+  for (const Row& row : r.rows) by_test[row.test] = &row;
+  for (const char* t : {"query_time", "query_tests", "insert_time", "remove_time", "memory",
+                        "frame_time", "build_time"})
+    ASSERT_TRUE(by_test.count(t)) << t;
+  EXPECT_EQ(by_test["query_time"]->study_test, 2);
+  EXPECT_EQ(by_test["query_tests"]->study_test, 4);
+  EXPECT_EQ(by_test["query_tests"]->stat.median, 200);  // naive tests everything
+  EXPECT_EQ(by_test["insert_time"]->stat.reps, 3);
+  EXPECT_GT(by_test["memory"]->stat.median, 0);
+  EXPECT_LE(by_test["frame_time"]->stat.min, by_test["frame_time"]->stat.median);
+
+  // The same scene replayed again gives the same pairs.
+  const SceneResult again =
+      measure_scene(registry(), "naive", false, ps, o, [](const std::string&) {});
+  EXPECT_EQ(again.digests, r.digests);
+  EXPECT_EQ(again.query_hits, r.query_hits);
+}
+
+TEST(LabMeasure, UnevenRunsNoChurn) {
+  const PaperScene ps = make_paper_scene(100, false, false, 3);
+  MeasureOptions o;
+  o.reps = 1;
+  o.min_rep_seconds = 1e-5;
+  o.churn = false;
+  const SceneResult r = measure_scene(registry(), "naive", false, ps, o, [](const std::string&) {});
+  for (const Row& row : r.rows) {
+    EXPECT_NE(row.test, "insert_time");
+    EXPECT_EQ(row.placement, "uneven");
+    if (row.test == "query_time") {
+      EXPECT_EQ(row.study_test, 1);
+    }
+  }
+}
+
+TEST(LabReport, StudyFormulas) {
+  EXPECT_EQ(study_memory_formula("naive", 100), 404);
+  EXPECT_EQ(study_memory_formula("octree-paper", 100), 44860);
+  EXPECT_EQ(study_memory_formula("hgrid-paper", 100), 38652);
+  EXPECT_LT(study_memory_formula("grid-dense", 100), 0);
+}
+
+TEST(LabReport, FindingsNameWhatIsMissing) {
+  PaperResults res;
+  res.info.structures = {"naive"};
+  res.info.peers = {false};
+  res.info.registered = {"naive"};
+  res.info.study_sizes = {50};
+  const std::string md = report_markdown(res);
+  EXPECT_NE(md.find("`octree-paper` is not registered in this build"), std::string::npos);
+  EXPECT_NE(md.find("Cannot check"), std::string::npos);
+  EXPECT_NE(md.find("Plots were skipped"), std::string::npos);
+}
+
+TEST(LabReport, MismatchIsAnErrorInRed) {
+  PaperResults res;
+  res.info.structures = {"naive"};
+  res.info.peers = {false};
+  res.mismatches.push_back({50, "even", "frame 1", "naive", "1 pairs", "2 pairs", "other"});
+  const std::string md = report_markdown(res);
+  EXPECT_NE(md.find("color:red"), std::string::npos);
+  EXPECT_NE(md.find("MISMATCH"), std::string::npos);
+}
+
+// Synthetic results shaped like the study's: every finding must be found.
+PaperResults study_shaped() {
+  PaperResults res;
+  res.info.structures = {"naive", "octree-paper", "hgrid-paper", "peer-x"};
+  res.info.peers = {false, false, false, true};
+  res.info.registered = res.info.structures;
+  res.info.study_sizes = {50, 100, 200, 400, 800, 1600, 3200, 6400};
+  auto add = [&res](const std::string& s, const std::string& test, const std::string& pl,
+                    std::size_t n, double v) {
+    Row r;
+    r.structure = s;
+    r.peer = s == "peer-x";
+    r.test = test;
+    r.placement = pl;
+    r.n = n;
+    r.stat = summarize({v, v * 1.1, v * 0.9});
+    res.rows.push_back(r);
+  };
+  for (std::size_t n : res.info.study_sizes) {
+    const double x = static_cast<double>(n);
+    for (const char* pl : {"uneven", "even"}) {
+      const double even = pl[0] == 'e' ? 1.5 : 1.0;
+      add("naive", "query_tests", pl, n, x);
+      add("octree-paper", "query_tests", pl, n, 20 * even + x / 50);
+      add("hgrid-paper", "query_tests", pl, n, 10 + x / 100);
+      add("naive", "query_time", pl, n, x);
+      // The octree is faster up to 200 objects, the hgrid from 400 on.
+      add("octree-paper", "query_time", pl, n, n <= 200 ? 50 : 400 + x / 10);
+      add("hgrid-paper", "query_time", pl, n, 100 + x / 100);
+    }
+    add("naive", "insert_time", "even", n, 10);
+    add("octree-paper", "insert_time", "even", n, 100);
+    add("hgrid-paper", "insert_time", "even", n, 300);
+    add("naive", "remove_time", "even", n, 100);
+    add("octree-paper", "remove_time", "even", n, 200);
+    add("hgrid-paper", "remove_time", "even", n, 20);
+    add("naive", "frame_time", "even", n, x / 100);
+    add("peer-x", "frame_time", "even", n, x / 400);
+  }
+  return res;
+}
+
+TEST(LabReport, StudyShapedResultsReproduceEveryFinding) {
+  const std::string md = report_markdown(study_shaped());
+  std::size_t reproduced = 0;
+  for (std::size_t at = md.find("| **Reproduced** |"); at != std::string::npos;
+       at = md.find("| **Reproduced** |", at + 1))
+    ++reproduced;
+  EXPECT_EQ(reproduced, 5u) << md.substr(md.find("## The study's findings"), 3000);
+  EXPECT_NE(md.find("the hgrid is faster from N=400"), std::string::npos);
+  // Versus peers: naive takes 4 times the fastest peer's frame time.
+  EXPECT_NE(md.find("### Versus peers"), std::string::npos);
+  EXPECT_NE(md.find("| naive | 4.00 |"), std::string::npos)
+      << md.substr(md.find("### Versus peers"), 1500);
+}
+
+TEST(LabReport, ContraryResultsAreNotReproduced) {
+  PaperResults res = study_shaped();
+  for (Row& r : res.rows)
+    if (r.structure == "hgrid-paper" && r.test == "query_tests") r.stat.median *= 1000;
+  const std::string md = report_markdown(res);
+  EXPECT_NE(md.find("fewest narrow-phase tests at every N | **Not reproduced**"),
+            std::string::npos);
+}
+
+TEST(LabProgress, FormatsSeconds) {
+  EXPECT_EQ(ProgressBar::format_seconds(42), "42s");
+  EXPECT_EQ(ProgressBar::format_seconds(185), "3m05s");
+  EXPECT_EQ(ProgressBar::format_seconds(3720), "1h02m");
+  EXPECT_EQ(ProgressBar::format_seconds(-1), "?");
+}
+
+}  // namespace
+}  // namespace broadphase::app

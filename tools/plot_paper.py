@@ -1,0 +1,247 @@
+#!/usr/bin/env python3
+"""Figures of `broadphase paper`: the study's figures 3.1 to 3.10 and the
+frame time up to a million objects, from results.csv.
+
+Usage: plot_paper.py --csv results.csv --out DIR
+
+Writes every figure as PNG and SVG into DIR. Prints only to stderr, so the
+command that runs it keeps stdout for its results. Needs matplotlib.
+"""
+import argparse
+import csv
+import os
+import sys
+from collections import defaultdict
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+STUDY = ("naive", "octree-paper", "hgrid-paper")
+STUDY_DISTS = ("even", "uneven")
+FORMULA = {  # the study's memory, bytes on its 32-bit machine
+    "naive": lambda n: 4 + 4 * n,
+    "octree-paper": lambda n: 44460 + 4 * n,
+    "hgrid-paper": lambda n: 37452 + 12 * n,
+}
+
+
+def read_rows(path):
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        r["n"] = int(r["n"])
+        for k in ("median", "min", "max", "q1", "q3"):
+            r[k] = float(r[k])
+        r["peer"] = r["peer"] == "1"
+    return rows
+
+
+class Styles:
+    """A stable colour, line style and marker per structure."""
+
+    def __init__(self, names):
+        cmap = plt.get_cmap("tab20")
+        lines = ["-", "--", "-.", ":"]
+        markers = ["o", "s", "^", "v", "D", "P", "X", "*"]
+        self.style = {}
+        others = [n for n in names if n not in STUDY]
+        for i, name in enumerate(others):
+            self.style[name] = dict(color=cmap(i % 20), linestyle=lines[(i // 20) % 4],
+                                    marker=markers[i % len(markers)], linewidth=1.0, markersize=3)
+        study_colors = {"naive": "black", "octree-paper": "tab:red", "hgrid-paper": "tab:blue"}
+        for name in STUDY:
+            self.style[name] = dict(color=study_colors[name], linestyle="-", marker="o",
+                                    linewidth=2.4, markersize=5)
+
+    def __call__(self, name):
+        return self.style.get(name, {})
+
+
+def series(rows, test, placement, study_only):
+    """{structure: [(n, median, min, max)]} for one test and placement."""
+    out = defaultdict(list)
+    for r in rows:
+        if r["test"] != test or r["placement"] != placement:
+            continue
+        if study_only and r["dist"] not in STUDY_DISTS:
+            continue
+        out[r["structure"]].append((r["n"], r["median"], r["min"], r["max"]))
+    for v in out.values():
+        v.sort()
+    return out
+
+
+def order(names, peers):
+    """The study's structures first, then ours, then the peers."""
+    return sorted(names, key=lambda s: (s not in STUDY, s in peers, s))
+
+
+def finish(fig, ax, out, name, title, ylabel, logy=True, legend=True):
+    ax.set_xscale("log")
+    if logy:
+        ax.set_yscale("log")
+    ax.set_xlabel("number of objects N")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, which="major", alpha=0.3)
+    if legend and ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    fig.tight_layout()
+    for ext in ("png", "svg"):
+        fig.savefig(os.path.join(out, name + "." + ext), dpi=130)
+    plt.close(fig)
+    print("plot_paper: wrote " + name + ".png/.svg", file=sys.stderr)
+
+
+def line_plot(rows, styles, peers, out, name, title, test, placement, ylabel, study_only=True,
+              only=None, scale=1.0, spread=True):
+    data = series(rows, test, placement, study_only)
+    if only is not None:
+        data = {k: v for k, v in data.items() if k in only}
+    if not data:
+        return False
+    fig, ax = plt.subplots(figsize=(8, 4.8))
+    for s in order(data, peers):
+        pts = data[s]
+        xs = [p[0] for p in pts]
+        label = s + (" (peer)" if s in peers else "")
+        ax.plot(xs, [p[1] * scale for p in pts], label=label, **styles(s))
+        if spread and s in STUDY:
+            ax.fill_between(xs, [p[2] * scale for p in pts], [p[3] * scale for p in pts],
+                            color=styles(s).get("color"), alpha=0.12, linewidth=0)
+    finish(fig, ax, out, name, title, ylabel)
+    return True
+
+
+def placement_plot(rows, styles, out, name, title, test, ylabel):
+    fig, ax = plt.subplots(figsize=(8, 4.8))
+    drawn = False
+    for s in STUDY:
+        for placement, ls in (("uneven", "-"), ("even", "--")):
+            pts = series(rows, test, placement, True).get(s)
+            if not pts:
+                continue
+            st = dict(styles(s))
+            st["linestyle"] = ls
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], label=s + ", " + placement, **st)
+            drawn = True
+    if drawn:
+        finish(fig, ax, out, name, title, ylabel)
+    else:
+        plt.close(fig)
+
+
+def memory_plots(rows, styles, peers, out):
+    data = series(rows, "memory", "even", True)
+    if not data:
+        return
+    fig, ax = plt.subplots(figsize=(8, 4.8))
+    for s in order(data, peers):
+        pts = data[s]
+        ax.plot([p[0] for p in pts], [p[1] for p in pts],
+                label=s + (" (peer)" if s in peers else ""), **styles(s))
+        if s in FORMULA:
+            st = dict(styles(s))
+            st.update(linestyle=":", marker=None, linewidth=1.5)
+            ax.plot([p[0] for p in pts], [FORMULA[s](p[0]) for p in pts],
+                    label=s + ": study's formula (32-bit)", **st)
+    finish(fig, ax, out, "fig3_7_memory", "Figure 3.7: memory held (even placement)", "bytes")
+    fig, ax = plt.subplots(figsize=(8, 4.8))
+    for s in order(data, peers):
+        pts = data[s]
+        ax.plot([p[0] for p in pts], [p[1] / p[0] for p in pts],
+                label=s + (" (peer)" if s in peers else ""), **styles(s))
+    finish(fig, ax, out, "fig3_8_memory_per_object", "Figure 3.8: memory per object (even placement)",
+           "bytes per object")
+
+
+def frame_plots(rows, styles, peers, out):
+    for placement in ("even", "uneven"):
+        data = series(rows, "frame_time", placement, False)
+        if not data:
+            continue
+        fig, ax = plt.subplots(figsize=(9, 5.2))
+        for s in order(data, peers):
+            pts = data[s]
+            st = dict(styles(s))
+            if s in peers:
+                st.update(color="gray" if len(peers) == 1 else st.get("color"), linewidth=2.0,
+                          linestyle="--")
+            ax.plot([p[0] for p in pts], [p[1] for p in pts],
+                    label=s + (" (peer)" if s in peers else ""), **st)
+        scaled = sorted({r["n"] for r in rows if r["dist"].startswith("scaled")})
+        if scaled:
+            ax.axvline(scaled[0] / 1.5, color="gray", linewidth=0.8, alpha=0.6)
+            ax.text(scaled[0] / 1.45, 0.02, " scaled scenes →", fontsize=7, color="gray",
+                    va="bottom", transform=ax.get_xaxis_transform())
+        finish(fig, ax, out, "frame_time_" + placement,
+               "Frame time (move 20%, update, all pairs), " + placement + " placement",
+               "median ms per frame")
+    # Versus peers: each structure's frame time over the fastest peer's.
+    if not peers:
+        return
+    data = series(rows, "frame_time", "even", False)
+    best = {}
+    for s, pts in data.items():
+        if s in peers:
+            for n, med, _, _ in pts:
+                if med > 0 and (n not in best or med < best[n]):
+                    best[n] = med
+    if not best:
+        return
+    fig, ax = plt.subplots(figsize=(9, 5.2))
+    for s in order(data, peers):
+        pts = [(n, med / best[n]) for n, med, _, _ in data[s] if n in best]
+        if pts:
+            ax.plot([p[0] for p in pts], [p[1] for p in pts],
+                    label=s + (" (peer)" if s in peers else ""), **styles(s))
+    ax.axhline(1.0, color="gray", linewidth=0.8)
+    finish(fig, ax, out, "frame_versus_peers",
+           "Frame time / fastest peer's frame time (even placement; below 1 beats every peer)",
+           "ratio")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--csv", required=True, help="results.csv written by broadphase paper")
+    ap.add_argument("--out", required=True, help="directory for the figures")
+    a = ap.parse_args()
+    rows = read_rows(a.csv)
+    if not rows:
+        print("plot_paper: " + a.csv + " has no rows", file=sys.stderr)
+        return 1
+    os.makedirs(a.out, exist_ok=True)
+    names = sorted({r["structure"] for r in rows})
+    peers = {r["structure"] for r in rows if r["peer"]}
+    styles = Styles(names)
+    figs = [
+        ("fig3_1_query_time_uneven", "Figure 3.1 (Test 1): time of one query, uneven placement",
+         "query_time", "uneven", "ns per query"),
+        ("fig3_2_query_time_even", "Figure 3.2 (Test 2): time of one query, even placement",
+         "query_time", "even", "ns per query"),
+        ("fig3_3_query_tests_uneven", "Figure 3.3 (Test 3): narrow-phase tests per query, uneven",
+         "query_tests", "uneven", "tests per query"),
+        ("fig3_4_query_tests_even", "Figure 3.4 (Test 4): narrow-phase tests per query, even",
+         "query_tests", "even", "tests per query"),
+        ("fig3_5_insert_time", "Figure 3.5 (Test 5): time to insert one object (even)",
+         "insert_time", "even", "ns per insertion"),
+        ("fig3_6_remove_time", "Figure 3.6 (Test 6): time to remove one object (even)",
+         "remove_time", "even", "ns per removal"),
+    ]
+    for name, title, test, placement, ylabel in figs:
+        line_plot(rows, styles, peers, a.out, name, title, test, placement, ylabel)
+    memory_plots(rows, styles, peers, a.out)
+    placement_plot(rows, styles, a.out, "fig3_9_query_time_placement",
+                   "Figure 3.9: the study's structures, query time, uneven vs even", "query_time",
+                   "ns per query")
+    placement_plot(rows, styles, a.out, "fig3_10_query_tests_placement",
+                   "Figure 3.10: the study's structures, tests per query, uneven vs even",
+                   "query_tests", "tests per query")
+    frame_plots(rows, styles, peers, a.out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
