@@ -83,8 +83,15 @@ sys.exit(1 if errors else 0)
 PY
 check "CSV, JSON and REPORT.md agree" python3 "$tmp/consistent.py" "$out"
 
-# Figures, whenever the python3 the CLI runs has matplotlib.
-if python3 -c 'import matplotlib' >/dev/null 2>&1; then
+# Figures, whenever a Python the CLI would pick has matplotlib (see plot_python()).
+have_matplotlib() {
+  local py
+  for py in ${BROADPHASE_PYTHON:-} /usr/bin/python3 python3; do
+    "$py" -c 'import matplotlib' >/dev/null 2>&1 && return 0
+  done
+  return 1
+}
+if have_matplotlib; then
   for f in fig3_1_query_time_uneven fig3_4_query_tests_even fig3_5_insert_time fig3_10_query_tests_placement frame_time_even; do
     check "figure $f.png" test -s "$out/$f.png"
     check "figure $f.svg" test -s "$out/$f.svg"
