@@ -20,7 +20,10 @@ start=$(date +%s)
 rc=$?
 took=$(( $(date +%s) - start ))
 check "paper --quick exits 0 (exit $rc: $(tail -3 "$tmp/stderr"))" test $rc -eq 0
-check "paper --quick takes under a minute (took ${took}s)" test "$took" -lt 60
+# Sanitizer builds run several times slower; the budget holds for Release.
+if [ -z "${BROADPHASE_SANITIZED:-}" ]; then
+  check "paper --quick takes under a minute (took ${took}s)" test "$took" -lt 60
+fi
 for f in results.csv results.json REPORT.md; do
   check "$f written" test -s "$out/$f"
 done
