@@ -24,6 +24,7 @@
 #include <broadphase/scene.hpp>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string_view>
 #include <vector>
 
@@ -133,6 +134,10 @@ class Simulation {
   void compute_truth();
   void count_missed(StepStats& st);
   Vec3 position_at(std::uint32_t i, double t) const;
+  /// The time of first contact of a and b after `t` on their current
+  /// straight paths, within the step; nullopt for a pair already deep in
+  /// each other.
+  std::optional<double> impact_after(std::uint32_t a, std::uint32_t b, double t) const;
   void push_events_for(std::uint32_t i, double t, StepStats& st);
   void push_wall_event(std::uint32_t i);
   void finish_stats(StepStats& st) const;

@@ -194,8 +194,10 @@ bool Simulation::resolve_overlap(std::uint32_t a, std::uint32_t b, double t, Ste
   if (wa + wb == 0) return false;
   Shape& sa = scene_.objects[a];
   Shape& sb = scene_.objects[b];
-  if (!overlaps(sa, sb)) return false;  // an earlier correction separated them
+  // Found by the broad phase: registered even if an earlier correction of
+  // this pass has separated the two since.
   detected_.push_back(pair_key(a, b));
+  if (!overlaps(sa, sb)) return false;
   const Vec3 d = sb.center - sa.center;
   const double dist = std::sqrt(dot(d, d));
   // Identical centres have no normal: push apart along +x, the same for all.
@@ -286,6 +288,19 @@ void Simulation::step_substep(StepStats& st) {
   }
 }
 
+std::optional<double> Simulation::impact_after(std::uint32_t a, std::uint32_t b, double t) const {
+  const Vec3 d = position_at(b, t) - position_at(a, t);
+  const double s = radius_[a] + radius_[b];
+  // A pair already deep in each other (not just touching after an impact)
+  // is left to the positional correction at the end of the step: bouncing
+  // a body back and forth inside two overlapping static objects at one
+  // instant would never advance time.
+  if (dot(d, d) < s * s * (1 - 1e-9)) return std::nullopt;
+  const auto toi = time_of_impact(d, scene_.velocity[b] - scene_.velocity[a], s, config_.dt - t);
+  if (!toi) return std::nullopt;
+  return t + *toi;
+}
+
 void Simulation::push_wall_event(std::uint32_t i) {
   const Shape& s = scene_.objects[i];
   const Vec3& v = scene_.velocity[i];
@@ -331,11 +346,9 @@ void Simulation::push_events_for(std::uint32_t i, double t, StepStats& st) {
                            if (j == i) return true;
                            const std::uint32_t a = std::min(i, j);
                            const std::uint32_t b = std::max(i, j);
-                           const auto toi = time_of_impact(position_at(b, t) - position_at(a, t),
-                                                           scene_.velocity[b] - scene_.velocity[a],
-                                                           radius_[a] + radius_[b], config_.dt - t);
+                           const auto toi = impact_after(a, b, t);
                            if (toi) {
-                             events_.push_back({t + *toi, a, b, version_[a], version_[b]});
+                             events_.push_back({*toi, a, b, version_[a], version_[b]});
                              std::push_heap(events_.begin(), events_.end(), later);
                            }
                            return true;
@@ -362,9 +375,7 @@ void Simulation::step_swept(StepStats& st) {
   for (const std::uint64_t key : pairs_) {
     const auto a = static_cast<std::uint32_t>(key >> 32);
     const auto b = static_cast<std::uint32_t>(key);
-    const auto toi =
-        time_of_impact(scene_.objects[b].center - scene_.objects[a].center,
-                       scene_.velocity[b] - scene_.velocity[a], radius_[a] + radius_[b], dt);
+    const auto toi = impact_after(a, b, 0);
     if (toi) events_.push_back({*toi, a, b, version_[a], version_[b]});
   }
   std::make_heap(events_.begin(), events_.end(), later);
