@@ -26,7 +26,10 @@ struct SimOptions {
   bool json = false;
   bool series = false;
   std::string make_tunnel;
+  std::string make_billiards;
+  bool flat = false;
   std::size_t bullets = 200;
+  std::size_t balls = 30;
   std::uint64_t seed = 1;
 };
 
@@ -40,10 +43,11 @@ double median(std::vector<double> v) {
 }
 
 void run_sim(const SimOptions& o) {
-  if (!o.make_tunnel.empty()) {
-    write_scene(o.make_tunnel, make_tunnel_scene(o.bullets, o.seed));
-    if (o.scene.empty()) return;
-  }
+  if (!o.make_tunnel.empty())
+    write_scene(o.make_tunnel, make_tunnel_scene(o.bullets, o.seed, o.flat));
+  if (!o.make_billiards.empty())
+    write_scene(o.make_billiards, make_billiards_scene(o.balls, o.seed));
+  if (o.scene.empty() && (!o.make_tunnel.empty() || !o.make_billiards.empty())) return;
   if (o.scene.empty()) throw UsageError("sim: --scene is required");
   SimConfig config;
   try {
@@ -152,7 +156,13 @@ void add_sim_command(CLI::App& app) {
   cmd->add_option("--bullets", o->bullets, "Bullets in the tunneling scene")
       ->default_val(200)
       ->check(CLI::Range(0ul, 10000000ul));
-  cmd->add_option("--seed", o->seed, "Seed of the tunneling scene")->default_val(1);
+  cmd->add_flag("--flat", o->flat, "Tunneling scene in one plane (z = 100), for side views");
+  cmd->add_option("--make-billiards-scene", o->make_billiards,
+                  "Write a flat billiards scene (balls in the plane z = 50) to FILE");
+  cmd->add_option("--balls", o->balls, "Balls in the billiards scene")
+      ->default_val(30)
+      ->check(CLI::Range(0ul, 100000ul));
+  cmd->add_option("--seed", o->seed, "Seed of the generated scenes")->default_val(1);
   cmd->callback([o] { run_sim(*o); });
 }
 

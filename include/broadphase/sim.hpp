@@ -91,9 +91,16 @@ bool bounce(Vec3& v, const Vec3& n, double k);
 
 /// A scene made to tunnel: small fast bullets (radius 0.5, 8 to 25 units per
 /// frame, mostly along ±x) crossing three thin layers of small static
-/// targets (radius 2) in a 200-unit world. A discrete step misses most of
-/// their contacts. Deterministic for a seed.
-Scene make_tunnel_scene(std::size_t bullets, std::uint64_t seed);
+/// targets (radius 2, 20 apart) in a 200-unit world. A discrete step misses
+/// most of their contacts. `flat`: everything in the plane z = 100 (one
+/// target per layer and height), for pictures seen from the side.
+/// Deterministic for a seed.
+Scene make_tunnel_scene(std::size_t bullets, std::uint64_t seed, bool flat = false);
+
+/// Billiards for pictures: `balls` non-overlapping spheres (radius 2 to 5)
+/// in the plane z = 50 of a 100-unit world, every fifth static, the others
+/// moving in the plane at 0.5 to 2 units per frame. Deterministic for a seed.
+Scene make_billiards_scene(std::size_t balls, std::uint64_t seed);
 
 /// Steps a scene with collision response, using any structure as the broad
 /// phase. Owns the structure; the structure holds one object per scene

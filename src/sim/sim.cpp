@@ -89,26 +89,55 @@ bool bounce(Vec3& v, const Vec3& n, double k) {
   return true;
 }
 
-Scene make_tunnel_scene(std::size_t bullets, std::uint64_t seed) {
+Scene make_tunnel_scene(std::size_t bullets, std::uint64_t seed, bool flat) {
   Scene s;
   s.world = 200;
   // Three thin layers of small static targets, 20 apart in y and z.
   for (double x : {80.0, 100.0, 120.0})
     for (int iy = 0; iy < 10; ++iy)
-      for (int iz = 0; iz < 10; ++iz) {
-        s.objects.push_back(Shape::sphere({x, 10.0 + 20 * iy, 10.0 + 20 * iz}, 2));
+      for (int iz = 0; iz < (flat ? 1 : 10); ++iz) {
+        s.objects.push_back(Shape::sphere({x, 10.0 + 20 * iy, flat ? 100 : 10.0 + 20 * iz}, 2));
         s.velocity.push_back({0, 0, 0});
       }
   Rng rng(seed);
   for (std::size_t i = 0; i < bullets; ++i) {
     const bool left = rng.uniform() < 0.5;
     const double x = left ? rng.uniform(5, 60) : rng.uniform(140, 195);
-    const Vec3 c{x, rng.uniform(5, 195), rng.uniform(5, 195)};
+    const double y = rng.uniform(5, 195);
+    const double z = rng.uniform(5, 195);
     Vec3 dir{left ? 1.0 : -1.0, rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3)};
+    if (flat) dir.z = 0;
     const double len = std::sqrt(dot(dir, dir));
     const double speed = rng.uniform(8, 25);
-    s.objects.push_back(Shape::sphere(c, 0.5));
+    s.objects.push_back(Shape::sphere({x, y, flat ? 100 : z}, 0.5));
     s.velocity.push_back(dir * (speed / len));
+  }
+  return s;
+}
+
+Scene make_billiards_scene(std::size_t balls, std::uint64_t seed) {
+  Scene s;
+  s.world = 100;
+  Rng rng(seed);
+  // Rejection sampling; gives up on a ball after many tries so that an
+  // impossible count still returns (with fewer balls).
+  for (std::size_t i = 0; i < balls; ++i) {
+    for (int attempt = 0; attempt < 1000; ++attempt) {
+      const double r = rng.uniform(2, 5);
+      const Shape b = Shape::sphere({rng.uniform(r, 100 - r), rng.uniform(r, 100 - r), 50}, r);
+      bool free = true;
+      for (const Shape& o : s.objects) free = free && !overlaps(o, b);
+      if (!free) continue;
+      s.objects.push_back(b);
+      if (i % 5 == 4) {
+        s.velocity.push_back({0, 0, 0});
+      } else {
+        const double angle = rng.uniform(0, 6.283185307179586);
+        const double speed = rng.uniform(0.5, 2);
+        s.velocity.push_back({speed * std::cos(angle), speed * std::sin(angle), 0});
+      }
+      break;
+    }
   }
   return s;
 }
