@@ -263,7 +263,6 @@ def trail_collection(track, upto, ai, bi, tail, colour):
     lo = max(0, upto - tail)
     for f in range(lo, upto):
         a, b = track[f], track[f + 1]
-        # Skip the jump of a wall reflection drawn as a straight segment.
         segs.append([(a[ai], a[bi]), (b[ai], b[bi])])
         alphas.append(0.15 + 0.85 * (f - lo + 1) / max(1, upto - lo))
     lc = LineCollection(segs, colors=[(*matplotlib.colors.to_rgb(colour), al) for al in alphas],

@@ -39,6 +39,7 @@ enum class Ccd : std::uint8_t {
 
 /// Parses "off", "substep" or "swept". Throws std::invalid_argument.
 Ccd parse_ccd(std::string_view name);
+/// The name `parse_ccd` accepts for `c`.
 std::string_view to_string(Ccd c);
 
 /// Simulation parameters. Every field has a sensible default.
