@@ -87,13 +87,7 @@ PY
 check "CSV, JSON and REPORT.md agree" python3 "$tmp/consistent.py" "$out"
 
 # Figures, whenever a Python the CLI would pick has matplotlib (see plot_python()).
-have_matplotlib() {
-  local py
-  for py in ${BROADPHASE_PYTHON:-} /usr/bin/python3 python3; do
-    "$py" -c 'import matplotlib' >/dev/null 2>&1 && return 0
-  done
-  return 1
-}
+. "$(dirname "$0")/support/have_matplotlib.sh"
 if have_matplotlib; then
   for f in fig3_1_query_time_uneven fig3_4_query_tests_even fig3_5_insert_time fig3_10_query_tests_placement frame_time_even; do
     check "figure $f.png" test -s "$out/$f.png"

@@ -68,7 +68,8 @@ expect_error "draw gif without sim" "gif" draw --scene "$data/scenes/single.scen
 expect_error "draw bad extension" "png" draw --scene "$data/scenes/single.scene" --out "$tmp/x.jpg"
 
 # Pictures when matplotlib is there; a clear refusal when it is not.
-if python3 -c 'import matplotlib' >/dev/null 2>&1; then
+. "$(dirname "$0")/support/have_matplotlib.sh"
+if have_matplotlib; then
   s="$data/scenes/paper-uneven-400.scene"
   "$cli" draw --scene "$s" --out "$tmp/side.png" --view side
   check "side view" test -s "$tmp/side.png"
