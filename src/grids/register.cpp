@@ -1,7 +1,15 @@
+#include <broadphase/grid_dense.hpp>
+#include <broadphase/grid_hashed.hpp>
+
 #include "../register.hpp"
 
 namespace broadphase::detail {
 
-void register_grids(Registry& /*r*/) {}
+void register_grids(Registry& r) {
+  add_structure<GridDense>(r, "grid-dense",
+                           "uniform grid: dense cell array over the world, linked lists");
+  add_structure<GridHashed>(r, "grid-hashed",
+                            "uniform grid: cells hashed into a bucket table, unbounded world");
+}
 
 }  // namespace broadphase::detail
