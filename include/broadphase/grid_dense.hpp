@@ -115,28 +115,43 @@ class LinkedGrid {
     return cost;
   }
 
-  /// Visits every overlapping pair once: each list is walked from each of
-  /// its links onwards, so each pair of links meets once, and the pair is
-  /// kept only in its lowest shared cell.
+  /// Visits every overlapping pair once. Each cell's (or bucket's) list is
+  /// copied once into a small contiguous buffer, so the quadratic part of
+  /// the pass reads contiguous memory instead of chasing links; a pair is
+  /// kept only in its lowest shared cell. Lists longer than the buffer are
+  /// walked in place.
   template <class V>
   QueryCost for_each_pair(V&& visitor) const {
     QueryCost cost;
     const AabbF* box = box_.data();
-    const std::uint32_t slots = store_.slot_count();
-    for (std::uint32_t a = 0; a < slots; ++a) {
-      unsigned mask = kmask_[a];
-      while (mask != 0) {
-        const unsigned k = static_cast<unsigned>(std::countr_zero(mask));
-        mask &= mask - 1;
-        const CellKey key = key_of(range_[a], k);
-        for (std::uint32_t m = next_[8 * a + k]; m != kNone; m = next_[m]) {
-          const unsigned kb = m & 7u;
-          if ((k & kb) != 0) continue;
-          const std::uint32_t b = m >> 3;
+    Gathered buf[kGather];
+    for (std::uint32_t head : heads_) {
+      if (head == kNone || next_[head] == kNone) continue;
+      std::size_t n = 0;
+      std::uint32_t m = head;
+      for (; m != kNone && n < kGather; m = next_[m], ++n) {
+        const std::uint32_t b = m >> 3;
+        buf[n] = {box[b], b, m & 7u, {}};
+        if constexpr (kHashed) buf[n].key = key_of(range_[b], m & 7u);
+      }
+      if (m != kNone) {
+        if (!walk_list(head, cost, visitor)) return cost;
+        continue;
+      }
+      for (std::size_t i = 0; i + 1 < n; ++i) {
+        const Gathered& gi = buf[i];
+        for (std::size_t j = i + 1; j < n; ++j) {
+          const Gathered& gj = buf[j];
+          if ((gi.k & gj.k) != 0 || !gi.box.overlaps(gj.box)) continue;
           if constexpr (kHashed) {
-            if (!(key_of(range_[b], kb) == key)) continue;
+            if (!(gi.key == gj.key)) continue;
           }
-          if (!test_pair(store_, box, a, b, cost, visitor)) return cost;
+          ++cost.tests;
+          if (!overlaps(store_.shape(gi.obj), store_.shape(gj.obj))) continue;
+          if (!visit(visitor, store_.handle(gi.obj), store_.handle(gj.obj))) {
+            cost.stopped = true;
+            return cost;
+          }
         }
       }
     }
@@ -208,6 +223,34 @@ class LinkedGrid {
   }
 
  private:
+  // One link copied out of a list for the all-pairs pass.
+  struct Gathered {
+    AabbF box;
+    std::uint32_t obj;
+    std::uint32_t k;
+    CellKey key;
+  };
+  static constexpr std::size_t kGather = 256;
+
+  // All pairs of one list, walked in place (lists longer than the buffer).
+  template <class V>
+  bool walk_list(std::uint32_t head, QueryCost& cost, V& visitor) const {
+    for (std::uint32_t l = head; l != kNone; l = next_[l]) {
+      const std::uint32_t a = l >> 3;
+      const unsigned k = l & 7u;
+      for (std::uint32_t m = next_[l]; m != kNone; m = next_[m]) {
+        const unsigned kb = m & 7u;
+        if ((k & kb) != 0) continue;
+        const std::uint32_t b = m >> 3;
+        if constexpr (kHashed) {
+          if (!(key_of(range_[b], kb) == key_of(range_[a], k))) continue;
+        }
+        if (!test_pair(store_, box_.data(), a, b, cost, visitor)) return false;
+      }
+    }
+    return true;
+  }
+
   std::size_t bucket_of(const CellKey& k) const {
     if constexpr (kHashed) {
       return static_cast<std::size_t>(hash_cell(k) >> shift_);
