@@ -1,5 +1,6 @@
 #include <broadphase/grid_dense.hpp>
 #include <broadphase/grid_hashed.hpp>
+#include <broadphase/grid_static.hpp>
 
 #include "../register.hpp"
 
@@ -10,6 +11,9 @@ void register_grids(Registry& r) {
                            "uniform grid: dense cell array over the world, linked lists");
   add_structure<GridHashed>(r, "grid-hashed",
                             "uniform grid: cells hashed into a bucket table, unbounded world");
+  add_structure<GridStatic>(
+      r, "grid-static",
+      "uniform grid: contiguous cells by counting sort, fixed pairs cached, rebuild/patch");
 }
 
 }  // namespace broadphase::detail
