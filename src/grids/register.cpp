@@ -1,5 +1,6 @@
 #include <broadphase/grid_dense.hpp>
 #include <broadphase/grid_hashed.hpp>
+#include <broadphase/grid_implicit.hpp>
 #include <broadphase/grid_static.hpp>
 
 #include "../register.hpp"
@@ -14,6 +15,8 @@ void register_grids(Registry& r) {
   add_structure<GridStatic>(
       r, "grid-static",
       "uniform grid: contiguous cells by counting sort, fixed pairs cached, rebuild/patch");
+  add_structure<GridImplicit>(r, "grid-implicit",
+                              "uniform grid as per-axis slab bit arrays, cells = AND of three");
 }
 
 }  // namespace broadphase::detail
