@@ -2,6 +2,7 @@
 #include <broadphase/grid_hashed.hpp>
 #include <broadphase/grid_implicit.hpp>
 #include <broadphase/grid_static.hpp>
+#include <broadphase/hgrid.hpp>
 
 #include "../register.hpp"
 
@@ -17,6 +18,8 @@ void register_grids(Registry& r) {
       "uniform grid: contiguous cells by counting sort, fixed pairs cached, rebuild/patch");
   add_structure<GridImplicit>(r, "grid-implicit",
                               "uniform grid as per-axis slab bit arrays, cells = AND of three");
+  add_structure<HGrid>(r, "hgrid",
+                       "hierarchical grid: power-of-two levels in one hash table, any size");
 }
 
 }  // namespace broadphase::detail
