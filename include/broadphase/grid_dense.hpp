@@ -32,13 +32,16 @@ namespace broadphase {
 namespace detail {
 
 /// The linked-list grid behind grid-dense (kHashed = false: cells are
-/// array entries) and grid-hashed (kHashed = true: cells hash into a bucket
+/// array entries), grid-hashed (kHashed = true: cells hash into a bucket
 /// table, each link's exact cell is recomputed from its object's range so
-/// bucket collisions never mix cells).
-template <bool kHashed>
+/// bucket collisions never mix cells) and grid-hybrid (kSorted = true: each
+/// bucket's list is kept sorted by the low x of the bounds and swept, and
+/// cells are `cell_scale` times the automatic size).
+template <bool kHashed, bool kSorted = false>
 class LinkedGrid {
  public:
-  LinkedGrid(const Config& c, const char* name) : name_(name), world_(c.world) {
+  LinkedGrid(const Config& c, const char* name, double cell_scale = 1)
+      : name_(name), world_(c.world), cell_scale_(cell_scale) {
     OptionReader opt(c, name);
     const double cell = opt.number("cell", 0, 0, 1e300);
     if constexpr (kHashed) {
@@ -54,7 +57,7 @@ class LinkedGrid {
       trigger_.forced = true;
       set_cell(cell, std::max<std::size_t>(c.expected_objects, 1));
     } else {
-      set_cell(initial_cell_size(c), std::max<std::size_t>(c.expected_objects, 1));
+      set_cell(cell_scale_ * initial_cell_size(c), std::max<std::size_t>(c.expected_objects, 1));
     }
   }
 
@@ -94,6 +97,7 @@ class LinkedGrid {
     const CellRange r = map_.range(b);
     if (kmask_[i] != 0 && r == range_[i]) {
       box_[i] = b;
+      if constexpr (kSorted) resort(i);
       return;
     }
     lift(i);
@@ -122,49 +126,11 @@ class LinkedGrid {
   /// walked in place.
   template <class V>
   QueryCost for_each_pair(V&& visitor) const {
-    QueryCost cost;
-    const AabbF* box = box_.data();
-    Gathered buf[kGather];
-    for (std::uint32_t head : heads_) {
-      if (head == kNone || next_[head] == kNone) continue;
-      std::size_t n = 0;
-      std::uint32_t m = head;
-      for (; m != kNone && n < kGather; m = next_[m], ++n) {
-        const std::uint32_t b = m >> 3;
-        buf[n] = {box[b], b, m & 7u, {}};
-        if constexpr (kHashed) buf[n].key = key_of(range_[b], m & 7u);
-      }
-      if (m != kNone) {
-        if (!walk_list(head, cost, visitor)) return cost;
-        continue;
-      }
-      for (std::size_t i = 0; i + 1 < n; ++i) {
-        const Gathered& gi = buf[i];
-        for (std::size_t j = i + 1; j < n; ++j) {
-          const Gathered& gj = buf[j];
-          if ((gi.k & gj.k) != 0 || !gi.box.overlaps(gj.box)) continue;
-          if constexpr (kHashed) {
-            if (!(gi.key == gj.key)) continue;
-          }
-          ++cost.tests;
-          if (!overlaps(store_.shape(gi.obj), store_.shape(gj.obj))) continue;
-          if (!visit(visitor, store_.handle(gi.obj), store_.handle(gj.obj))) {
-            cost.stopped = true;
-            return cost;
-          }
-        }
-      }
+    if constexpr (kSorted) {
+      return sweep_pairs(visitor);
+    } else {
+      return gather_pairs(visitor);
     }
-    for (std::size_t p = 0; p < overflow_.size(); ++p) {
-      const std::uint32_t o = overflow_[p];
-      const bool go = visit_region(range_[o], [&](std::uint32_t b) {
-        return test_pair(store_, box, o, b, cost, visitor);
-      });
-      if (!go) return cost;
-      for (std::size_t q = p + 1; q < overflow_.size(); ++q)
-        if (!test_pair(store_, box, o, overflow_[q], cost, visitor)) return cost;
-    }
-    return cost;
   }
 
   std::size_t size() const { return store_.size(); }
@@ -217,6 +183,8 @@ class LinkedGrid {
         if (next_[l] != kNone &&
             (prev_[next_[l]] != l || bucket_of(key_of(range_[next_[l] >> 3], next_[l] & 7u)) != bucket))
           throw std::logic_error(n + ": broken forward link");
+        if (kSorted && next_[l] != kNone && low_x(next_[l]) < low_x(l))
+          throw std::logic_error(n + ": list out of x order");
       }
     }
     if (links != link_count_) throw std::logic_error(n + ": link count");
@@ -231,6 +199,89 @@ class LinkedGrid {
     CellKey key;
   };
   static constexpr std::size_t kGather = 256;
+
+  // The all-pairs pass of the unsorted grids: gather each list, then test
+  // every pair of the buffer.
+  template <class V>
+  QueryCost gather_pairs(V& visitor) const {
+    QueryCost cost;
+    const AabbF* box = box_.data();
+    Gathered buf[kGather];
+    for (std::uint32_t head : heads_) {
+      if (head == kNone || next_[head] == kNone) continue;
+      std::size_t n = 0;
+      std::uint32_t m = head;
+      for (; m != kNone && n < kGather; m = next_[m], ++n) {
+        const std::uint32_t b = m >> 3;
+        buf[n] = {box[b], b, m & 7u, {}};
+        if constexpr (kHashed) buf[n].key = key_of(range_[b], m & 7u);
+      }
+      if (m != kNone) {
+        if (!walk_list(head, cost, visitor)) return cost;
+        continue;
+      }
+      for (std::size_t i = 0; i + 1 < n; ++i) {
+        const Gathered& gi = buf[i];
+        for (std::size_t j = i + 1; j < n; ++j) {
+          const Gathered& gj = buf[j];
+          if ((gi.k & gj.k) != 0 || !gi.box.overlaps(gj.box)) continue;
+          if constexpr (kHashed) {
+            if (!(gi.key == gj.key)) continue;
+          }
+          ++cost.tests;
+          if (!overlaps(store_.shape(gi.obj), store_.shape(gj.obj))) continue;
+          if (!visit(visitor, store_.handle(gi.obj), store_.handle(gj.obj))) {
+            cost.stopped = true;
+            return cost;
+          }
+        }
+      }
+    }
+    overflow_pairs(cost, visitor);
+    return cost;
+  }
+
+  // The all-pairs pass of the sorted grid: sweep each list along x, each
+  // link meeting only the links that start before it ends.
+  template <class V>
+  QueryCost sweep_pairs(V& visitor) const {
+    QueryCost cost;
+    const AabbF* box = box_.data();
+    for (std::uint32_t head : heads_) {
+      for (std::uint32_t l = head; l != kNone; l = next_[l]) {
+        const std::uint32_t a = l >> 3;
+        const unsigned k = l & 7u;
+        const float end = box[a].hi[0];
+        const CellKey key = key_of(range_[a], k);
+        for (std::uint32_t m = next_[l]; m != kNone && box[m >> 3].lo[0] <= end; m = next_[m]) {
+          const unsigned kb = m & 7u;
+          if ((k & kb) != 0) continue;
+          const std::uint32_t b = m >> 3;
+          if (!(key_of(range_[b], kb) == key)) continue;
+          if (!test_pair(store_, box, a, b, cost, visitor)) return cost;
+        }
+      }
+    }
+    overflow_pairs(cost, visitor);
+    return cost;
+  }
+
+  // Overflowing objects against the grid and against each other.
+  template <class V>
+  void overflow_pairs(QueryCost& cost, V& visitor) const {
+    if (cost.stopped) return;
+    const AabbF* box = box_.data();
+    for (std::size_t p = 0; p < overflow_.size(); ++p) {
+      const std::uint32_t o = overflow_[p];
+      const bool go = visit_region(range_[o], [&](std::uint32_t b) {
+        return test_pair(store_, box, o, b, cost, visitor);
+      });
+      if (!go) return;
+      for (std::size_t q = p + 1; q < overflow_.size(); ++q)
+        if (!test_pair(store_, box, o, overflow_[q], cost, visitor)) return;
+    }
+  }
+
 
   // All pairs of one list, walked in place (lists longer than the buffer).
   template <class V>
@@ -303,12 +354,79 @@ class LinkedGrid {
     for (unsigned k = 0; k < 8; ++k) {
       if ((mask >> k & 1u) == 0) continue;
       const std::uint32_t l = 8 * i + k;
-      std::uint32_t& head = heads_[bucket_of(key_of(range_[i], k))];
+      const std::size_t bucket = bucket_of(key_of(range_[i], k));
+      std::uint32_t& head = heads_[bucket];
+      ++link_count_;
+      if constexpr (kSorted) {
+        if (head != kNone && low_x(head) < low_x(l)) {
+          std::uint32_t m = head;
+          while (next_[m] != kNone && low_x(next_[m]) < low_x(l)) m = next_[m];
+          link_after(l, m);
+          continue;
+        }
+      }
       next_[l] = head;
       prev_[l] = kNone;
       if (head != kNone) prev_[head] = l;
       head = l;
-      ++link_count_;
+    }
+  }
+
+  float low_x(std::uint32_t link) const { return box_[link >> 3].lo[0]; }
+
+  void link_after(std::uint32_t l, std::uint32_t m) {
+    next_[l] = next_[m];
+    prev_[l] = m;
+    if (next_[m] != kNone) prev_[next_[m]] = l;
+    next_[m] = l;
+  }
+
+  // Restores the x order of object i's links after its bounds moved inside
+  // the same cells: each link moves by as many places as objects it passed,
+  // O(1) for coherent motion. Two links of i may share a bucket (two cells,
+  // one hash); i's own links are skipped over as if absent, since i's
+  // other links are still at their old places while one is being moved.
+  void resort(std::uint32_t i) {
+    const unsigned mask = kmask_[i];
+    auto back = [&](std::uint32_t m) {
+      while (m != kNone && (m >> 3) == i) m = prev_[m];
+      return m;
+    };
+    auto ahead = [&](std::uint32_t m) {
+      while (m != kNone && (m >> 3) == i) m = next_[m];
+      return m;
+    };
+    const float x = box_[i].lo[0];
+    for (unsigned k = 0; k < 8; ++k) {
+      if ((mask >> k & 1u) == 0) continue;
+      const std::uint32_t l = 8 * i + k;
+      const std::uint32_t before = back(prev_[l]);
+      const std::uint32_t after = ahead(next_[l]);
+      const bool go_back = before != kNone && low_x(before) > x;
+      if (!go_back && (after == kNone || low_x(after) >= x)) continue;
+      std::uint32_t& head = heads_[bucket_of(key_of(range_[i], k))];
+      if (prev_[l] == kNone) {
+        head = next_[l];
+      } else {
+        next_[prev_[l]] = next_[l];
+      }
+      if (next_[l] != kNone) prev_[next_[l]] = prev_[l];
+      if (go_back) {
+        std::uint32_t m = before;
+        while (prev_[m] != kNone && ((prev_[m] >> 3) == i || low_x(prev_[m]) > x)) m = prev_[m];
+        if (prev_[m] == kNone) {
+          next_[l] = m;
+          prev_[l] = kNone;
+          prev_[m] = l;
+          head = l;
+        } else {
+          link_after(l, prev_[m]);
+        }
+      } else {
+        std::uint32_t m = after;
+        while (next_[m] != kNone && ((next_[m] >> 3) == i || low_x(next_[m]) < x)) m = next_[m];
+        link_after(l, m);
+      }
     }
   }
 
@@ -377,7 +495,7 @@ class LinkedGrid {
   void after_count_change() {
     if (trigger_.due(store_.size())) {
       trigger_.chosen_at = store_.size();
-      set_cell(auto_cell_size(store_, box_), store_.size());
+      set_cell(cell_scale_ * auto_cell_size(store_, box_), store_.size());
       relink_all();
     } else if constexpr (kHashed) {
       if (!forced_buckets_ && link_count_ > 2 * heads_.size()) {
@@ -390,6 +508,7 @@ class LinkedGrid {
 
   const char* name_;
   Aabb world_;
+  double cell_scale_;
   ObjectStore store_;
   std::vector<AabbF> box_;            // per slot: float bounds
   std::vector<CellRange> range_;      // per slot: cells covered

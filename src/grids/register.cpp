@@ -1,5 +1,6 @@
 #include <broadphase/grid_dense.hpp>
 #include <broadphase/grid_hashed.hpp>
+#include <broadphase/grid_hybrid.hpp>
 #include <broadphase/grid_implicit.hpp>
 #include <broadphase/grid_static.hpp>
 #include <broadphase/hgrid.hpp>
@@ -20,6 +21,8 @@ void register_grids(Registry& r) {
                               "uniform grid as per-axis slab bit arrays, cells = AND of three");
   add_structure<HGrid>(r, "hgrid",
                        "hierarchical grid: power-of-two levels in one hash table, any size");
+  add_structure<GridHybrid>(r, "grid-hybrid",
+                            "coarse hashed grid whose cells hold x-sorted lists, swept");
 }
 
 }  // namespace broadphase::detail
