@@ -199,6 +199,10 @@ class LinkedGrid {
     CellKey key;
   };
   static constexpr std::size_t kGather = 256;
+  // An object spanning a third cell on an axis leaves for the overflow list,
+  // whose objects meet each other by brute force: size cells to hold 95% of
+  // the objects within two cells per axis (the lab's cell-size sweep).
+  static constexpr CellSizeRule kRule{0.95, 0.5};
 
   // The all-pairs pass of the unsorted grids: gather each list, then test
   // every pair of the buffer.
@@ -495,7 +499,7 @@ class LinkedGrid {
   void after_count_change() {
     if (trigger_.due(store_.size())) {
       trigger_.chosen_at = store_.size();
-      set_cell(cell_scale_ * auto_cell_size(store_, box_), store_.size());
+      set_cell(cell_scale_ * auto_cell_size(store_, box_, kRule), store_.size());
       relink_all();
     } else if constexpr (kHashed) {
       if (!forced_buckets_ && link_count_ > 2 * heads_.size()) {
