@@ -3,10 +3,10 @@
 // the comparison less. Run with a filter, e.g.
 //   broadphase_bench --benchmark_filter='Frame.*even' --benchmark_repetitions=5
 #include <benchmark/benchmark.h>
+
 #include <broadphase/registry.hpp>
 #include <broadphase/replay.hpp>
 #include <broadphase/scene.hpp>
-
 #include <memory>
 #include <string>
 
@@ -36,9 +36,14 @@ void run_frames(benchmark::State& state, const std::string& algo, Distribution d
 }
 
 void register_all() {
-  const char* algos[] = {"grid-dense",          "grid-hashed",         "grid-static",
-                         "grid-static:policy=rebuild", "grid-static:policy=patch",
-                         "grid-static:fixed=plain",    "grid-implicit",       "hgrid",
+  const char* algos[] = {"grid-dense",
+                         "grid-hashed",
+                         "grid-static",
+                         "grid-static:policy=rebuild",
+                         "grid-static:policy=patch",
+                         "grid-static:fixed=plain",
+                         "grid-implicit",
+                         "hgrid",
                          "grid-hybrid"};
   const std::pair<const char*, Distribution> dists[] = {{"even", Distribution::even},
                                                         {"uneven", Distribution::uneven}};

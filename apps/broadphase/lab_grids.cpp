@@ -1,11 +1,10 @@
 // The grids' lab experiment: frame time and work per object against the
 // cell size of a uniform grid, on the study's even and uneven workloads,
 // with the automatic choice marked.
+#include <algorithm>
 #include <broadphase/grid_hashed.hpp>
 #include <broadphase/replay.hpp>
 #include <broadphase/scene.hpp>
-
-#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -24,11 +23,11 @@ struct SweepPoint {
   std::string workload;
   double cell = 0;
   bool automatic = false;
-  double frame_ms = 0;        // median over the measured frames
-  double tests = 0;           // exact narrow-phase tests per object per frame
-  double candidates = 0;      // object pairs sharing a cell, per object
+  double frame_ms = 0;    // median over the measured frames
+  double tests = 0;       // exact narrow-phase tests per object per frame
+  double candidates = 0;  // object pairs sharing a cell, per object
   double cells_per_object = 0;
-  double overflow = 0;        // fraction of objects spanning > 2 cells on an axis
+  double overflow = 0;  // fraction of objects spanning > 2 cells on an axis
 };
 
 // The grid's own work, counted from the scene: how many cells each object
@@ -57,7 +56,8 @@ void count_work(const Scene& scene, double cell, SweepPoint& p) {
         }
   }
   double pairs = 0;
-  for (const auto& [k, n] : cells) pairs += 0.5 * static_cast<double>(n) * static_cast<double>(n - 1);
+  for (const auto& [k, n] : cells)
+    pairs += 0.5 * static_cast<double>(n) * static_cast<double>(n - 1);
   const double n = static_cast<double>(scene.size());
   p.candidates = pairs / n;
   p.cells_per_object = static_cast<double>(entries) / n;
@@ -102,8 +102,9 @@ std::string lab_cell_size_sweep(const LabContext& ctx) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::size_t n = 6400;
   const std::vector<double> cells =
-      ctx.quick ? std::vector<double>{10, 30, 100, 300}
-                : std::vector<double>{3, 5, 8, 12, 18, 25, 35, 50, 70, 100, 140, 200, 300, 500, 1000};
+      ctx.quick
+          ? std::vector<double>{10, 30, 100, 300}
+          : std::vector<double>{3, 5, 8, 12, 18, 25, 35, 50, 70, 100, 140, 200, 300, 500, 1000};
   const std::pair<const char*, Distribution> workloads[] = {{"even", Distribution::even},
                                                             {"uneven", Distribution::uneven}};
   // Frames per point: a first point is timed to fit the whole sweep into
@@ -128,8 +129,10 @@ std::string lab_cell_size_sweep(const LabContext& ctx) {
       p.cell = measure(scene, automatic ? 0 : cells[i], frames, p);
       count_work(scene, p.cell, p);
       points.push_back(p);
-      const double spent = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      const double point = std::chrono::duration<double>(std::chrono::steady_clock::now() - tp).count();
+      const double spent =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      const double point =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - tp).count();
       const double left = budget - spent;
       const double remaining = static_cast<double>(total - points.size());
       if (!ctx.quick && remaining > 0 && point > 0)
@@ -159,23 +162,26 @@ std::string lab_cell_size_sweep(const LabContext& ctx) {
         "tests after the float bounds test. *Overflow* is the fraction of objects spanning more "
         "than two cells on an axis (they leave the grid's cells for a slower list). The row "
         "marked **auto** is the cell size the grid chose itself (cell_size.hpp).\n\n";
-  md += "| workload | cell | frame ms | candidates / object | tests / object | cells / object | "
-        "overflow |\n|---|---:|---:|---:|---:|---:|---:|\n";
+  md +=
+      "| workload | cell | frame ms | candidates / object | tests / object | cells / object | "
+      "overflow |\n|---|---:|---:|---:|---:|---:|---:|\n";
   for (const SweepPoint& p : points)
-    md += "| " + p.workload + " | " + (p.automatic ? "**auto " + fixed(p.cell, 1) + "**" : fixed(p.cell, 0)) +
-          " | " + fixed(p.frame_ms, 2) + " | " + fixed(p.candidates, 1) + " | " +
-          fixed(p.tests, 2) + " | " + fixed(p.cells_per_object, 1) + " | " +
-          fixed(100 * p.overflow, 0) + "% |\n";
-  md += "\nThe three failure modes: **too fine** (left): objects cover many cells or overflow, "
-        "and every overflowing object is tested against the others; **too coarse for the "
-        "sizes** (right): each cell holds objects far apart, candidates grow with the cell "
-        "volume; **too coarse for the density** (uneven, right): the crowded lowest tenth "
-        "fills cells ten times faster, so the uneven curve climbs first.\n\n";
+    md += "| " + p.workload + " | " +
+          (p.automatic ? "**auto " + fixed(p.cell, 1) + "**" : fixed(p.cell, 0)) + " | " +
+          fixed(p.frame_ms, 2) + " | " + fixed(p.candidates, 1) + " | " + fixed(p.tests, 2) +
+          " | " + fixed(p.cells_per_object, 1) + " | " + fixed(100 * p.overflow, 0) + "% |\n";
+  md +=
+      "\nThe three failure modes: **too fine** (left): objects cover many cells or overflow, "
+      "and every overflowing object is tested against the others; **too coarse for the "
+      "sizes** (right): each cell holds objects far apart, candidates grow with the cell "
+      "volume; **too coarse for the density** (uneven, right): the crowded lowest tenth "
+      "fills cells ten times faster, so the uneven curve climbs first.\n\n";
   if (plotted) {
     md += "![cell-size sweep](cell_size_sweep.png)\n";
   } else {
-    md += "(Figure not drawn: python3 with matplotlib is needed for tools/plot_cellsize.py; "
-          "the data is in cell_size_sweep.csv.)\n";
+    md +=
+        "(Figure not drawn: python3 with matplotlib is needed for tools/plot_cellsize.py; "
+        "the data is in cell_size_sweep.csv.)\n";
   }
   return md;
 }

@@ -11,9 +11,8 @@
 /// whole, and never smaller than the mean spacing of the centres.
 #pragma once
 
-#include <broadphase/geometry.hpp>
-
 #include <algorithm>
+#include <broadphase/geometry.hpp>
 #include <cmath>
 #include <cstddef>
 #include <span>
@@ -39,8 +38,8 @@ inline double choose_cell_size(std::span<double> extents, const Aabb& centres,
                                const CellSizeRule& rule = {}) {
   const std::size_t n = extents.size();
   if (n == 0) return 1.0;
-  const std::size_t k = std::min(
-      n - 1, static_cast<std::size_t>(rule.quantile * static_cast<double>(n - 1) + 0.5));
+  const std::size_t k =
+      std::min(n - 1, static_cast<std::size_t>(rule.quantile * static_cast<double>(n - 1) + 0.5));
   std::nth_element(extents.begin(), extents.begin() + static_cast<std::ptrdiff_t>(k),
                    extents.end());
   const double size_term = extents[k];

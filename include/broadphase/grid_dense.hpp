@@ -18,11 +18,10 @@
 /// are clamped into the border cells (exact, slower when many are outside).
 #pragma once
 
+#include <bit>
 #include <broadphase/broad_phase.hpp>
 #include <broadphase/detail/grid_common.hpp>
 #include <broadphase/registry.hpp>
-
-#include <bit>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -47,9 +46,8 @@ class LinkedGrid {
     if constexpr (kHashed) {
       const double buckets = opt.number("buckets", 0, 0, 1u << 30);
       forced_buckets_ = buckets > 0;
-      const std::size_t want =
-          forced_buckets_ ? static_cast<std::size_t>(buckets)
-                          : std::max<std::size_t>(c.expected_objects, 64);
+      const std::size_t want = forced_buckets_ ? static_cast<std::size_t>(buckets)
+                                               : std::max<std::size_t>(c.expected_objects, 64);
       heads_.assign(std::bit_ceil(want), kNone);
     }
     opt.finish();
@@ -164,8 +162,7 @@ class LinkedGrid {
         continue;
       }
       const AabbF b = bounds_f(store_.shape(i));
-      if (std::memcmp(&b, &box_[i], sizeof b) != 0)
-        throw std::logic_error(n + ": stale bounds");
+      if (std::memcmp(&b, &box_[i], sizeof b) != 0) throw std::logic_error(n + ": stale bounds");
       if (!(map_.range(b) == range_[i])) throw std::logic_error(n + ": stale cell range");
       const unsigned want = link_mask(range_[i]);
       if (want != kmask_[i]) throw std::logic_error(n + ": link mask disagrees with range");
@@ -181,7 +178,8 @@ class LinkedGrid {
         if (prev_[l] == kNone ? heads_[bucket] != l : next_[prev_[l]] != l)
           throw std::logic_error(n + ": broken backward link");
         if (next_[l] != kNone &&
-            (prev_[next_[l]] != l || bucket_of(key_of(range_[next_[l] >> 3], next_[l] & 7u)) != bucket))
+            (prev_[next_[l]] != l ||
+             bucket_of(key_of(range_[next_[l] >> 3], next_[l] & 7u)) != bucket))
           throw std::logic_error(n + ": broken forward link");
         if (kSorted && next_[l] != kNone && low_x(next_[l]) < low_x(l))
           throw std::logic_error(n + ": list out of x order");
@@ -277,15 +275,13 @@ class LinkedGrid {
     const AabbF* box = box_.data();
     for (std::size_t p = 0; p < overflow_.size(); ++p) {
       const std::uint32_t o = overflow_[p];
-      const bool go = visit_region(range_[o], [&](std::uint32_t b) {
-        return test_pair(store_, box, o, b, cost, visitor);
-      });
+      const bool go = visit_region(
+          range_[o], [&](std::uint32_t b) { return test_pair(store_, box, o, b, cost, visitor); });
       if (!go) return;
       for (std::size_t q = p + 1; q < overflow_.size(); ++q)
         if (!test_pair(store_, box, o, overflow_[q], cost, visitor)) return;
     }
   }
-
 
   // All pairs of one list, walked in place (lists longer than the buffer).
   template <class V>
@@ -308,7 +304,7 @@ class LinkedGrid {
 
   std::size_t bucket_of(const CellKey& k) const {
     if constexpr (kHashed) {
-      return static_cast<std::size_t>(hash_cell(k) >> shift_);
+      return static_cast<std::size_t>(hash_cell(k)) & (heads_.size() - 1);
     } else {
       return static_cast<std::size_t>(k.c[0]) +
              static_cast<std::size_t>(n_[0]) *
@@ -462,7 +458,6 @@ class LinkedGrid {
   void set_cell(double cell, std::size_t n) {
     if constexpr (kHashed) {
       map_ = CellMap(world_.lo, cell);
-      shift_ = 64 - std::countr_zero(heads_.size());
     } else {
       const double cap = std::clamp(16.0 * static_cast<double>(n), 4096.0, 4194304.0);
       std::int32_t count[3];
@@ -504,7 +499,6 @@ class LinkedGrid {
     } else if constexpr (kHashed) {
       if (!forced_buckets_ && link_count_ > 2 * heads_.size()) {
         heads_.assign(2 * heads_.size(), kNone);
-        shift_ = 64 - std::countr_zero(heads_.size());
         relink_all();
       }
     }
@@ -524,7 +518,6 @@ class LinkedGrid {
   std::vector<std::uint32_t> overflow_;
   CellMap map_;
   std::int32_t n_[3] = {1, 1, 1};
-  int shift_ = 58;
   bool forced_buckets_ = false;
   std::size_t link_count_ = 0;
   RegridTrigger trigger_;

@@ -17,11 +17,10 @@
 /// the design (a few hundred bytes per object at 1024 slabs per axis).
 #pragma once
 
+#include <bit>
 #include <broadphase/broad_phase.hpp>
 #include <broadphase/detail/grid_common.hpp>
 #include <broadphase/registry.hpp>
-
-#include <bit>
 #include <cstdint>
 #include <vector>
 

@@ -28,7 +28,6 @@
 #include <broadphase/broad_phase.hpp>
 #include <broadphase/detail/grid_common.hpp>
 #include <broadphase/registry.hpp>
-
 #include <span>
 #include <utility>
 #include <vector>

@@ -26,7 +26,6 @@
 #include <broadphase/broad_phase.hpp>
 #include <broadphase/detail/grid_common.hpp>
 #include <broadphase/registry.hpp>
-
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -181,10 +180,10 @@ class HGrid {
   std::vector<std::uint32_t> next_, prev_;
   std::vector<std::uint32_t> where_;  // position in overflow_, or kNone
   std::vector<std::uint32_t> overflow_;
-  std::vector<Cell> table_;             // open addressing, linear probing
+  std::vector<Cell> table_;  // open addressing, linear probing
   std::size_t cells_used_ = 0;
-  std::vector<std::uint32_t> count_;    // objects per level
-  std::vector<int> levels_;             // occupied levels, ascending
+  std::vector<std::uint32_t> count_;  // objects per level
+  std::vector<int> levels_;           // occupied levels, ascending
 };
 
 }  // namespace broadphase

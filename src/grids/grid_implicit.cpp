@@ -1,6 +1,5 @@
-#include <broadphase/grid_implicit.hpp>
-
 #include <algorithm>
+#include <broadphase/grid_implicit.hpp>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
@@ -38,8 +37,7 @@ void GridImplicit::layout(double cell, std::size_t words) {
   }
 }
 
-void GridImplicit::set_bits(std::uint32_t i, int axis, std::int32_t lo, std::int32_t hi,
-                            bool on) {
+void GridImplicit::set_bits(std::uint32_t i, int axis, std::int32_t lo, std::int32_t hi, bool on) {
   const std::uint64_t bit = std::uint64_t{1} << (i % 64);
   std::uint64_t* p = bits_[axis].data() + static_cast<std::size_t>(lo) * words_ + i / 64;
   for (std::int32_t s = lo; s <= hi; ++s, p += words_) *p = on ? (*p | bit) : (*p & ~bit);

@@ -1,7 +1,6 @@
-#include <broadphase/grid_static.hpp>
-
 #include <algorithm>
 #include <bit>
+#include <broadphase/grid_static.hpp>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -256,8 +255,7 @@ void GridStatic::regrid(double cell) {
 void GridStatic::cache_pairs_of(std::uint32_t i) {
   const Shape& s = store_.shape(i);
   auto consider = [&](std::uint32_t b) {
-    if (b != i && kind_[b] == kFixed && box_[i].overlaps(box_[b]) &&
-        overlaps(s, store_.shape(b))) {
+    if (b != i && kind_[b] == kFixed && box_[i].overlaps(box_[b]) && overlaps(s, store_.shape(b))) {
       fixed_pairs_.emplace_back(i, b);
       ++degree_[i];
       ++degree_[b];
@@ -279,11 +277,11 @@ void GridStatic::drop_pairs_of(std::uint32_t i) {
 }
 
 std::size_t GridStatic::memory_bytes() const {
-  std::size_t bytes = store_.memory_bytes() + box_.capacity() * sizeof(AabbF) +
-                      range_.capacity() * sizeof(CellRange) + kind_.capacity() +
-                      (where_.capacity() + degree_.capacity() + overflow_.capacity()) *
-                          sizeof(std::uint32_t) +
-                      fixed_pairs_.capacity() * sizeof(fixed_pairs_[0]);
+  std::size_t bytes =
+      store_.memory_bytes() + box_.capacity() * sizeof(AabbF) +
+      range_.capacity() * sizeof(CellRange) + kind_.capacity() +
+      (where_.capacity() + degree_.capacity() + overflow_.capacity()) * sizeof(std::uint32_t) +
+      fixed_pairs_.capacity() * sizeof(fixed_pairs_[0]);
   for (const Table* t : {&fixed_, &dyn_})
     bytes += t->entries.capacity() * sizeof(Entry) + t->boxes.capacity() * sizeof(AabbF) +
              (t->start.capacity() + t->count.capacity()) * sizeof(std::uint32_t);
@@ -328,8 +326,7 @@ void GridStatic::validate() const {
         if (o >= slots || kind_[o] != kind || where_[o] != kNone) fail("entry of a wrong object");
         if (bucket_of(e.key) != k || !range_[o].contains(e.key)) fail("entry in a wrong cell");
         if ((e.tag & 7u) != detail::offset_mask(range_[o], e.key)) fail("entry mask");
-        if (t == &fixed_ &&
-            std::memcmp(&t->boxes[t->start[k] + j], &box_[o], sizeof(AabbF)) != 0)
+        if (t == &fixed_ && std::memcmp(&t->boxes[t->start[k] + j], &box_[o], sizeof(AabbF)) != 0)
           fail("stale bounds in the fixed table");
         ++seen[o];
       }

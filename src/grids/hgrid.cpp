@@ -1,7 +1,6 @@
-#include <broadphase/hgrid.hpp>
-
 #include <algorithm>
 #include <bit>
+#include <broadphase/hgrid.hpp>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -187,8 +186,8 @@ void HGrid::validate() const {
     const Cell& c = table_[find(level, k)];
     if (c.head == kNone) fail("object's cell missing from the table");
     if (prev_[i] == kNone ? c.head != i : next_[prev_[i]] != i) fail("broken backward link");
-    if (next_[i] != kNone && (prev_[next_[i]] != i || level_[next_[i]] != level ||
-                              !(cell_[next_[i]] == k)))
+    if (next_[i] != kNone &&
+        (prev_[next_[i]] != i || level_[next_[i]] != level || !(cell_[next_[i]] == k)))
       fail("broken forward link");
   }
   if (count != count_) fail("per-level counts");

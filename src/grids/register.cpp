@@ -1,11 +1,11 @@
+#include "../register.hpp"
+
 #include <broadphase/grid_dense.hpp>
 #include <broadphase/grid_hashed.hpp>
 #include <broadphase/grid_hybrid.hpp>
 #include <broadphase/grid_implicit.hpp>
 #include <broadphase/grid_static.hpp>
 #include <broadphase/hgrid.hpp>
-
-#include "../register.hpp"
 
 namespace broadphase::detail {
 

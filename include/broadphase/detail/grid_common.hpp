@@ -14,11 +14,10 @@
 /// cells.
 #pragma once
 
+#include <algorithm>
 #include <broadphase/broad_phase.hpp>
 #include <broadphase/cell_size.hpp>
 #include <broadphase/handle.hpp>
-
-#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
