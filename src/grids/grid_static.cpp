@@ -193,11 +193,13 @@ void GridStatic::rebuild(Table& t, Kind kind) {
       for_cells(range_[i], [&](const CellKey& c) { ++t.count[bucket_of(c)]; });
   // Free slots after each bucket's entries so that patches rarely find a
   // bucket full: half again for the moving population, a quarter for the
-  // fixed one (it changes only on insert and remove), plus one.
+  // fixed one (it changes only on insert and remove), plus two: with one,
+  // inserting objects one by one re-packed every few dozen inserts (a
+  // bucket table is full as soon as any bucket takes two new entries).
   std::uint32_t running = 0;
   for (std::size_t k = 0; k < buckets; ++k) {
     t.start[k] = running;
-    running += t.count[k] + (&t == &fixed_ ? t.count[k] / 4 : t.count[k] / 2) + 1;
+    running += t.count[k] + (&t == &fixed_ ? t.count[k] / 4 : t.count[k] / 2) + 2;
     t.count[k] = 0;
   }
   t.start[buckets] = running;
