@@ -112,7 +112,9 @@ class GridStatic {
       for (std::uint32_t i = 0; i < dn; ++i) {
         const std::uint32_t a = d[i].tag >> 3;
         const AabbF ab = box[a];
-        for (std::uint32_t j = 0; j < fn; ++j) {
+        // Fixed segments are sorted by low x: stop at the first that starts
+        // after this box ends.
+        for (std::uint32_t j = 0; j < fn && fb[j].lo[0] <= ab.hi[0]; ++j) {
           if (!(d[i].key == f[j].key) || (d[i].tag & f[j].tag & 7u) != 0 || !ab.overlaps(fb[j]))
             continue;
           const std::uint32_t b = f[j].tag >> 3;
@@ -171,7 +173,7 @@ class GridStatic {
   };
   struct Table {
     std::vector<Entry> entries;        // per bucket: count live entries, then free slots
-    std::vector<AabbF> boxes;          // beside entries, fixed table only (they never move)
+    std::vector<AabbF> boxes;          // beside entries, fixed table only, sorted by low x
     std::vector<std::uint32_t> start;  // per bucket, plus the end
     std::vector<std::uint32_t> count;  // per bucket
     std::size_t live = 0;

@@ -161,9 +161,17 @@ bool GridStatic::add_entries(Table& t, std::uint32_t i) {
       ok = false;
       return;
     }
-    const std::uint32_t at = t.start[k] + t.count[k]++;
+    std::uint32_t at = t.start[k] + t.count[k]++;
+    if (&t == &fixed_) {
+      // Keep the fixed segment sorted by low x: shift the later ones up.
+      while (at > t.start[k] && t.boxes[at - 1].lo[0] > box_[i].lo[0]) {
+        t.entries[at] = t.entries[at - 1];
+        t.boxes[at] = t.boxes[at - 1];
+        --at;
+      }
+      t.boxes[at] = box_[i];
+    }
     t.entries[at] = {c, i << 3 | detail::offset_mask(r, c)};
-    if (&t == &fixed_) t.boxes[at] = box_[i];
   });
   return ok;
 }
@@ -175,8 +183,16 @@ void GridStatic::remove_entries(Table& t, std::uint32_t i) {
     for (std::uint32_t j = 0; j < t.count[k]; ++j) {
       if ((e[j].tag >> 3) == i && e[j].key == c) {
         const std::uint32_t last = --t.count[k];
-        e[j] = e[last];
-        if (&t == &fixed_) t.boxes[t.start[k] + j] = t.boxes[t.start[k] + last];
+        if (&t == &fixed_) {
+          // Close the gap in order (the fixed segment stays sorted by x).
+          AabbF* b = t.boxes.data() + t.start[k];
+          for (std::uint32_t m = j; m < last; ++m) {
+            e[m] = e[m + 1];
+            b[m] = b[m + 1];
+          }
+        } else {
+          e[j] = e[last];
+        }
         return;
       }
     }
@@ -205,8 +221,19 @@ void GridStatic::rebuild(Table& t, Kind kind) {
   t.start[buckets] = running;
   t.entries.resize(running);
   if (&t == &fixed_) t.boxes.resize(running);
-  for (std::uint32_t i = 0; i < slots; ++i)
-    if (kind_[i] == kind && where_[i] == kNone) add_entries(t, i);
+  if (&t == &fixed_) {
+    // Entering the objects by increasing low x leaves every fixed segment
+    // sorted without a per-segment sort.
+    std::vector<std::uint32_t> order;
+    for (std::uint32_t i = 0; i < slots; ++i)
+      if (kind_[i] == kind && where_[i] == kNone) order.push_back(i);
+    std::sort(order.begin(), order.end(),
+              [&](std::uint32_t a, std::uint32_t b) { return box_[a].lo[0] < box_[b].lo[0]; });
+    for (std::uint32_t i : order) add_entries(t, i);
+  } else {
+    for (std::uint32_t i = 0; i < slots; ++i)
+      if (kind_[i] == kind && where_[i] == kNone) add_entries(t, i);
+  }
   t.dirty = false;
 }
 
