@@ -39,6 +39,7 @@ namespace detail {
 template <bool kHashed, bool kSorted = false>
 class LinkedGrid {
  public:
+  /// Reads `cell=` (and `buckets=` when hashed) from `c`. Throws UnknownStructure.
   LinkedGrid(const Config& c, const char* name, double cell_scale = 1)
       : name_(name), world_(c.world), cell_scale_(cell_scale) {
     OptionReader opt(c, name);
@@ -131,6 +132,7 @@ class LinkedGrid {
     }
   }
 
+  /// Number of live objects. O(1).
   std::size_t size() const { return store_.size(); }
   /// Bytes held: object store, per-object bounds, ranges and links, cell heads.
   std::size_t memory_bytes() const {
@@ -140,8 +142,11 @@ class LinkedGrid {
             overflow_.capacity()) *
                sizeof(std::uint32_t);
   }
+  /// True when `h` names a live object of this structure. O(1).
   bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's current shape. Throws InvalidHandle.
   const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The user data given at insertion. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// The cell edge in use.
   double cell_size() const { return map_.cell(); }
@@ -534,6 +539,7 @@ class LinkedGrid {
 /// concurrently; mutations need exclusive access.
 class GridDense : public detail::LinkedGrid<false> {
  public:
+  /// Reads `cell=`. Throws UnknownStructure for other keys or bad values.
   explicit GridDense(const Config& c = {}) : LinkedGrid(c, "grid-dense") {}
 };
 

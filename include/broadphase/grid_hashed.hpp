@@ -24,6 +24,7 @@ namespace broadphase {
 /// Const members may run concurrently; mutations need exclusive access.
 class GridHashed : public detail::LinkedGrid<true> {
  public:
+  /// Reads `cell=`, `buckets=`. Throws UnknownStructure for other keys.
   explicit GridHashed(const Config& c = {}) : LinkedGrid(c, "grid-hashed") {}
 };
 

@@ -35,6 +35,7 @@ class GridHybrid : public detail::LinkedGrid<true, true> {
  public:
   /// Cells are this many times the uniform grids' automatic size.
   static constexpr double kCoarseness = 4;
+  /// Reads `cell=`, `buckets=`. Throws UnknownStructure for other keys.
   explicit GridHybrid(const Config& c = {}) : LinkedGrid(c, "grid-hybrid", kCoarseness) {}
 };
 

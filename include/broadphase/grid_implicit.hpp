@@ -39,6 +39,7 @@ class GridImplicit {
   /// Slabs per axis at most.
   static constexpr std::int32_t kMaxSlabs = 1024;
 
+  /// Reads `cell=`. Throws UnknownStructure for other keys or bad values.
   explicit GridImplicit(const Config& c = {});
 
   /// Adds an object. Throws InvalidShape.
@@ -87,11 +88,15 @@ class GridImplicit {
     return cost;
   }
 
+  /// Number of live objects. O(1).
   std::size_t size() const { return store_.size(); }
   /// Bytes held: store, bounds, ranges, the three slab bit arrays.
   std::size_t memory_bytes() const;
+  /// True when `h` names a live object of this structure. O(1).
   bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's current shape. Throws InvalidHandle.
   const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The user data given at insertion. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// The cell (slab) edge in use.
   double cell_size() const { return map_.cell(); }

@@ -49,6 +49,7 @@ class GridStatic {
   /// How moved objects reach the dynamic table.
   enum class Policy : std::uint8_t { rebuild, patch, automatic };
 
+  /// Reads `cell=`, `policy=`, `fixed=`. Throws UnknownStructure for other keys.
   explicit GridStatic(const Config& c = {});
 
   /// Adds an object; `Motion::fixed` puts it in the fixed population
@@ -144,11 +145,15 @@ class GridStatic {
     return cost;
   }
 
+  /// Number of live objects. O(1).
   std::size_t size() const { return store_.size(); }
   /// Bytes held: store, per-object arrays, both tables, the pair cache.
   std::size_t memory_bytes() const;
+  /// True when `h` names a live object of this structure. O(1).
   bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's current shape. Throws InvalidHandle.
   const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The user data given at insertion. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// The cell edge in use.
   double cell_size() const { return map_.cell(); }

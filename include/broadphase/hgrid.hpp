@@ -41,6 +41,7 @@ namespace broadphase {
 /// mutations need exclusive access.
 class HGrid {
  public:
+  /// Takes no options. Throws UnknownStructure when some are given.
   explicit HGrid(const Config& c = {});
 
   /// Adds an object. Throws InvalidShape.
@@ -95,11 +96,15 @@ class HGrid {
     return cost;
   }
 
+  /// Number of live objects. O(1).
   std::size_t size() const { return store_.size(); }
   /// Bytes held: store, per-object arrays, the cell table, the level list.
   std::size_t memory_bytes() const;
+  /// True when `h` names a live object of this structure. O(1).
   bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's current shape. Throws InvalidHandle.
   const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The user data given at insertion. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// The occupied levels (cell edge 2^level), finest first.
   const std::vector<int>& levels() const { return levels_; }

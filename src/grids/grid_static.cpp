@@ -89,9 +89,10 @@ void GridStatic::update(std::span<const Move> moves) {
     require_valid(m.shape);
   }
   const bool patch = policy_ != Policy::rebuild;
-  // `auto`: patching costs a bucket scan per cell of each object that changed
-  // cells, a rebuild one pass over the dynamic entries and the buckets; past
-  // this many changes the rebuild is cheaper (measured: docs/grids.md).
+  // `auto`: patching costs a few bucket scans per object that changed cells,
+  // a rebuild one pass over the buckets and the dynamic entries. Estimating
+  // a scan at ~16 bucket steps gives the break-even below; docs/grids.md
+  // has both policies measured (rebuild wins when everything moves).
   const std::size_t limit = dyn_.count.size() / 16 + 16;
   std::size_t changed = 0;
   for (const Move& m : moves) {
