@@ -45,13 +45,13 @@ TEST(HGrid, SizesOverSevenDecadesInOneWorld) {
   g.validate();
   EXPECT_GE(g.levels().size(), 15u);
   for (std::size_t i = 0; i < shapes.size(); ++i) {
-    // The level's cell holds the object twice over, and the next finer would not.
+    // The level's cell holds the object, and the next finer would not.
     const double cell = std::ldexp(1.0, g.level_of(h[i]));
     const AabbF b = bounds_f(shapes[i]);
     const double extent = static_cast<double>(b.hi[0]) - static_cast<double>(b.lo[0]);
-    EXPECT_LE(2 * extent, cell);
+    EXPECT_LE(extent, cell);
     if (g.level_of(h[i]) > std::ilogb(2000.0) - 20) {
-      EXPECT_GT(2 * extent, cell / 2);
+      EXPECT_GT(extent, cell / 2);
     }
   }
   EXPECT_EQ(pairs_of(g), brute(shapes));

@@ -1,9 +1,9 @@
 /// \file hgrid.hpp
 /// `hgrid`: the lecture notes' hierarchical grid (not the study's
 /// hgrid-paper). Level k has cells of edge 2^k; an object lives in exactly
-/// one cell of exactly one level, the finest whose cell is at least twice
-/// its extent (largest side of its bounds), in the cell holding the low
-/// corner of its bounds. All levels share one hash table keyed by (level,
+/// one cell of exactly one level, the finest whose cell is at least its
+/// extent (largest side of its bounds), in the cell holding the centre
+/// of its bounds. All levels share one hash table keyed by (level,
 /// cell); a per-level object count lets queries skip empty levels. There is
 /// no world box and no size limit: levels are powers of two of the whole
 /// double range, so objects from 1e-3 to 1e4 (or beyond) share one
@@ -13,10 +13,11 @@
 /// a pair of different levels is found once, by its finer object; a pair on
 /// one level is kept only when the lower slot looks at the higher one.
 ///
-/// Exactness: an object b at level L with cell edge c has extent <= c/2,
-/// so when b overlaps a, b's low corner lies in [a.lo - c/2, a.hi]; a scans
-/// the cells of that box at level L (its low end pushed down by a margin
-/// larger than the rounding of the subtraction). A level is never finer
+/// Exactness: an object b at level L with cell edge c has extent <= c, so
+/// when b overlaps a, b's centre lies in [a.lo - c/2, a.hi + c/2]; a scans
+/// the cells of that box at level L (widened by a margin larger than the
+/// rounding of the centre and of the additions): at most 3 x 3 x 3 cells at
+/// its own level, 2 x 2 x 2 on coarser ones. A level is never finer
 /// than 2^-20 of the object's distance from the origin, so cell coordinates
 /// stay far inside int32 (at 1e7 from the origin cells are >= 2^4).
 /// Objects whose bounds are not finite in float go to an overflow list
@@ -140,17 +141,17 @@ class HGrid {
     }
   }
 
-  // Calls f(b) for every object b at `level` whose low corner lies in the
-  // box a level-`level` object overlapping `qb` must have it in.
+  // Calls f(b) for every object b at `level` whose centre lies in the box a
+  // level-`level` object overlapping `qb` must have it in.
   template <class F>
   bool scan_level(const AabbF& qb, int level, F&& f) const {
     const double c = edge(level);
     detail::CellRange r;
     for (int a = 0; a < 3; ++a) {
-      const double lo = qb.lo[a];
-      const double reach = c * (0.5 + 0x1p-20) + std::fabs(lo) * 0x1p-50;
-      r.lo[a] = coord(lo - reach, level);
-      r.hi[a] = coord(qb.hi[a], level);
+      const double lo = qb.lo[a], hi = qb.hi[a];
+      const double slack = c * (0.5 + 0x1p-20);
+      r.lo[a] = coord(lo - (slack + std::fabs(lo) * 0x1p-50), level);
+      r.hi[a] = coord(hi + (slack + std::fabs(hi) * 0x1p-50), level);
     }
     if (r.cells() > 4.0 * static_cast<double>(occupancy(level)) + 8) {
       // Scanning more cells than the level has objects: walk the objects.
@@ -177,6 +178,13 @@ class HGrid {
   void erase_cell(std::size_t p);
   void grow_table();
   static int level_for(const AabbF& b);
+  // The cell of an object's bounds' centre at `level`.
+  static detail::CellKey cell_for(const AabbF& b, int level) {
+    detail::CellKey k;
+    for (int a = 0; a < 3; ++a)
+      k.c[a] = coord(0.5 * (static_cast<double>(b.lo[a]) + static_cast<double>(b.hi[a])), level);
+    return k;
+  }
 
   ObjectStore store_;
   std::vector<AabbF> box_;

@@ -27,9 +27,9 @@ int HGrid::level_for(const AabbF& b) {
   if (!std::isfinite(extent) || !std::isfinite(magnitude)) return kMaxLevel + 1;
   int level = kMinLevel;
   if (extent > 0) {
-    // The finest k with 2^k >= 2 * extent.
+    // The finest k with 2^k >= extent.
     int e = 0;
-    const double m = std::frexp(2 * extent, &e);
+    const double m = std::frexp(extent, &e);
     level = std::max(level, m == 0.5 ? e - 1 : e);
   }
   // Keep cell coordinates within 2^21 of the origin, far inside int32.
@@ -65,8 +65,7 @@ void HGrid::update(Handle h, const Shape& s) {
   if (where_[i] == kNone) {
     const int level = level_for(b);
     if (level == level_[i]) {
-      const CellKey k{{coord(b.lo[0], level), coord(b.lo[1], level), coord(b.lo[2], level)}};
-      if (k == cell_[i]) {
+      if (cell_for(b, level) == cell_[i]) {
         box_[i] = b;
         return;
       }
@@ -86,7 +85,7 @@ void HGrid::place(std::uint32_t i) {
   }
   level_[i] = level;
   const AabbF& b = box_[i];
-  cell_[i] = {{coord(b.lo[0], level), coord(b.lo[1], level), coord(b.lo[2], level)}};
+  cell_[i] = cell_for(b, level);
   if (2 * (cells_used_ + 1) > table_.size()) grow_table();
   Cell& c = table_[find(level, cell_[i])];
   if (c.head == kNone) {
@@ -180,7 +179,7 @@ void HGrid::validate() const {
       continue;
     }
     if (level != level_[i]) fail("object on the wrong level");
-    const CellKey k{{coord(b.lo[0], level), coord(b.lo[1], level), coord(b.lo[2], level)}};
+    const CellKey k = cell_for(b, level);
     if (!(k == cell_[i])) fail("object in the wrong cell");
     ++count[level - kMinLevel];
     const Cell& c = table_[find(level, k)];
