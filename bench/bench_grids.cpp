@@ -45,16 +45,24 @@ void register_all() {
                          "grid-implicit",
                          "hgrid",
                          "grid-hybrid"};
-  const std::pair<const char*, Distribution> dists[] = {{"even", Distribution::even},
-                                                        {"uneven", Distribution::uneven}};
+  struct Workload {
+    const char* name;
+    Distribution dist;
+    std::size_t n;
+  };
+  // The study's two scenes and two stress kinds where the grids differ most.
+  const Workload workloads[] = {{"even", Distribution::even, 6400},
+                                {"uneven", Distribution::uneven, 6400},
+                                {"decades", Distribution::decades, 20000},
+                                {"flat", Distribution::flat, 20000}};
   for (const char* a : algos)
-    for (const auto& [dn, d] : dists) {
-      const std::string name = std::string("Frame/") + a + "/" + dn + "/6400";
+    for (const Workload& w : workloads) {
+      const std::string name = std::string("Frame/") + a + "/" + w.name + "/" + std::to_string(w.n);
       const std::string algo = a;
-      const Distribution dist = d;
-      benchmark::RegisterBenchmark(name.c_str(), [algo, dist](benchmark::State& s) {
+      const Workload work = w;
+      benchmark::RegisterBenchmark(name.c_str(), [algo, work](benchmark::State& s) {
         try {
-          run_frames(s, algo, dist, 6400);
+          run_frames(s, algo, work.dist, work.n);
         } catch (const std::exception& e) {
           s.SkipWithError(e.what());
         }
