@@ -126,7 +126,6 @@ class CellMap {
     return r;
   }
   double cell() const { return cell_; }
-  const Vec3& origin() const { return origin_; }
 
  private:
   Vec3 origin_;
