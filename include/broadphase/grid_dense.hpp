@@ -7,7 +7,9 @@
 ///
 /// Placement: an object is entered into every cell its bounds overlap, and
 /// the cell size is chosen so that most objects span at most two cells per
-/// axis (eight links). An object spanning more goes to an overflow list that
+/// axis (eight links). Centre cells with a neighbourhood search would need
+/// cells as large as the largest object; this way the cell follows a size
+/// quantile instead (docs/grids.md). An object spanning more goes to an overflow list that
 /// is tested against the grid by a range query. Each pair is reported once,
 /// from the lowest corner of the intersection of the two objects' cell
 /// ranges (detail::offset_mask): no hash set, no sorting.
