@@ -1,0 +1,202 @@
+/// \file hgrid.hpp
+/// `hgrid`: the lecture notes' hierarchical grid (not the study's
+/// hgrid-paper). Level k has cells of edge 2^k; an object lives in exactly
+/// one cell of exactly one level, the finest whose cell is at least its
+/// extent (largest side of its bounds), in the cell holding the centre
+/// of its bounds. All levels share one hash table keyed by (level,
+/// cell); a per-level object count lets queries skip empty levels. There is
+/// no world box and no size limit: levels are powers of two of the whole
+/// double range, so objects from 1e-3 to 1e4 (or beyond) share one
+/// structure without re-gridding.
+///
+/// Pairs: each object looks at its own level and the coarser ones only, so
+/// a pair of different levels is found once, by its finer object; a pair on
+/// one level is kept only when the lower slot looks at the higher one.
+///
+/// Exactness: an object b at level L with cell edge c has extent <= c, so
+/// when b overlaps a, b's centre lies in [a.lo - c/2, a.hi + c/2]; a scans
+/// the cells of that box at level L (widened by a margin larger than the
+/// rounding of the centre and of the additions): at most 3 x 3 x 3 cells at
+/// its own level, 2 x 2 x 2 on coarser ones. A level is never finer
+/// than 2^-20 of the object's distance from the origin, so cell coordinates
+/// stay far inside int32 (at 1e7 from the origin cells are >= 2^4).
+/// Objects whose bounds are not finite in float go to an overflow list
+/// tested against everything.
+#pragma once
+
+#include <broadphase/broad_phase.hpp>
+#include <broadphase/detail/grid_common.hpp>
+#include <broadphase/registry.hpp>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+namespace broadphase {
+
+/// A hierarchical grid of power-of-two levels in one hash table.
+/// insert, remove, update: O(1) expected (a hash insert or erase; update is
+/// free when the object keeps its cell and level). query: O(occupied levels
+/// x cells scanned per level + candidates). for_each_pair: O(n x occupied
+/// coarser levels + candidates). Memory: O(n). No options. Handles stay
+/// valid until their object is removed. Const members may run concurrently;
+/// mutations need exclusive access.
+class HGrid {
+ public:
+  /// Takes no options. Throws UnknownStructure when some are given.
+  explicit HGrid(const Config& c = {});
+
+  /// Adds an object. Throws InvalidShape.
+  Handle insert(const Shape& s, std::uint64_t user, Motion m = Motion::dynamic);
+  /// Removes an object. Throws InvalidHandle.
+  void remove(Handle h);
+  /// Moves or resizes an object. Throws InvalidHandle, InvalidShape.
+  void update(Handle h, const Shape& s);
+
+  /// Visits every object overlapping `q`.
+  template <class V>
+  QueryCost query(const Shape& q, V&& visitor) const {
+    QueryCost cost;
+    const AabbF qb = bounds_f(q);
+    for (int level : levels_) {
+      const bool go = scan_level(qb, level, [&](std::uint32_t b) {
+        return detail::test_query(store_, box_.data(), q, qb, b, cost, visitor);
+      });
+      if (!go) return cost;
+    }
+    for (std::uint32_t b : overflow_)
+      if (!detail::test_query(store_, box_.data(), q, qb, b, cost, visitor)) return cost;
+    return cost;
+  }
+
+  /// Visits every overlapping pair once.
+  template <class V>
+  QueryCost for_each_pair(V&& visitor) const {
+    QueryCost cost;
+    const AabbF* box = box_.data();
+    const std::uint32_t slots = store_.slot_count();
+    for (std::uint32_t a = 0; a < slots; ++a) {
+      if (!store_.slots().alive(a) || where_[a] != detail::kNone) continue;
+      const int own = level_[a];
+      for (auto it = std::lower_bound(levels_.begin(), levels_.end(), own); it != levels_.end();
+           ++it) {
+        const bool same = *it == own;
+        const bool go = scan_level(box[a], *it, [&](std::uint32_t b) {
+          if (same && b <= a) return true;
+          return detail::test_pair(store_, box, a, b, cost, visitor);
+        });
+        if (!go) return cost;
+      }
+    }
+    for (std::size_t p = 0; p < overflow_.size(); ++p) {
+      const std::uint32_t o = overflow_[p];
+      for (std::uint32_t b = 0; b < slots; ++b) {
+        if (!store_.slots().alive(b) || (where_[b] != detail::kNone && where_[b] <= p)) continue;
+        if (!detail::test_pair(store_, box, o, b, cost, visitor)) return cost;
+      }
+    }
+    return cost;
+  }
+
+  /// Number of live objects. O(1).
+  std::size_t size() const { return store_.size(); }
+  /// Bytes held: store, per-object arrays, the cell table, the level list.
+  std::size_t memory_bytes() const;
+  /// True when `h` names a live object of this structure. O(1).
+  bool contains(Handle h) const { return store_.contains(h); }
+  /// The object's current shape. Throws InvalidHandle.
+  const Shape& shape(Handle h) const { return store_.shape_of(h); }
+  /// The user data given at insertion. Throws InvalidHandle.
+  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
+  /// The occupied levels (cell edge 2^level), finest first.
+  const std::vector<int>& levels() const { return levels_; }
+  /// The level of a live object, or a value above 1023 for an overflowing one.
+  int level_of(Handle h) const;
+
+  /// Checks levels, cells, the hash table, the lists and the counts.
+  void validate() const;
+
+  /// The finest level (cells of 2^-100).
+  static constexpr int kMinLevel = -100;
+  /// The coarsest level; larger or non-finite objects overflow.
+  static constexpr int kMaxLevel = 1000;
+
+ private:
+  struct Cell {
+    std::int32_t level;
+    detail::CellKey key;
+    std::uint32_t head;  // first object, kNone for an empty slot of the table
+  };
+
+  static double edge(int level) { return std::ldexp(1.0, level); }
+  static std::int32_t coord(double x, int level) {
+    const double t = std::clamp(std::ldexp(x, -level), -0x1p30, 0x1p30);
+    return static_cast<std::int32_t>(std::floor(t));
+  }
+  std::size_t find(int level, const detail::CellKey& k) const {
+    const std::size_t mask = table_.size() - 1;
+    for (std::size_t p = detail::hash_cell(k, static_cast<std::uint32_t>(level)) & mask;;
+         p = (p + 1) & mask) {
+      const Cell& c = table_[p];
+      if (c.head == detail::kNone || (c.level == level && c.key == k)) return p;
+    }
+  }
+
+  // Calls f(b) for every object b at `level` whose centre lies in the box a
+  // level-`level` object overlapping `qb` must have it in.
+  template <class F>
+  bool scan_level(const AabbF& qb, int level, F&& f) const {
+    const double c = edge(level);
+    detail::CellRange r;
+    for (int a = 0; a < 3; ++a) {
+      const double lo = qb.lo[a], hi = qb.hi[a];
+      const double slack = c * (0.5 + 0x1p-20);
+      r.lo[a] = coord(lo - (slack + std::fabs(lo) * 0x1p-50), level);
+      r.hi[a] = coord(hi + (slack + std::fabs(hi) * 0x1p-50), level);
+    }
+    if (r.cells() > 4.0 * static_cast<double>(occupancy(level)) + 8) {
+      // Scanning more cells than the level has objects: walk the objects.
+      for (std::uint32_t b = 0; b < store_.slot_count(); ++b)
+        if (store_.slots().alive(b) && where_[b] == detail::kNone && level_[b] == level &&
+            r.contains(cell_[b]) && !f(b))
+          return false;
+      return true;
+    }
+    detail::CellKey k;
+    for (k.c[2] = r.lo[2]; k.c[2] <= r.hi[2]; ++k.c[2])
+      for (k.c[1] = r.lo[1]; k.c[1] <= r.hi[1]; ++k.c[1])
+        for (k.c[0] = r.lo[0]; k.c[0] <= r.hi[0]; ++k.c[0]) {
+          const Cell& cell = table_[find(level, k)];
+          for (std::uint32_t b = cell.head; b != detail::kNone; b = next_[b])
+            if (!f(b)) return false;
+        }
+    return true;
+  }
+
+  std::uint32_t occupancy(int level) const { return count_[level - kMinLevel]; }
+  void place(std::uint32_t i);
+  void lift(std::uint32_t i);
+  void erase_cell(std::size_t p);
+  void grow_table();
+  static int level_for(const AabbF& b);
+  // The cell of an object's bounds' centre at `level`.
+  static detail::CellKey cell_for(const AabbF& b, int level) {
+    detail::CellKey k;
+    for (int a = 0; a < 3; ++a)
+      k.c[a] = coord(0.5 * (static_cast<double>(b.lo[a]) + static_cast<double>(b.hi[a])), level);
+    return k;
+  }
+
+  ObjectStore store_;
+  std::vector<AabbF> box_;
+  std::vector<std::int32_t> level_;
+  std::vector<detail::CellKey> cell_;
+  std::vector<std::uint32_t> next_, prev_;
+  std::vector<std::uint32_t> where_;  // position in overflow_, or kNone
+  std::vector<std::uint32_t> overflow_;
+  std::vector<Cell> table_;  // open addressing, linear probing
+  std::size_t cells_used_ = 0;
+  std::vector<std::uint32_t> count_;  // objects per level
+  std::vector<int> levels_;           // occupied levels, ascending
+};
+
+}  // namespace broadphase

@@ -1,0 +1,120 @@
+#include <algorithm>
+#include <broadphase/grid_implicit.hpp>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+namespace broadphase {
+
+GridImplicit::GridImplicit(const Config& c) : world_(c.world) {
+  OptionReader opt(c, "grid-implicit");
+  const double cell = opt.number("cell", 0, 0, 1e300);
+  opt.finish();
+  trigger_.forced = cell > 0;
+  layout(cell > 0 ? cell : detail::initial_cell_size(c),
+         std::max<std::size_t>(1, (c.expected_objects + 63) / 64));
+}
+
+void GridImplicit::layout(double cell, std::size_t words) {
+  for (int a = 0; a < 3; ++a) {
+    const double extent = world_.hi[a] - world_.lo[a];
+    cell = std::max(cell, extent / kMaxSlabs);
+  }
+  std::int32_t n[3];
+  for (int a = 0; a < 3; ++a) {
+    const double want = std::ceil((world_.hi[a] - world_.lo[a]) / cell);
+    n[a] = static_cast<std::int32_t>(std::clamp(want, 1.0, double{kMaxSlabs}));
+    slabs_[a] = n[a];
+  }
+  map_ = detail::CellMap(world_.lo, cell, n);
+  words_ = words;
+  for (int a = 0; a < 3; ++a) bits_[a].assign(static_cast<std::size_t>(n[a]) * words_, 0);
+  for (std::uint32_t i = 0; i < store_.slot_count(); ++i) {
+    if (!store_.slots().alive(i)) continue;
+    range_[i] = map_.range(box_[i]);
+    for (int a = 0; a < 3; ++a) set_bits(i, a, range_[i].lo[a], range_[i].hi[a], true);
+  }
+}
+
+void GridImplicit::set_bits(std::uint32_t i, int axis, std::int32_t lo, std::int32_t hi, bool on) {
+  const std::uint64_t bit = std::uint64_t{1} << (i % 64);
+  std::uint64_t* p = bits_[axis].data() + static_cast<std::size_t>(lo) * words_ + i / 64;
+  for (std::int32_t s = lo; s <= hi; ++s, p += words_) *p = on ? (*p | bit) : (*p & ~bit);
+}
+
+Handle GridImplicit::insert(const Shape& s, std::uint64_t user, Motion) {
+  const Handle h = store_.insert(s, user);
+  const std::uint32_t i = h.index;
+  if (i >= box_.size()) {
+    box_.resize(i + 1);
+    range_.resize(i + 1);
+  }
+  box_[i] = bounds_f(s);
+  // A re-layout places every live object, this one included.
+  const std::size_t need = std::size_t{i} / 64 + 1;
+  if (trigger_.due(store_.size())) {
+    trigger_.chosen_at = store_.size();
+    layout(detail::auto_cell_size(store_, box_), std::max(words_, need));
+  } else if (need > words_) {
+    // Slots outgrew the bit arrays: double them (amortised O(1) per insert).
+    layout(map_.cell(), std::max(2 * words_, need));
+  } else {
+    range_[i] = map_.range(box_[i]);
+    for (int a = 0; a < 3; ++a) set_bits(i, a, range_[i].lo[a], range_[i].hi[a], true);
+  }
+  return h;
+}
+
+void GridImplicit::remove(Handle h) {
+  const std::uint32_t i = store_.index_of(h);
+  for (int a = 0; a < 3; ++a) set_bits(i, a, range_[i].lo[a], range_[i].hi[a], false);
+  store_.erase(h);
+  if (trigger_.due(store_.size())) {
+    trigger_.chosen_at = store_.size();
+    layout(detail::auto_cell_size(store_, box_), words_);
+  }
+}
+
+void GridImplicit::update(Handle h, const Shape& s) {
+  const std::uint32_t i = store_.set_shape(h, s);
+  box_[i] = bounds_f(s);
+  const detail::CellRange r = map_.range(box_[i]);
+  for (int a = 0; a < 3; ++a) {
+    if (r.lo[a] == range_[i].lo[a] && r.hi[a] == range_[i].hi[a]) continue;
+    set_bits(i, a, range_[i].lo[a], range_[i].hi[a], false);
+    set_bits(i, a, r.lo[a], r.hi[a], true);
+  }
+  range_[i] = r;
+}
+
+std::size_t GridImplicit::memory_bytes() const {
+  std::size_t bytes = store_.memory_bytes() + box_.capacity() * sizeof(AabbF) +
+                      range_.capacity() * sizeof(detail::CellRange);
+  for (const auto& b : bits_) bytes += b.capacity() * sizeof(std::uint64_t);
+  return bytes;
+}
+
+void GridImplicit::validate() const {
+  store_.validate();
+  auto fail = [](const char* what) {
+    throw std::logic_error(std::string("grid-implicit: ") + what);
+  };
+  if (store_.slot_count() > words_ * 64) fail("slots outgrew the bit arrays");
+  for (int a = 0; a < 3; ++a) {
+    std::vector<std::uint64_t> want(bits_[a].size(), 0);
+    for (std::uint32_t i = 0; i < store_.slot_count(); ++i) {
+      if (!store_.slots().alive(i)) continue;
+      if (a == 0) {
+        const AabbF b = bounds_f(store_.shape(i));
+        if (std::memcmp(&b, &box_[i], sizeof b) != 0) fail("stale bounds");
+        if (!(map_.range(b) == range_[i])) fail("stale slab range");
+      }
+      for (std::int32_t s = range_[i].lo[a]; s <= range_[i].hi[a]; ++s)
+        want[static_cast<std::size_t>(s) * words_ + i / 64] |= std::uint64_t{1} << (i % 64);
+    }
+    if (want != bits_[a]) fail("slab bits disagree with the objects' ranges");
+  }
+}
+
+}  // namespace broadphase
