@@ -1,6 +1,6 @@
 // FCL 0.7's broad-phase collision managers: DynamicAABBTreeCollisionManager,
-// SaPCollisionManager, SpatialHashingCollisionManager and
-// IntervalTreeCollisionManager, all in double.
+// SaPCollisionManager and SpatialHashingCollisionManager, all in double.
+// (IntervalTreeCollisionManager is not offered: docs/peers.md says why.)
 //
 // Every object is an fcl::CollisionObjectd holding an axis-aligned
 // fcl::Boxd whose AABB, as FCL computes it (translation ± side/2), contains
@@ -8,10 +8,10 @@
 // show: register objects, setup(), then per step move the objects
 // (setTranslation + computeAABB), update(moved objects) and collide(). The
 // managers' collide() reports each candidate pair once; the adapter filters
-// candidates exactly.
+// candidates exactly. SaP's incremental insert and removal are replaced by a
+// bulk registration (see `stale_`).
 #include <fcl/broadphase/broadphase_SaP.h>
 #include <fcl/broadphase/broadphase_dynamic_AABB_tree.h>
-#include <fcl/broadphase/broadphase_interval_tree.h>
 #include <fcl/broadphase/broadphase_spatialhash.h>
 #include <fcl/geometry/shape/box.h>
 #include <fcl/narrowphase/collision_object.h>
@@ -31,7 +31,7 @@ namespace broadphase::app::peers {
 
 namespace {
 
-enum class Kind { tree, sap, hash, interval };
+enum class Kind { tree, sap, hash };
 
 constexpr const char* name_of(Kind k) {
   switch (k) {
@@ -41,8 +41,6 @@ constexpr const char* name_of(Kind k) {
       return "fcl-sap";
     case Kind::hash:
       return "fcl-spatial-hash";
-    case Kind::interval:
-      return "fcl-interval-tree";
   }
   return "";
 }
@@ -107,8 +105,6 @@ class FclBroadPhase : public PeerBase<std::unique_ptr<FclObject>> {
       manager_ = std::make_unique<fcl::DynamicAABBTreeCollisionManagerd>();
     } else if constexpr (K == Kind::sap) {
       manager_ = std::make_unique<fcl::SaPCollisionManagerd>();
-    } else if constexpr (K == Kind::interval) {
-      manager_ = std::make_unique<fcl::IntervalTreeCollisionManagerd>();
     } else {
       const Aabb& w = c.world;
       const double side = std::max({w.hi.x - w.lo.x, w.hi.y - w.lo.y, w.hi.z - w.lo.z});
@@ -233,17 +229,10 @@ class FclBroadPhase : public PeerBase<std::unique_ptr<FclObject>> {
     manager_->setup();
   }
 
-  /// Tells the manager that the objects of `moved_` moved. The interval
-  /// tree's update(objects) corrupts its trees (it never moves an interval's
-  /// upper end point and later crashes in IntervalTree::recursiveSearch), so
-  /// it gets update(), which re-reads every object.
+  /// Tells the manager that the objects of `moved_` moved.
   void refit() {
     prepare();
-    if constexpr (K == Kind::interval) {
-      manager_->update();
-    } else {
-      manager_->update(moved_);
-    }
+    manager_->update(moved_);
   }
 
   std::unique_ptr<fcl::BroadPhaseCollisionManagerd> manager_;
@@ -275,10 +264,6 @@ void register_fcl(Registry& r) {
       r, "fcl-spatial-hash",
       "FCL SpatialHashingCollisionManager: hashed uniform grid over Config::world, options "
       "cell=, table= (memory: objects only)");
-  add_peer<FclBroadPhase<Kind::interval>>(
-      r, "fcl-interval-tree",
-      "FCL IntervalTreeCollisionManager: interval trees on three axes; known to miss pairs "
-      "(docs/peers.md; memory: objects only)");
 }
 
 }  // namespace broadphase::app::peers
