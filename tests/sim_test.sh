@@ -46,8 +46,12 @@ check "swept misses none" test "$(field "$tmp/swept.json" missed)" -eq 0
 check "substep misses fewer" test "$(field "$tmp/substep.json" missed)" -lt "$(field "$tmp/off.json" missed)"
 
 # Every structure gives the same final state, and it reads back as a scene.
+# fcl-sap is exact only under small moves (FCL's own SaP update misses or
+# hangs when a box jumps far; docs/peers.md), and swept boxes jump.
+small_moves_only=" fcl-sap "
 for mode in off swept; do
   for a in $("$cli" list | awk '{print $1}'); do
+    [ "$mode" = swept ] && [[ "$small_moves_only" == *" $a "* ]] && continue
     "$cli" sim --scene "$data/scenes/paper-uneven-400.scene" --algo "$a" --frames 40 --ccd $mode \
       --restitution 0.8 --out "$tmp/$a-$mode.scene" >/dev/null
     check "$a $mode final state" cmp -s "$tmp/$a-$mode.scene" "$tmp/naive-$mode.scene"
