@@ -105,6 +105,9 @@ std::string today_and_host() {
 struct History {
   std::vector<std::pair<std::size_t, CellCosts>> points;
   double overhead = 1;  // wall time / modelled time at the last size (setup, teardown)
+  // Sizes from here on are scaled scenes: the density of the study's largest
+  // size is kept, while the study's own sizes crowd one fixed cube.
+  std::size_t first_scaled = static_cast<std::size_t>(-1);
   bool skipped = false;
   bool failed = false;
 };
@@ -117,7 +120,10 @@ double model(const CellCosts& c, int reps, double min_rep) {
 
 // A part of the cost at size n, grown from the last size by the growth
 // observed between the last two (an exponent clamped to [1, 3]; 2 when
-// there is only one size yet).
+// there is only one size yet). In the study's fixed cube every object has
+// more neighbours as N grows, which the scaled scenes undo by growing the
+// cube: stepping from the study's sizes to the first scaled size, one power
+// of N of the observed growth is that crowding and is taken off.
 double grow(const History& h, double CellCosts::*part, std::size_t n, double* exponent) {
   const auto& [n1, c1] = h.points.back();
   const double x1 = c1.*part;
@@ -125,10 +131,11 @@ double grow(const History& h, double CellCosts::*part, std::size_t n, double* ex
   if (h.points.size() >= 2) {
     const auto& [n0, c0] = h.points[h.points.size() - 2];
     const double x0 = c0.*part;
-    if (x0 > 0 && x1 > 0 && n1 > n0)
-      e = std::clamp(
-          std::log(x1 / x0) / std::log(static_cast<double>(n1) / static_cast<double>(n0)), 1.0,
-          3.0);
+    if (x0 > 0 && x1 > 0 && n1 > n0) {
+      e = std::log(x1 / x0) / std::log(static_cast<double>(n1) / static_cast<double>(n0));
+      if (n1 < h.first_scaled && n >= h.first_scaled) e -= 1;
+      e = std::clamp(e, 1.0, 3.0);
+    }
   }
   if (exponent != nullptr) *exponent = std::max(*exponent, e);
   return x1 * std::pow(static_cast<double>(n) / static_cast<double>(n1), e);
@@ -293,6 +300,8 @@ void run_paper(const PaperOptions& o) {
   std::vector<std::size_t> sizes = study_sizes;
   sizes.insert(sizes.end(), scaled_sizes.begin(), scaled_sizes.end());
   std::vector<History> hist(structures.size());
+  if (!scaled_sizes.empty())
+    for (History& h : hist) h.first_scaled = scaled_sizes.front();
 
   // Seconds left in the six tests: every structure's projected time at the
   // sizes still to come, up to the first it will be skipped at.
