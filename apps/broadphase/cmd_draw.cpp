@@ -25,20 +25,6 @@ namespace broadphase::app {
 
 namespace {
 
-struct DrawOptions {
-  std::string scene;
-  std::string out;
-  std::string view = "side";
-  std::string algo = "naive";
-  bool cells = false;
-  int sim_frames = 0;
-  bool gif = false;
-  bool compare = false;
-  std::string ccd = "off";
-  double restitution = 1;
-  std::string title;
-};
-
 using Json = nlohmann::json;
 
 /// One drawable box: [lo x y z, hi x y z, value].
@@ -316,6 +302,8 @@ Json sim_run(const Scene& scene, const std::string& algo, Ccd ccd, double k, int
           {"missed", missed}};
 }
 
+}  // namespace
+
 void draw(const DrawOptions& o) {
   const std::string ext = std::filesystem::path(o.out).extension().string();
   if (o.gif ? ext != ".gif" : (ext != ".png" && ext != ".svg"))
@@ -376,8 +364,6 @@ void draw(const DrawOptions& o) {
         "draw: no picture written: tools/draw.py needs python3 with "
         "matplotlib (Debian: python3-matplotlib; GIFs also python3-pil)");
 }
-
-}  // namespace
 
 void add_draw_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(

@@ -294,7 +294,8 @@ void run_paper(const PaperOptions& o) {
   auto reps_at = [&](std::size_t n) { return o.quick ? 3 : (n > 102400 ? 3 : 5); };
   info.reps_rule = o.quick ? "3 per measurement" : "5 per measurement up to N = 102 400, 3 above";
 
-  const Hook hooks[] = {{"cell-size sweep", lab_cell_size_sweep},
+  const Hook hooks[] = {{"pictures", lab_pictures},
+                        {"cell-size sweep", lab_cell_size_sweep},
                         {"tree experiments", lab_tree_experiments},
                         {"octree experiments", lab_octree_experiments},
                         {"tunneling", lab_tunneling},

@@ -2,9 +2,8 @@
 // CLI11 app; `main.cpp` only wires them together and reports errors.
 #pragma once
 
-#include <broadphase/registry.hpp>
-
 #include <CLI/CLI.hpp>
+#include <broadphase/registry.hpp>
 #include <stdexcept>
 #include <string>
 
@@ -20,12 +19,31 @@ class UsageError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-void add_list_command(CLI::App& app);     // cmd_run.cpp
-void add_run_command(CLI::App& app);      // cmd_run.cpp
-void add_gen_command(CLI::App& app);      // cmd_run.cpp
-void add_paper_command(CLI::App& app);    // cmd_paper.cpp (the lab)
-void add_sim_command(CLI::App& app);      // cmd_sim.cpp
-void add_draw_command(CLI::App& app);     // cmd_draw.cpp
-void add_advise_command(CLI::App& app);   // cmd_advise.cpp
+/// What `broadphase draw` draws (see its --help for each field).
+struct DrawOptions {
+  std::string scene;
+  std::string out;
+  std::string view = "side";
+  std::string algo = "naive";
+  bool cells = false;
+  int sim_frames = 0;
+  bool gif = false;
+  bool compare = false;
+  std::string ccd = "off";
+  double restitution = 1;
+  std::string title;
+};
+
+/// Renders one picture through tools/draw.py. Throws UsageError for bad
+/// options and std::runtime_error when no picture could be written.
+void draw(const DrawOptions& o);  // cmd_draw.cpp
+
+void add_list_command(CLI::App& app);    // cmd_run.cpp
+void add_run_command(CLI::App& app);     // cmd_run.cpp
+void add_gen_command(CLI::App& app);     // cmd_run.cpp
+void add_paper_command(CLI::App& app);   // cmd_paper.cpp (the lab)
+void add_sim_command(CLI::App& app);     // cmd_sim.cpp
+void add_draw_command(CLI::App& app);    // cmd_draw.cpp
+void add_advise_command(CLI::App& app);  // cmd_advise.cpp
 
 }  // namespace broadphase::app

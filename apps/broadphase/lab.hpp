@@ -31,6 +31,7 @@ using LabExperiment = std::function<std::string(const LabContext&)>;
 
 /// The experiments beyond the study's six tests, in report order. Each
 /// family adds its own in its own file.
+std::string lab_pictures(const LabContext& ctx);             // lab_pictures.cpp
 std::string lab_cell_size_sweep(const LabContext& ctx);      // lab_grids.cpp
 std::string lab_tree_experiments(const LabContext& ctx);     // lab_trees.cpp
 std::string lab_octree_experiments(const LabContext& ctx);   // lab_octrees.cpp
