@@ -36,6 +36,7 @@
 #include <broadphase/registry.hpp>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <mutex>
 #include <span>
 #include <utility>
@@ -123,14 +124,20 @@ class FastGrid {
     std::vector<std::uint32_t> entry_row;  // per entry, its row (for split ranges)
 
     /// Calls f(entry) for every entry whose float box overlaps `q`, on
-    /// levels from `first_level`; stops when f returns false.
+    /// levels from `first_level` (on that level only entries whose lower x
+    /// is at least `first_min_x`); stops when f returns false.
     template <class F>
-    bool scan(const AabbF& q, std::size_t first_level, F&& f) const;
+    bool scan(const AabbF& q, std::size_t first_level, double first_min_x, F&& f) const;
     std::size_t memory_bytes() const {
       return levels.capacity() * sizeof(Level) + row_start.capacity() * 4 +
              entries.capacity() * sizeof(Entry) + entry_row.capacity() * 4;
     }
   };
+
+  // A row probe (index lookup and binary search) costs about as much as
+  // testing this many entries.
+  static constexpr std::uint64_t kProbeCost = 8;
+  static constexpr double kNoMinX = -std::numeric_limits<double>::infinity();
 
   struct SlotPair {
     std::uint32_t a, b;
@@ -148,6 +155,7 @@ class FastGrid {
   void leave_grid(std::uint32_t s);
   void maybe_rebuild();
   void rebuild(bool fixed_too);
+  void build_candidate_lists();
   void build_grid(Grid& g, std::vector<Entry>& items) const;
   void build_fixed_cache();
 
@@ -167,6 +175,7 @@ class FastGrid {
 
   Aabb world_;
   unsigned threads_ = 1;
+  double cell_factor_ = 2;  // row cell size over reach
 
   std::vector<Shape> shapes_;
   std::vector<std::uint64_t> user_;  // for a free slot: the next free slot
@@ -189,6 +198,22 @@ class FastGrid {
   std::vector<SlotPair> fixed_pairs_;  // overlapping pairs within the fixed grid
   std::vector<Entry> scratch_items_;   // rebuild input, kept to avoid reallocation
 
+  // Candidate lists of moving objects against the fixed grid. A list holds
+  // the fixed entries whose bounds overlap a "fat" box (the object's bounds
+  // grown by a margin); it stays complete while the object's bounds remain
+  // inside the fat box, so a slowly moving object is tested against its
+  // list instead of probing the fixed grid every frame. Lists live in one
+  // pool in moving-grid order, rebuilt (mostly copied) by every rebuild,
+  // and are all dropped when the fixed grid is rebuilt.
+  std::vector<std::uint32_t> list_pool_;       // fixed entry indices
+  std::vector<std::uint32_t> list_pool_next_;  // the pool being built
+  std::vector<std::uint32_t> list_begin_;      // per slot, into list_pool_
+  std::vector<std::uint32_t> list_count_;      // per slot
+  std::vector<std::uint32_t> list_epoch_;      // per slot: fixed-grid epoch of its list
+  std::vector<AabbF> fat_;                     // per slot: the box its list covers
+  std::vector<float> speed_;                   // per slot: bounds displacement of the last move
+  std::uint32_t epoch_ = 1;                    // bumped at every fixed-grid rebuild
+
   /// Per-thread pair buffers of find_pairs, reused between frames.
   mutable std::mutex buffers_mutex_;
   mutable std::vector<std::vector<HandlePair>> buffers_;
@@ -197,14 +222,31 @@ class FastGrid {
 // ---------------------------------------------------------------------------
 
 template <class F>
-bool FastGrid::Grid::scan(const AabbF& q, std::size_t first_level, F&& f) const {
+bool FastGrid::Grid::scan(const AabbF& q, std::size_t first_level, double first_min_x,
+                          F&& f) const {
   for (std::size_t l = first_level; l < levels.size(); ++l) {
     const Level& lv = levels[l];
-    const double lo_x = static_cast<double>(q.lo[0]) - lv.reach;
+    double lo_x = static_cast<double>(q.lo[0]) - lv.reach;
+    if (l == first_level) lo_x = std::max(lo_x, first_min_x);
     const std::uint32_t y0 = lv.cell(static_cast<double>(q.lo[1]) - lv.reach, lv.origin_y, lv.ny);
     const std::uint32_t y1 = lv.cell(q.hi[1], lv.origin_y, lv.ny);
     const std::uint32_t z0 = lv.cell(static_cast<double>(q.lo[2]) - lv.reach, lv.origin_z, lv.nz);
     const std::uint32_t z1 = lv.cell(q.hi[2], lv.origin_z, lv.nz);
+    const std::uint32_t level_begin = row_start[lv.first_row];
+    const std::uint32_t level_end = row_start[lv.first_row + lv.ny * lv.nz];
+    if (static_cast<std::uint64_t>(y1 - y0 + 1) * (z1 - z0 + 1) * kProbeCost >
+        level_end - level_begin) {
+      // A query far larger than the level's cells: probing its rows would
+      // cost more than testing every entry of the level.
+      for (std::uint32_t k = level_begin; k < level_end; ++k) {
+        const Entry& en = entries[k];
+        if (en.lo[0] <= q.hi[0] && static_cast<double>(en.lo[0]) >= lo_x && en.hi[0] >= q.lo[0] &&
+            en.lo[1] <= q.hi[1] && en.hi[1] >= q.lo[1] && en.lo[2] <= q.hi[2] &&
+            en.hi[2] >= q.lo[2] && !f(en))
+          return false;
+      }
+      continue;
+    }
     for (std::uint32_t y = y0; y <= y1; ++y) {
       const std::uint32_t base = lv.first_row + y * lv.nz;
       for (std::uint32_t z = z0; z <= z1; ++z) {
@@ -237,11 +279,13 @@ QueryCost FastGrid::query(const Shape& q, V&& visitor) const {
     }
     return true;
   };
-  if (!fixed_.scan(
-          b, 0, [&](const Entry& e) { return home_[e.slot] != Home::fixed_grid || test(e.slot); }))
+  if (!fixed_.scan(b, 0, kNoMinX, [&](const Entry& e) {
+        return home_[e.slot] != Home::fixed_grid || test(e.slot);
+      }))
     return cost;
-  if (!moving_.scan(
-          b, 0, [&](const Entry& e) { return home_[e.slot] != Home::moving_grid || test(e.slot); }))
+  if (!moving_.scan(b, 0, kNoMinX, [&](const Entry& e) {
+        return home_[e.slot] != Home::moving_grid || test(e.slot);
+      }))
     return cost;
   for (std::size_t i = 0; i < loose_.size(); ++i)
     if (loose_bounds_[i].overlaps(b) && !test(loose_[i])) return cost;
@@ -269,7 +313,7 @@ bool FastGrid::grid_pairs(const Grid& g, Home home, std::size_t begin, std::size
     };
     const std::size_t level_end =
         level + 1 < g.levels.size() ? g.row_start[g.levels[level + 1].first_row] : g.entries.size();
-    const bool go = g.scan(q, level, [&](const Entry& o) {
+    const bool go = g.scan(q, level, me.lo[0], [&](const Entry& o) {
       const std::size_t j = static_cast<std::size_t>(&o - g.entries.data());
       if (j < level_end && (o.lo[0] < me.lo[0] || (o.lo[0] == me.lo[0] && j <= i))) return true;
       return test(o);
@@ -286,13 +330,17 @@ bool FastGrid::moving_pairs(std::size_t begin, std::size_t end, E& emit,
     const Entry& me = moving_.entries[i];
     if (home_[me.slot] != Home::moving_grid) continue;
     const Shape& sm = shapes_[me.slot];
-    const AabbF q{{me.lo[0], me.lo[1], me.lo[2]}, {me.hi[0], me.hi[1], me.hi[2]}};
-    const bool go = fixed_.scan(q, 0, [&](const Entry& o) {
-      if (home_[o.slot] != Home::fixed_grid) return true;
-      ++tests;
-      return !overlaps(sm, shapes_[o.slot]) || emit(me.slot, o.slot);
-    });
-    if (!go) return false;
+    const std::uint32_t* c = list_pool_.data() + list_begin_[me.slot];
+    const std::uint32_t* c_end = c + list_count_[me.slot];
+    for (; c != c_end; ++c) {
+      const Entry& o = fixed_.entries[*c];
+      if (o.lo[0] <= me.hi[0] && o.hi[0] >= me.lo[0] && o.lo[1] <= me.hi[1] &&
+          o.hi[1] >= me.lo[1] && o.lo[2] <= me.hi[2] && o.hi[2] >= me.lo[2] &&
+          home_[o.slot] == Home::fixed_grid) {
+        ++tests;
+        if (overlaps(sm, shapes_[o.slot]) && !emit(me.slot, o.slot)) return false;
+      }
+    }
   }
   return grid_pairs(moving_, Home::moving_grid, begin, end, emit, tests);
 }
@@ -310,8 +358,8 @@ bool FastGrid::loose_pairs(E& emit, std::uint64_t& tests) const {
         return !overlaps(sh, shapes_[o.slot]) || emit(s, o.slot);
       };
     };
-    if (!fixed_.scan(q, 0, test_in(Home::fixed_grid))) return false;
-    if (!moving_.scan(q, 0, test_in(Home::moving_grid))) return false;
+    if (!fixed_.scan(q, 0, kNoMinX, test_in(Home::fixed_grid))) return false;
+    if (!moving_.scan(q, 0, kNoMinX, test_in(Home::moving_grid))) return false;
     for (std::size_t j = i + 1; j < loose_.size(); ++j) {
       if (!loose_bounds_[j].overlaps(q)) continue;
       ++tests;

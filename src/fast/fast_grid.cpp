@@ -10,17 +10,27 @@ namespace broadphase {
 
 namespace {
 
-// Levels grow by 4 in reach; twelve finite levels span seven decades of
-// sizes, and one more level of infinite reach takes objects whose float
-// bounds are unbounded (centres beyond the float range).
-constexpr int kFiniteLevels = 12;
+// Levels halve in reach from the largest finite extent down; twenty finite
+// levels span six decades of sizes (smaller objects share the lowest level),
+// and one more level of infinite reach takes objects whose float bounds are
+// unbounded (centres beyond the float range). Factor 2 keeps an object's
+// reach within twice its extent, so a scan window stays tight.
+constexpr int kFiniteLevels = 20;
 constexpr int kLevelSlots = kFiniteLevels + 1;
 // An object goes to a level only when its widest extent is at most this
 // fraction of the reach: the 2% margin absorbs the rounding of the cell
 // arithmetic, so the row and x-range bounds of a scan stay conservative.
 constexpr double kFill = 0.98;
+// A level holding less than 1/kSparseLevel of a grid's objects is merged
+// into the next larger one.
+constexpr std::size_t kSparseLevel = 16;
 // Loose and held-back objects tolerated before a mutation rebuilds.
 constexpr std::size_t kMinLoose = 64;
+// Candidate-list margins: the last displacement times kMarginFrames, at
+// least kMinMargin and at most kMaxMargin of the object's extent.
+constexpr double kMarginFrames = 8;
+constexpr double kMinMargin = 0.02;
+constexpr double kMaxMargin = 0.5;
 // Moving entries per thread below which find_pairs stays on one thread.
 constexpr std::size_t kMinEntriesPerThread = 2048;
 
@@ -36,6 +46,7 @@ double extent_of(const float lo[3], const float hi[3]) {
 FastGrid::FastGrid(const Config& c) : world_(c.world) {
   OptionReader opt(c, "fast-grid");
   const double t = opt.number("threads", 1, 0, 64);
+  cell_factor_ = opt.number("cell", 2, 1, 64);
   opt.finish();
   if (t != std::floor(t)) throw UnknownStructure("fast-grid: option 'threads' must be an integer");
   threads_ = static_cast<unsigned>(t);
@@ -65,6 +76,11 @@ std::uint32_t FastGrid::allocate_slot() {
     home_.push_back(Home::free);
     motion_.push_back(Motion::dynamic);
     loose_pos_.push_back(0);
+    list_begin_.push_back(0);
+    list_count_.push_back(0);
+    list_epoch_.push_back(0);
+    fat_.emplace_back();
+    speed_.push_back(0);
   }
   ++gen_[s];  // even (free) -> odd (alive)
   ++live_;
@@ -163,6 +179,10 @@ void FastGrid::update(std::span<const Move> moves) {
     } else {
       Entry& e = moving_.entries[loose_pos_[i]];
       const AabbF b = bounds_f(m.shape);
+      float d = 0;
+      for (int a = 0; a < 3; ++a)
+        d = std::max(d, std::max(std::fabs(b.lo[a] - e.lo[a]), std::fabs(b.hi[a] - e.hi[a])));
+      speed_[i] = d;
       std::copy(b.lo, b.lo + 3, e.lo);
       std::copy(b.hi, b.hi + 3, e.hi);
     }
@@ -201,6 +221,7 @@ void FastGrid::rebuild(bool fixed_too) {
     fixed_count_ = fixed_.entries.size();
     build_fixed_cache();
     fixed_dirty_ = false;
+    ++epoch_;  // every candidate list names entries of the old fixed grid
   }
   items.clear();
   for (const Entry& e : moving_.entries)
@@ -213,6 +234,7 @@ void FastGrid::rebuild(bool fixed_too) {
     loose_pos_[s] = static_cast<std::uint32_t>(k);
   }
   moving_count_ = moving_.entries.size();
+  build_candidate_lists();
   loose_.clear();
   loose_bounds_.clear();
   for (std::uint32_t s : held_) free_slot(s);
@@ -229,22 +251,16 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
     g.row_start.push_back(0);
     return;
   }
-  // The base reach: the smallest extent, but no smaller than the largest
-  // over 4^11, so that twelve levels cover every finite extent.
-  double min_e = std::numeric_limits<double>::infinity();
+  // The top level's reach fits the largest finite extent; each level below
+  // halves it.
   double max_e = 0;
   for (const Entry& it : items) {
     const double e = extent_of(it.lo, it.hi);
-    if (std::isfinite(e)) {
-      min_e = std::min(min_e, e);
-      max_e = std::max(max_e, e);
-    }
+    if (std::isfinite(e)) max_e = std::max(max_e, e);
   }
+  const double top = max_e > 0 ? max_e / (kFill * kFill) : 1;
   double reach[kLevelSlots];
-  double base =
-      max_e > 0 ? std::max(min_e, std::ldexp(max_e, -2 * (kFiniteLevels - 1))) / kFill : 1;
-  for (int k = 0; k < kFiniteLevels; ++k) reach[k] = std::ldexp(base, 2 * k);
-  reach[kFiniteLevels - 1] = std::max(reach[kFiniteLevels - 1], max_e / (kFill * kFill));
+  for (int k = 0; k < kFiniteLevels; ++k) reach[k] = std::ldexp(top, k - (kFiniteLevels - 1));
   reach[kFiniteLevels] = std::numeric_limits<double>::infinity();
 
   // Pass 1: each item's level, and each level's count and lower-corner span.
@@ -260,7 +276,8 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
     const double e = extent_of(it.lo, it.hi);
     int k = kFiniteLevels;
     if (std::isfinite(e)) {
-      k = 0;
+      // Start one below the level log2 suggests, then step up to the fit.
+      k = e > 0 ? std::clamp(kFiniteLevels - 2 - std::ilogb(top / e), 0, kFiniteLevels - 1) : 0;
       while (k < kFiniteLevels - 1 && e > kFill * reach[k]) ++k;
     }
     tag[i] = static_cast<std::uint32_t>(k);
@@ -270,6 +287,21 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
       span_hi[k][a] = std::max(span_hi[k][a], it.lo[a + 1]);
     }
   }
+  // A sparse level costs every scan its row probes but saves few tests:
+  // fold it into the level above (its objects fit there too).
+  int target[kLevelSlots];
+  for (int k = 0; k < kLevelSlots; ++k) target[k] = k;
+  for (int k = 0; k + 1 < kFiniteLevels; ++k) {
+    if (count[k] == 0 || count[k] * kSparseLevel >= n) continue;
+    count[k + 1] += count[k];
+    count[k] = 0;
+    for (int a = 0; a < 2; ++a) {
+      span_lo[k + 1][a] = std::min(span_lo[k + 1][a], span_lo[k][a]);
+      span_hi[k + 1][a] = std::max(span_hi[k + 1][a], span_hi[k][a]);
+    }
+    target[k] = k + 1;
+  }
+  for (int k = kFiniteLevels - 2; k >= 0; --k) target[k] = target[target[k]];
   int level_index[kLevelSlots];
   std::uint32_t rows = 0;
   for (int k = 0; k < kLevelSlots; ++k) {
@@ -283,7 +315,7 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
     // clamps, which keeps every bound conservative).
     const auto limit = static_cast<double>(
         std::max<std::uint32_t>(1, static_cast<std::uint32_t>(std::sqrt(2.0 * count[k]))));
-    double cell = std::isfinite(reach[k]) ? reach[k] : 0;
+    double cell = std::isfinite(reach[k]) ? reach[k] * cell_factor_ : 0;
     std::uint32_t n_axis[2] = {1, 1};
     double origin[2] = {0, 0};
     for (int a = 0; a < 2; ++a) {
@@ -321,7 +353,7 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
   // Pass 2: rows, counting sort by row, then each row by lower x.
   g.row_start.assign(rows + 1, 0);
   for (std::size_t i = 0; i < n; ++i) {
-    const Level& lv = g.levels[static_cast<std::size_t>(level_index[tag[i]])];
+    const Level& lv = g.levels[static_cast<std::size_t>(level_index[target[tag[i]]])];
     const Entry& it = items[i];
     const std::uint32_t row = lv.first_row + lv.cell(it.lo[1], lv.origin_y, lv.ny) * lv.nz +
                               lv.cell(it.lo[2], lv.origin_z, lv.nz);
@@ -341,6 +373,44 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
     });
     for (Entry* p = b; p != e; ++p) g.entry_row[static_cast<std::size_t>(p - g.entries.data())] = r;
   }
+}
+
+void FastGrid::build_candidate_lists() {
+  list_pool_next_.clear();
+  for (const Entry& e : moving_.entries) {
+    const std::uint32_t s = e.slot;
+    const AabbF& fat = fat_[s];
+    const std::uint32_t begin = static_cast<std::uint32_t>(list_pool_next_.size());
+    const bool inside = list_epoch_[s] == epoch_ && fat.lo[0] <= e.lo[0] && fat.lo[1] <= e.lo[1] &&
+                        fat.lo[2] <= e.lo[2] && e.hi[0] <= fat.hi[0] && e.hi[1] <= fat.hi[1] &&
+                        e.hi[2] <= fat.hi[2];
+    if (inside) {
+      // The list covers the object where it is now: keep it.
+      const std::uint32_t* old = list_pool_.data() + list_begin_[s];
+      list_pool_next_.insert(list_pool_next_.end(), old, old + list_count_[s]);
+    } else {
+      // Grow the bounds by a margin that covers several frames of the last
+      // displacement, but no more than a fraction of the object's size.
+      const double extent = extent_of(e.lo, e.hi);
+      const double margin =
+          std::min(std::max(kMarginFrames * static_cast<double>(speed_[s]), kMinMargin * extent),
+                   kMaxMargin * extent);
+      AabbF g;
+      for (int a = 0; a < 3; ++a) {
+        g.lo[a] = round_down(static_cast<double>(e.lo[a]) - margin);
+        g.hi[a] = round_up(static_cast<double>(e.hi[a]) + margin);
+      }
+      fat_[s] = g;
+      list_epoch_[s] = epoch_;
+      fixed_.scan(g, 0, kNoMinX, [&](const Entry& o) {
+        list_pool_next_.push_back(static_cast<std::uint32_t>(&o - fixed_.entries.data()));
+        return true;
+      });
+    }
+    list_begin_[s] = begin;
+    list_count_[s] = static_cast<std::uint32_t>(list_pool_next_.size()) - begin;
+  }
+  list_pool_.swap(list_pool_next_);
 }
 
 void FastGrid::build_fixed_cache() {
