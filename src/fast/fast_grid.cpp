@@ -425,22 +425,26 @@ void FastGrid::build_fixed_cache() {
 
 QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
   QueryCost cost;
-  out.reserve(out.size() + fixed_pairs_.size());
   auto emit_out = [&out, this](std::uint32_t a, std::uint32_t b) {
     out.push_back({handle_of(a), handle_of(b)});
     return true;
   };
-  for (const SlotPair& p : fixed_pairs_)
-    if (home_[p.a] == Home::fixed_grid && home_[p.b] == Home::fixed_grid) emit_out(p.a, p.b);
+  auto emit_cache = [&] {
+    out.reserve(out.size() + fixed_pairs_.size());
+    for (const SlotPair& p : fixed_pairs_)
+      if (home_[p.a] == Home::fixed_grid && home_[p.b] == Home::fixed_grid) emit_out(p.a, p.b);
+  };
 
   const std::size_t m = moving_.entries.size();
   const unsigned t = static_cast<unsigned>(
       std::min<std::size_t>(threads_, std::max<std::size_t>(1, m / kMinEntriesPerThread)));
   if (t <= 1) {
+    emit_cache();
     moving_pairs(0, m, emit_out, cost.tests);
   } else {
-    // The main thread takes the first share and writes straight into `out`;
-    // the others fill their own buffers, appended in order afterwards.
+    // The workers start first on the later shares, filling their own
+    // buffers; the main thread meanwhile emits the cache and the first
+    // share straight into `out`, then appends the buffers in order.
     std::unique_lock lock(buffers_mutex_, std::try_to_lock);
     std::vector<std::vector<HandlePair>> local;
     std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
@@ -460,6 +464,7 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
           moving_pairs(m * k / t, m * (k + 1) / t, emit_buf, tests[k]);
         });
       }
+      emit_cache();
       moving_pairs(0, m / t, emit_out, tests[0]);
     }
     for (unsigned k = 0; k < t; ++k) cost.tests += tests[k];
@@ -478,7 +483,10 @@ std::size_t FastGrid::memory_bytes() const {
       home_.capacity() + motion_.capacity() + loose_pos_.capacity() * 4 + loose_.capacity() * 4 +
       loose_bounds_.capacity() * sizeof(AabbF) + held_.capacity() * 4 + fixed_.memory_bytes() +
       moving_.memory_bytes() + fixed_pairs_.capacity() * sizeof(SlotPair) +
-      scratch_items_.capacity() * sizeof(Entry);
+      scratch_items_.capacity() * sizeof(Entry) + fat_.capacity() * sizeof(AabbF) +
+      (list_pool_.capacity() + list_pool_next_.capacity() + list_begin_.capacity() +
+       list_count_.capacity() + list_epoch_.capacity() + speed_.capacity()) *
+          4;
   std::lock_guard lock(buffers_mutex_);
   for (const auto& b : buffers_) bytes += b.capacity() * sizeof(HandlePair);
   return bytes;
