@@ -52,7 +52,9 @@ namespace broadphase {
 /// mutations need exclusive access.
 class FastGrid {
  public:
-  /// Options: `threads=N` (0..64; 0 = hardware concurrency; default 1).
+  /// Options: `threads=N` (0..64; 0 = hardware concurrency; default 1);
+  /// `cell=F` (1..64, default 2): a row's cell in y and z over its level's
+  /// reach (larger: fewer row probes, more candidates per row).
   explicit FastGrid(const Config& c = {});
 
   /// Adds an object (to the loose list). Throws InvalidShape.

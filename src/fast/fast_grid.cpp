@@ -27,7 +27,10 @@ constexpr std::size_t kSparseLevel = 16;
 // Loose and held-back objects tolerated before a mutation rebuilds.
 constexpr std::size_t kMinLoose = 64;
 // Candidate-list margins: the last displacement times kMarginFrames, at
-// least kMinMargin and at most kMaxMargin of the object's extent.
+// least kMinMargin of the object's extent, and at most kMaxMargin of the
+// larger of its extent and the fixed grid's finest row cell. The cell term
+// lets tiny fast objects keep a list for several frames (rows that fine
+// hold few objects), the extent term keeps lists short in dense crowds.
 constexpr double kMarginFrames = 8;
 constexpr double kMinMargin = 0.02;
 constexpr double kMaxMargin = 0.5;
@@ -377,6 +380,8 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
 
 void FastGrid::build_candidate_lists() {
   list_pool_next_.clear();
+  const double finest_cell =
+      fixed_.levels.empty() || !(fixed_.levels[0].inv_cell > 0) ? 0 : 1 / fixed_.levels[0].inv_cell;
   for (const Entry& e : moving_.entries) {
     const std::uint32_t s = e.slot;
     const AabbF& fat = fat_[s];
@@ -390,11 +395,11 @@ void FastGrid::build_candidate_lists() {
       list_pool_next_.insert(list_pool_next_.end(), old, old + list_count_[s]);
     } else {
       // Grow the bounds by a margin that covers several frames of the last
-      // displacement, but no more than a fraction of the object's size.
+      // displacement, within the limits above.
       const double extent = extent_of(e.lo, e.hi);
       const double margin =
           std::min(std::max(kMarginFrames * static_cast<double>(speed_[s]), kMinMargin * extent),
-                   kMaxMargin * extent);
+                   kMaxMargin * std::max(extent, finest_cell));
       AabbF g;
       for (int a = 0; a < 3; ++a) {
         g.lo[a] = round_down(static_cast<double>(e.lo[a]) - margin);
