@@ -78,12 +78,18 @@ class FastGrid {
   /// threads; the order equals for_each_pair's whatever the thread count.
   QueryCost find_pairs(std::vector<HandlePair>& out) const;
 
+  /// The number of live objects. O(1).
   std::size_t size() const { return live_; }
+  /// Bytes held: the capacity of every container, pair buffers included.
   std::size_t memory_bytes() const;
+  /// True when `h` names a live object of this structure. O(1).
   bool contains(Handle h) const {
     return h.index < gen_.size() && gen_[h.index] == h.generation && (h.generation & 1u) != 0;
   }
+  /// The object's shape. Throws InvalidHandle. The reference lives until
+  /// the next mutation.
   const Shape& shape(Handle h) const { return shapes_[index_of(h)]; }
+  /// The user data given at insertion. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return user_[index_of(h)]; }
   /// The number of threads find_pairs uses.
   unsigned threads() const { return threads_; }
