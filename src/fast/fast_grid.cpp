@@ -155,12 +155,12 @@ void FastGrid::update(Handle h, const Shape& s) {
   const std::uint32_t i = index_of(h);
   require_valid(s);
   shapes_[i] = s;
+  motion_[i] = Motion::dynamic;  // a fixed object that moves is moving from now on
   if (home_[i] == Home::loose) {
     loose_bounds_[loose_pos_[i]] = bounds_f(s);
     return;
   }
   leave_grid(i);
-  motion_[i] = Motion::dynamic;
   add_loose(i);
   maybe_rebuild();
 }
@@ -178,6 +178,7 @@ void FastGrid::update(std::span<const Move> moves) {
       motion_[i] = Motion::dynamic;
       add_loose(i);
     } else if (home_[i] == Home::loose) {
+      motion_[i] = Motion::dynamic;
       loose_bounds_[loose_pos_[i]] = bounds_f(m.shape);
     } else {
       Entry& e = moving_.entries[loose_pos_[i]];
