@@ -251,6 +251,7 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
   g.row_start.clear();
   g.entries.resize(n);
   g.entry_row.resize(n);
+  g.shapes.resize(n);
   if (n == 0) {
     g.row_start.push_back(0);
     return;
@@ -375,7 +376,11 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
     std::sort(b, e, [](const Entry& x, const Entry& y) {
       return x.lo[0] < y.lo[0] || (x.lo[0] == y.lo[0] && x.slot < y.slot);
     });
-    for (Entry* p = b; p != e; ++p) g.entry_row[static_cast<std::size_t>(p - g.entries.data())] = r;
+    for (Entry* p = b; p != e; ++p) {
+      const auto k = static_cast<std::size_t>(p - g.entries.data());
+      g.entry_row[k] = r;
+      g.shapes[k] = shapes_[p->slot];
+    }
   }
 }
 
@@ -555,6 +560,7 @@ void FastGrid::validate() const {
           if (home_[e.slot] != home) continue;
           ++valid;
           if (loose_pos_[e.slot] != k) fail(gname + ": slot position");
+          if (!(g.shapes[k] == shapes_[e.slot])) fail(gname + ": stale shape copy");
           const AabbF b = bounds_f(shapes_[e.slot]);
           if (std::memcmp(b.lo, e.lo, sizeof b.lo) != 0 ||
               std::memcmp(b.hi, e.hi, sizeof b.hi) != 0)
