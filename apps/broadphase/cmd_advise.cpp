@@ -65,6 +65,11 @@ void advise(const AdviseOptions& o) {
       const std::string name = s.substr(0, s.find(':'));
       if (reg.find(name) == nullptr)
         throw UsageError("--algos: unknown structure '" + name + "'; valid: " + reg.names());
+      try {
+        reg.make(s);  // rejects bad options before any timing starts
+      } catch (const UnknownStructure& e) {
+        throw UsageError(std::string("--algos: ") + e.what());
+      }
     }
   }
   TimingLimits limits;
