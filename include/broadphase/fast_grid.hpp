@@ -157,10 +157,6 @@ class FastGrid {
   static constexpr std::uint64_t kProbeCost = 8;
   static constexpr double kNoMinX = -std::numeric_limits<double>::infinity();
 
-  struct SlotPair {
-    std::uint32_t a, b;
-  };
-
   std::uint32_t index_of(Handle h) const {
     if (!contains(h)) throw InvalidHandle(h);
     return h.index;
@@ -175,6 +171,8 @@ class FastGrid {
   void rebuild(bool fixed_too);
   void build_candidate_lists();
   void build_grid(Grid& g, std::vector<Entry>& items) const;
+  static bool entry_before(const Entry& x, const Entry& y);
+  static void sort_row(Entry* b, Entry* e);
   void build_fixed_cache();
 
   /// Pairs of moving-grid entries [begin, end) with the fixed grid and with
@@ -213,8 +211,11 @@ class FastGrid {
 
   Grid fixed_;
   Grid moving_;
-  std::vector<SlotPair> fixed_pairs_;  // overlapping pairs within the fixed grid
-  std::vector<Entry> scratch_items_;   // rebuild input, kept to avoid reallocation
+  // Overlapping pairs within the fixed grid, stored as the handles find_pairs
+  // reports: while no fixed object has left the grid since the cache was
+  // built, a frame appends the whole cache as one block copy.
+  std::vector<HandlePair> fixed_pairs_;
+  std::vector<Entry> scratch_items_;  // rebuild input, kept to avoid reallocation
 
   // Candidate lists of moving objects against the fixed grid. A list holds
   // the fixed entries whose bounds overlap a "fat" box (the object's bounds
@@ -389,8 +390,9 @@ bool FastGrid::loose_pairs(E& emit, std::uint64_t& tests) const {
 
 template <class E>
 bool FastGrid::all_pairs(E& emit, std::uint64_t& tests) const {
-  for (const SlotPair& p : fixed_pairs_)
-    if (home_[p.a] == Home::fixed_grid && home_[p.b] == Home::fixed_grid && !emit(p.a, p.b))
+  for (const HandlePair& p : fixed_pairs_)
+    if (home_[p.a.index] == Home::fixed_grid && home_[p.b.index] == Home::fixed_grid &&
+        !emit(p.a.index, p.b.index))
       return false;
   return moving_pairs(0, moving_.entries.size(), emit, tests) && loose_pairs(emit, tests);
 }

@@ -245,6 +245,33 @@ void FastGrid::rebuild(bool fixed_too) {
   held_.clear();
 }
 
+bool FastGrid::entry_before(const Entry& x, const Entry& y) {
+  return x.lo[0] < y.lo[0] || (x.lo[0] == y.lo[0] && x.slot < y.slot);
+}
+
+// Rebuilds take each grid's entries in their previous order, so a row of
+// slowly moving objects is nearly sorted: insertion sort finishes it in about
+// one pass. A row far from sorted (fresh inserts) falls back to std::sort
+// once the shifts exceed a few per entry, which bounds the cost at O(n log n).
+void FastGrid::sort_row(Entry* b, Entry* e) {
+  const auto n = static_cast<std::size_t>(e - b);
+  std::size_t budget = 4 * n + 16;
+  for (Entry* p = b + (n > 0 ? 1 : 0); p < e; ++p) {
+    if (!entry_before(*p, p[-1])) continue;
+    const Entry v = *p;
+    Entry* q = p;
+    do {
+      *q = q[-1];
+      --q;
+    } while (q != b && entry_before(v, q[-1]) && --budget > 0);
+    *q = v;
+    if (budget == 0) {
+      std::sort(b, e, entry_before);
+      return;
+    }
+  }
+}
+
 void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
   const std::size_t n = items.size();
   g.levels.clear();
@@ -373,9 +400,7 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
   for (std::uint32_t r = 0; r < rows; ++r) {
     Entry* b = g.entries.data() + g.row_start[r];
     Entry* e = g.entries.data() + g.row_start[r + 1];
-    std::sort(b, e, [](const Entry& x, const Entry& y) {
-      return x.lo[0] < y.lo[0] || (x.lo[0] == y.lo[0] && x.slot < y.slot);
-    });
+    sort_row(b, e);
     for (Entry* p = b; p != e; ++p) {
       const auto k = static_cast<std::size_t>(p - g.entries.data());
       g.entry_row[k] = r;
@@ -428,7 +453,7 @@ void FastGrid::build_fixed_cache() {
   fixed_pairs_.clear();
   std::uint64_t tests = 0;
   auto emit = [this](std::uint32_t a, std::uint32_t b) {
-    fixed_pairs_.push_back({a, b});
+    fixed_pairs_.push_back({handle_of(a), handle_of(b)});
     return true;
   };
   grid_pairs(fixed_, Home::fixed_grid, 0, fixed_.entries.size(), emit, tests);
@@ -441,9 +466,16 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
     return true;
   };
   auto emit_cache = [&] {
+    if (fixed_count_ == fixed_.entries.size()) {
+      // Every cached handle is still current: a fixed object can only change
+      // its generation by leaving the grid.
+      out.insert(out.end(), fixed_pairs_.begin(), fixed_pairs_.end());
+      return;
+    }
     out.reserve(out.size() + fixed_pairs_.size());
-    for (const SlotPair& p : fixed_pairs_)
-      if (home_[p.a] == Home::fixed_grid && home_[p.b] == Home::fixed_grid) emit_out(p.a, p.b);
+    for (const HandlePair& p : fixed_pairs_)
+      if (home_[p.a.index] == Home::fixed_grid && home_[p.b.index] == Home::fixed_grid)
+        out.push_back(p);
   };
 
   const std::size_t m = moving_.entries.size();
@@ -493,7 +525,7 @@ std::size_t FastGrid::memory_bytes() const {
       shapes_.capacity() * sizeof(Shape) + user_.capacity() * 8 + gen_.capacity() * 4 +
       home_.capacity() + motion_.capacity() + loose_pos_.capacity() * 4 + loose_.capacity() * 4 +
       loose_bounds_.capacity() * sizeof(AabbF) + held_.capacity() * 4 + fixed_.memory_bytes() +
-      moving_.memory_bytes() + fixed_pairs_.capacity() * sizeof(SlotPair) +
+      moving_.memory_bytes() + fixed_pairs_.capacity() * sizeof(HandlePair) +
       scratch_items_.capacity() * sizeof(Entry) + fat_.capacity() * sizeof(AabbF) +
       (list_pool_.capacity() + list_pool_next_.capacity() + list_begin_.capacity() +
        list_count_.capacity() + list_epoch_.capacity() + speed_.capacity()) *
@@ -573,11 +605,13 @@ void FastGrid::validate() const {
   check_grid(fixed_, Home::fixed_grid, fixed_count_, "fixed grid");
   check_grid(moving_, Home::moving_grid, moving_count_, "moving grid");
   if (fixed_count_ + moving_count_ + loose_.size() != live_) fail("objects lost between lists");
-  for (const SlotPair& p : fixed_pairs_) {
-    if (p.a >= slots || p.b >= slots || p.a == p.b) fail("bad cached pair");
-    if (home_[p.a] == Home::fixed_grid && home_[p.b] == Home::fixed_grid &&
-        !overlaps(shapes_[p.a], shapes_[p.b]))
-      fail("cached pair no longer overlaps");
+  for (const HandlePair& p : fixed_pairs_) {
+    const std::uint32_t a = p.a.index, b = p.b.index;
+    if (a >= slots || b >= slots || a == b) fail("bad cached pair");
+    if (home_[a] != Home::fixed_grid || home_[b] != Home::fixed_grid) continue;
+    if (gen_[a] != p.a.generation || gen_[b] != p.b.generation)
+      fail("cached pair with a stale generation");
+    if (!overlaps(shapes_[a], shapes_[b])) fail("cached pair no longer overlaps");
   }
 }
 
