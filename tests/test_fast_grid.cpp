@@ -137,24 +137,41 @@ TEST(FastGrid, CandidateListsStayCompleteForFastAndSlowMovers) {
 }
 
 TEST(FastGrid, PairOrderDoesNotDependOnThreads) {
-  const Scene scene = generate(Distribution::scaled_even, 20000, 5);
+  // 32 000 objects give 6400 moving ones: enough for three threads to split
+  // both the candidate lists and the pair finding.
+  const Scene start = generate(Distribution::scaled_even, 32000, 5);
   std::vector<std::vector<std::pair<std::uint64_t, std::uint64_t>>> orders;
   for (const char* t : {"1", "2", "3"}) {
+    Scene scene = start;
     FastGrid g(with_option("threads", t));
     std::vector<Handle> h;
     for (std::size_t i = 0; i < scene.size(); ++i)
       h.push_back(
           g.insert(scene.objects[i], i, scene.is_moving(i) ? Motion::dynamic : Motion::fixed));
-    g.update(std::span<const Move>{});
-    std::vector<HandlePair> out;
-    g.find_pairs(out);
     std::vector<std::pair<std::uint64_t, std::uint64_t>> ids;
-    for (const HandlePair& p : out) ids.push_back({g.user_data(p.a), g.user_data(p.b)});
-    std::vector<std::pair<std::uint64_t, std::uint64_t>> visited;
-    g.for_each_pair([&](Handle a, Handle b) {
-      visited.push_back({g.user_data(a), g.user_data(b)});
-    });
-    EXPECT_EQ(ids, visited) << "find_pairs and for_each_pair disagree with threads=" << t;
+    std::vector<Move> moves;
+    for (int f = 0; f < 3; ++f) {
+      if (f > 0) {
+        for (std::size_t i = 0; i < scene.size(); ++i)
+          if (scene.is_moving(i)) scene.velocity[i] = scene.velocity[i] * (f == 1 ? 30.0 : 1.0);
+        step(scene);
+      }
+      moves.clear();
+      for (std::size_t i = 0; i < scene.size(); ++i)
+        if (scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
+      g.update(moves);
+      g.validate();
+      std::vector<HandlePair> out;
+      g.find_pairs(out);
+      std::vector<std::pair<std::uint64_t, std::uint64_t>> frame;
+      for (const HandlePair& p : out) frame.push_back({g.user_data(p.a), g.user_data(p.b)});
+      std::vector<std::pair<std::uint64_t, std::uint64_t>> visited;
+      g.for_each_pair([&](Handle a, Handle b) {
+        visited.push_back({g.user_data(a), g.user_data(b)});
+      });
+      EXPECT_EQ(frame, visited) << "find_pairs and for_each_pair disagree with threads=" << t;
+      ids.insert(ids.end(), frame.begin(), frame.end());
+    }
     orders.push_back(std::move(ids));
   }
   EXPECT_FALSE(orders[0].empty());

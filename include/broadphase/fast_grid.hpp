@@ -170,6 +170,7 @@ class FastGrid {
   void maybe_rebuild();
   void rebuild(bool fixed_too);
   void build_candidate_lists();
+  void build_lists(std::size_t begin, std::size_t end, std::vector<std::uint32_t>& pool);
   void build_grid(Grid& g, std::vector<Entry>& items) const;
   static bool entry_before(const Entry& x, const Entry& y);
   static void sort_row(Entry* b, Entry* e);
@@ -224,14 +225,15 @@ class FastGrid {
   // list instead of probing the fixed grid every frame. Lists live in one
   // pool in moving-grid order, rebuilt (mostly copied) by every rebuild,
   // and are all dropped when the fixed grid is rebuilt.
-  std::vector<std::uint32_t> list_pool_;       // fixed entry indices
-  std::vector<std::uint32_t> list_pool_next_;  // the pool being built
-  std::vector<std::uint32_t> list_begin_;      // per slot, into list_pool_
-  std::vector<std::uint32_t> list_count_;      // per slot
-  std::vector<std::uint32_t> list_epoch_;      // per slot: fixed-grid epoch of its list
-  std::vector<AabbF> fat_;                     // per slot: the box its list covers
-  std::vector<float> speed_;                   // per slot: bounds displacement of the last move
-  std::uint32_t epoch_ = 1;                    // bumped at every fixed-grid rebuild
+  std::vector<std::uint32_t> list_pool_;                // fixed entry indices
+  std::vector<std::uint32_t> list_pool_next_;           // the pool being built
+  std::vector<std::vector<std::uint32_t>> list_parts_;  // per thread, its share of the new pool
+  std::vector<std::uint32_t> list_begin_;               // per slot, into list_pool_
+  std::vector<std::uint32_t> list_count_;               // per slot
+  std::vector<std::uint32_t> list_epoch_;               // per slot: fixed-grid epoch of its list
+  std::vector<AabbF> fat_;                              // per slot: the box its list covers
+  std::vector<float> speed_;  // per slot: bounds displacement of the last move
+  std::uint32_t epoch_ = 1;   // bumped at every fixed-grid rebuild
 
   /// Per-thread pair buffers of find_pairs, reused between frames.
   mutable std::mutex buffers_mutex_;
@@ -360,8 +362,12 @@ bool FastGrid::moving_pairs(std::size_t begin, std::size_t end, E& emit,
         if (overlaps(sm, fixed_.shapes[*c]) && !emit(me.slot, o.slot)) return false;
       }
     }
+    // Each entry's pairs with other moving objects follow its fixed ones
+    // directly, so that splitting the entries into ranges (threads) keeps
+    // the order of the whole.
+    if (!grid_pairs(moving_, Home::moving_grid, i, i + 1, emit, tests)) return false;
   }
-  return grid_pairs(moving_, Home::moving_grid, begin, end, emit, tests);
+  return true;
 }
 
 template <class E>

@@ -410,20 +410,53 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
 }
 
 void FastGrid::build_candidate_lists() {
+  const std::size_t m = moving_.entries.size();
+  const unsigned t = static_cast<unsigned>(
+      std::min<std::size_t>(threads_, std::max<std::size_t>(1, m / kMinEntriesPerThread)));
   list_pool_next_.clear();
+  if (t <= 1) {
+    build_lists(0, m, list_pool_next_);
+  } else {
+    // Each thread builds the lists of one contiguous share of the moving
+    // entries into its own pool (the lists of distinct slots share no
+    // state); the pools are then joined in order, so the lists are the same
+    // for every thread count.
+    if (list_parts_.size() < t) list_parts_.resize(t);
+    {
+      std::vector<std::jthread> workers;
+      workers.reserve(t - 1);
+      for (unsigned k = 1; k < t; ++k)
+        workers.emplace_back([this, k, m, t] {
+          list_parts_[k].clear();
+          build_lists(m * k / t, m * (k + 1) / t, list_parts_[k]);
+        });
+      build_lists(0, m / t, list_pool_next_);
+    }
+    for (unsigned k = 1; k < t; ++k) {
+      const auto offset = static_cast<std::uint32_t>(list_pool_next_.size());
+      for (std::size_t i = m * k / t; i < m * (k + 1) / t; ++i)
+        list_begin_[moving_.entries[i].slot] += offset;
+      list_pool_next_.insert(list_pool_next_.end(), list_parts_[k].begin(), list_parts_[k].end());
+    }
+  }
+  list_pool_.swap(list_pool_next_);
+}
+
+void FastGrid::build_lists(std::size_t begin, std::size_t end, std::vector<std::uint32_t>& pool) {
   const double finest_cell =
       fixed_.levels.empty() || !(fixed_.levels[0].inv_cell > 0) ? 0 : 1 / fixed_.levels[0].inv_cell;
-  for (const Entry& e : moving_.entries) {
+  for (std::size_t i = begin; i < end; ++i) {
+    const Entry& e = moving_.entries[i];
     const std::uint32_t s = e.slot;
     const AabbF& fat = fat_[s];
-    const std::uint32_t begin = static_cast<std::uint32_t>(list_pool_next_.size());
+    const std::uint32_t first = static_cast<std::uint32_t>(pool.size());
     const bool inside = list_epoch_[s] == epoch_ && fat.lo[0] <= e.lo[0] && fat.lo[1] <= e.lo[1] &&
                         fat.lo[2] <= e.lo[2] && e.hi[0] <= fat.hi[0] && e.hi[1] <= fat.hi[1] &&
                         e.hi[2] <= fat.hi[2];
     if (inside) {
       // The list covers the object where it is now: keep it.
       const std::uint32_t* old = list_pool_.data() + list_begin_[s];
-      list_pool_next_.insert(list_pool_next_.end(), old, old + list_count_[s]);
+      pool.insert(pool.end(), old, old + list_count_[s]);
     } else {
       // Grow the bounds by a margin that covers several frames of the last
       // displacement, within the limits above.
@@ -439,14 +472,13 @@ void FastGrid::build_candidate_lists() {
       fat_[s] = g;
       list_epoch_[s] = epoch_;
       fixed_.scan(g, 0, kNoMinX, [&](const Entry& o) {
-        list_pool_next_.push_back(static_cast<std::uint32_t>(&o - fixed_.entries.data()));
+        pool.push_back(static_cast<std::uint32_t>(&o - fixed_.entries.data()));
         return true;
       });
     }
-    list_begin_[s] = begin;
-    list_count_[s] = static_cast<std::uint32_t>(list_pool_next_.size()) - begin;
+    list_begin_[s] = first;
+    list_count_[s] = static_cast<std::uint32_t>(pool.size()) - first;
   }
-  list_pool_.swap(list_pool_next_);
 }
 
 void FastGrid::build_fixed_cache() {
@@ -530,6 +562,7 @@ std::size_t FastGrid::memory_bytes() const {
       (list_pool_.capacity() + list_pool_next_.capacity() + list_begin_.capacity() +
        list_count_.capacity() + list_epoch_.capacity() + speed_.capacity()) *
           4;
+  for (const auto& p : list_parts_) bytes += p.capacity() * 4;
   std::lock_guard lock(buffers_mutex_);
   for (const auto& b : buffers_) bytes += b.capacity() * sizeof(HandlePair);
   return bytes;
