@@ -62,6 +62,11 @@ FastGrid::FastGrid(const Config& c) : world_(c.world) {
     home_.reserve(n);
     motion_.reserve(n);
     loose_pos_.reserve(n);
+    list_begin_.reserve(n);
+    list_count_.reserve(n);
+    list_epoch_.reserve(n);
+    fat_.reserve(n);
+    speed_.reserve(n);
   }
 }
 
@@ -199,8 +204,7 @@ void FastGrid::maybe_rebuild() {
 }
 
 void FastGrid::rebuild(bool fixed_too) {
-  std::vector<Entry>& items = scratch_items_;
-  auto take_loose = [&](Motion m) {
+  auto take_loose = [&](Motion m, std::vector<Entry>& items) {
     for (std::size_t k = 0; k < loose_.size(); ++k) {
       const std::uint32_t s = loose_[k];
       if (motion_[s] != m) continue;
@@ -212,10 +216,13 @@ void FastGrid::rebuild(bool fixed_too) {
     }
   };
   if (fixed_too) {
-    items.clear();
+    // The fixed grid is rebuilt rarely: its input is a temporary of the
+    // exact size, so the kept scratch array stays as small as the moving set.
+    std::vector<Entry> items;
+    items.reserve(fixed_count_ + loose_.size());
     for (const Entry& e : fixed_.entries)
       if (home_[e.slot] == Home::fixed_grid) items.push_back(e);
-    take_loose(Motion::fixed);
+    take_loose(Motion::fixed, items);
     build_grid(fixed_, items);
     for (std::size_t k = 0; k < fixed_.entries.size(); ++k) {
       const std::uint32_t s = fixed_.entries[k].slot;
@@ -227,10 +234,11 @@ void FastGrid::rebuild(bool fixed_too) {
     fixed_dirty_ = false;
     ++epoch_;  // every candidate list names entries of the old fixed grid
   }
+  std::vector<Entry>& items = scratch_items_;
   items.clear();
   for (const Entry& e : moving_.entries)
     if (home_[e.slot] == Home::moving_grid) items.push_back(e);
-  take_loose(Motion::dynamic);
+  take_loose(Motion::dynamic, items);
   build_grid(moving_, items);
   for (std::size_t k = 0; k < moving_.entries.size(); ++k) {
     const std::uint32_t s = moving_.entries[k].slot;
@@ -276,6 +284,11 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
   const std::size_t n = items.size();
   g.levels.clear();
   g.row_start.clear();
+  // Exact capacities when a grid grows (reserve, unlike resize, does not
+  // double): grids are most of the memory held per object.
+  g.entries.reserve(n);
+  g.entry_row.reserve(n);
+  g.shapes.reserve(n);
   g.entries.resize(n);
   g.entry_row.resize(n);
   g.shapes.resize(n);
@@ -489,6 +502,7 @@ void FastGrid::build_fixed_cache() {
     return true;
   };
   grid_pairs(fixed_, Home::fixed_grid, 0, fixed_.entries.size(), emit, tests);
+  fixed_pairs_.shrink_to_fit();  // the cache is kept until the fixed set changes
 }
 
 QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
