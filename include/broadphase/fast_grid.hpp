@@ -180,6 +180,8 @@ class FastGrid {
   /// later moving entries. emit(slot, slot) returns false to stop.
   template <class E>
   bool moving_pairs(std::size_t begin, std::size_t end, E& emit, std::uint64_t& tests) const;
+  template <class E>
+  bool list_pairs(std::size_t begin, std::size_t end, E& emit, std::uint64_t& tests) const;
   /// Pairs among entries of one grid (each pair once), for the fixed cache.
   template <class E>
   bool grid_pairs(const Grid& g, Home home, std::size_t begin, std::size_t end, E& emit,
@@ -347,6 +349,12 @@ bool FastGrid::grid_pairs(const Grid& g, Home home, std::size_t begin, std::size
 template <class E>
 bool FastGrid::moving_pairs(std::size_t begin, std::size_t end, E& emit,
                             std::uint64_t& tests) const {
+  return list_pairs(begin, end, emit, tests) &&
+         grid_pairs(moving_, Home::moving_grid, begin, end, emit, tests);
+}
+
+template <class E>
+bool FastGrid::list_pairs(std::size_t begin, std::size_t end, E& emit, std::uint64_t& tests) const {
   for (std::size_t i = begin; i < end; ++i) {
     const Entry& me = moving_.entries[i];
     if (home_[me.slot] != Home::moving_grid) continue;
@@ -362,10 +370,6 @@ bool FastGrid::moving_pairs(std::size_t begin, std::size_t end, E& emit,
         if (overlaps(sm, fixed_.shapes[*c]) && !emit(me.slot, o.slot)) return false;
       }
     }
-    // Each entry's pairs with other moving objects follow its fixed ones
-    // directly, so that splitting the entries into ranges (threads) keeps
-    // the order of the whole.
-    if (!grid_pairs(moving_, Home::moving_grid, i, i + 1, emit, tests)) return false;
   }
   return true;
 }

@@ -531,36 +531,46 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
     emit_cache();
     moving_pairs(0, m, emit_out, cost.tests);
   } else {
-    // The workers start first on the later shares, filling their own
-    // buffers; the main thread meanwhile emits the cache and the first
-    // share straight into `out`, then appends the buffers in order.
+    // The workers start first on the later shares, each filling two
+    // buffers (pairs from candidate lists, pairs within the moving grid);
+    // the main thread meanwhile emits the cache and the first share's list
+    // pairs straight into `out`. The buffers are then appended in the order
+    // of one thread: all list pairs, then all moving-grid pairs.
     std::unique_lock lock(buffers_mutex_, std::try_to_lock);
     std::vector<std::vector<HandlePair>> local;
     std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
-    if (buffers.size() < t) buffers.resize(t);
+    if (buffers.size() < 2 * t) buffers.resize(2 * t);
     std::vector<std::uint64_t> tests(t, 0);
+    auto into = [this](std::vector<HandlePair>& buf) {
+      buf.clear();
+      return [&buf, this](std::uint32_t a, std::uint32_t b) {
+        buf.push_back({handle_of(a), handle_of(b)});
+        return true;
+      };
+    };
     {
       std::vector<std::jthread> workers;
       workers.reserve(t - 1);
       for (unsigned k = 1; k < t; ++k) {
         workers.emplace_back([&, k] {
-          std::vector<HandlePair>& buf = buffers[k];
-          buf.clear();
-          auto emit_buf = [&buf, this](std::uint32_t a, std::uint32_t b) {
-            buf.push_back({handle_of(a), handle_of(b)});
-            return true;
-          };
-          moving_pairs(m * k / t, m * (k + 1) / t, emit_buf, tests[k]);
+          const std::size_t begin = m * k / t, end = m * (k + 1) / t;
+          auto emit_list = into(buffers[k]);
+          list_pairs(begin, end, emit_list, tests[k]);
+          auto emit_grid = into(buffers[t + k]);
+          grid_pairs(moving_, Home::moving_grid, begin, end, emit_grid, tests[k]);
         });
       }
       emit_cache();
-      moving_pairs(0, m / t, emit_out, tests[0]);
+      list_pairs(0, m / t, emit_out, tests[0]);
+      auto emit_grid = into(buffers[t]);
+      grid_pairs(moving_, Home::moving_grid, 0, m / t, emit_grid, tests[0]);
     }
     for (unsigned k = 0; k < t; ++k) cost.tests += tests[k];
     std::size_t extra = 0;
-    for (unsigned k = 1; k < t; ++k) extra += buffers[k].size();
+    for (unsigned k = 1; k < 2 * t; ++k) extra += buffers[k].size();
     out.reserve(out.size() + extra);
-    for (unsigned k = 1; k < t; ++k) out.insert(out.end(), buffers[k].begin(), buffers[k].end());
+    for (unsigned k = 1; k < 2 * t; ++k)
+      out.insert(out.end(), buffers[k].begin(), buffers[k].end());
   }
   loose_pairs(emit_out, cost.tests);
   return cost;
