@@ -62,15 +62,18 @@ BENCHMARK(BM_FastGridFrame)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
+// Argument: the row cell size over the level's reach (option `cell`).
 void BM_FastGridQuery(benchmark::State& state) {
-  Loaded l(Distribution::uneven, 6400, {});
+  Config c;
+  c.options["cell"] = std::to_string(state.range(0));
+  Loaded l(Distribution::uneven, 6400, c);
   std::size_t i = 0, hits = 0;
   for (auto _ : state) {
     l.grid.query(l.scene.objects[(i++ * 7919) % l.scene.size()], [&hits](Handle) { ++hits; });
   }
   benchmark::DoNotOptimize(hits);
 }
-BENCHMARK(BM_FastGridQuery);
+BENCHMARK(BM_FastGridQuery)->Arg(1)->Arg(2)->Arg(4)->Arg(8);
 
 void BM_FastGridInsertRemove(benchmark::State& state) {
   Loaded l(Distribution::uneven, 6400, {});
