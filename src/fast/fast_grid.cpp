@@ -23,7 +23,7 @@ constexpr int kLevelSlots = kFiniteLevels + 1;
 constexpr double kFill = 0.98;
 // A level holding less than 1/kSparseLevel of a grid's objects is merged
 // into the next larger one.
-constexpr std::size_t kSparseLevel = 16;
+constexpr std::size_t kSparseLevel = 4;
 // Loose and held-back objects tolerated before a mutation rebuilds.
 constexpr std::size_t kMinLoose = 64;
 // Candidate-list margins: the last displacement times kMarginFrames, at
