@@ -1,0 +1,128 @@
+// Timing of structures on a scene, shared by `advise` and the lab's
+// performance experiment: frames within a time budget, a few micro-timings
+// (one query, one insert, one remove), and the per-frame digests so that
+// the callers can check that every structure found the same pairs.
+#pragma once
+
+#include <algorithm>
+#include <broadphase/registry.hpp>
+#include <broadphase/replay.hpp>
+#include <broadphase/scene.hpp>
+#include <chrono>
+#include <cstdint>
+#include <exception>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace broadphase::app {
+
+/// What timing one structure on one scene measured.
+struct StructureTiming {
+  std::string spec;
+  double build_ms = 0;
+  std::vector<double> frame_ms;      ///< wall time of update + find_pairs, per frame
+  std::vector<FrameDigest> digests;  ///< per frame
+  double query_us = 0;               ///< one exact overlap query (median of batches)
+  double insert_us = 0;              ///< one insert (median of batches)
+  double remove_us = 0;              ///< one remove (median of batches)
+  std::size_t memory_bytes = 0;      ///< after the frames
+  std::string error;                 ///< non-empty when the structure failed
+
+  double median_frame_ms() const { return median(frame_ms); }
+  static double median(std::vector<double> v) {
+    if (v.empty()) return 0;
+    std::sort(v.begin(), v.end());
+    const std::size_t m = v.size() / 2;
+    return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+  }
+};
+
+/// How long to run a structure.
+struct TimingLimits {
+  int max_frames = 100;       ///< frames at most
+  int min_frames = 3;         ///< frames at least (unless a frame alone exceeds the budget)
+  double budget_seconds = 2;  ///< frames stop once this much time has gone
+  bool micro = true;          ///< also time query, insert and remove
+};
+
+inline double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// Builds `spec` from `registry` for `scene`, replays frames within the
+/// limits, then times queries, inserts and removes. Never throws: a failure
+/// is reported in `error`.
+inline StructureTiming time_structure(const Registry& registry, const std::string& spec,
+                                      const Scene& scene, const TimingLimits& limits) {
+  StructureTiming t;
+  t.spec = spec;
+  try {
+    Config config;
+    config.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}};
+    config.expected_objects = scene.size();
+    auto bp = registry.make(spec, config);
+    Replay replay(*bp, scene);
+    t.build_ms = replay.build_seconds() * 1e3;
+    const auto start = std::chrono::steady_clock::now();
+    for (int f = 0; f < limits.max_frames; ++f) {
+      const FrameResult r = replay.next();
+      t.frame_ms.push_back(r.seconds() * 1e3);
+      t.digests.push_back(r.digest);
+      const double spent = seconds_since(start);
+      if (f + 1 >= limits.min_frames && spent > limits.budget_seconds) break;
+      if (spent > 2 * limits.budget_seconds) break;  // one frame alone is too slow
+    }
+    // Frame 0 has no update; when later frames exist, it is left out.
+    if (t.frame_ms.size() > 1) t.frame_ms.erase(t.frame_ms.begin());
+    t.memory_bytes = bp->memory_bytes();
+    if (limits.micro && scene.size() > 0) {
+      Rng rng(12345);
+      constexpr int kBatch = 200;
+      constexpr int kRounds = 7;
+      std::vector<double> q, ins, rem;
+      std::vector<Handle> added;
+      for (int round = 0; round < kRounds; ++round) {
+        std::uint64_t found = 0;
+        auto t0 = std::chrono::steady_clock::now();
+        for (int k = 0; k < kBatch; ++k) {
+          const Shape& s = replay.scene().objects[rng.below(scene.size())];
+          bp->query(s, [&found](Handle) {
+            ++found;
+            return true;
+          });
+        }
+        q.push_back(seconds_since(t0) * 1e6 / kBatch);
+        if (found < kBatch) throw std::logic_error(spec + ": a query missed the object it copied");
+        added.clear();
+        t0 = std::chrono::steady_clock::now();
+        for (int k = 0; k < kBatch; ++k) {
+          Shape s = replay.scene().objects[rng.below(scene.size())];
+          s.center.x += 0.5;
+          added.push_back(bp->insert(s, scene.size() + static_cast<std::size_t>(k)));
+        }
+        ins.push_back(seconds_since(t0) * 1e6 / kBatch);
+        t0 = std::chrono::steady_clock::now();
+        for (Handle h : added) bp->remove(h);
+        rem.push_back(seconds_since(t0) * 1e6 / kBatch);
+      }
+      t.query_us = StructureTiming::median(q);
+      t.insert_us = StructureTiming::median(ins);
+      t.remove_us = StructureTiming::median(rem);
+    }
+  } catch (const std::exception& e) {
+    t.error = e.what();
+  }
+  return t;
+}
+
+/// Index of the first frame where two timings disagree, or -1 when they
+/// agree on every frame both ran.
+inline int first_disagreement(const StructureTiming& a, const StructureTiming& b) {
+  const std::size_t n = std::min(a.digests.size(), b.digests.size());
+  for (std::size_t f = 0; f < n; ++f)
+    if (!(a.digests[f] == b.digests[f])) return static_cast<int>(f);
+  return -1;
+}
+
+}  // namespace broadphase::app

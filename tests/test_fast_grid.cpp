@@ -1,0 +1,228 @@
+// fast-grid's own invariants and edge cases, beyond the shared differential
+// and reference-scene suites: the fixed-pair cache, the loose list and its
+// rebuild threshold, held-back slots, candidate lists, threads.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <broadphase/fast_grid.hpp>
+#include <broadphase/naive.hpp>
+#include <broadphase/scene.hpp>
+#include <cstdint>
+#include <limits>
+#include <set>
+#include <utility>
+#include <vector>
+
+namespace broadphase {
+namespace {
+
+using IdPairs = std::set<std::pair<std::uint64_t, std::uint64_t>>;
+
+template <class S>
+IdPairs pairs_of(const S& s) {
+  IdPairs out;
+  s.for_each_pair([&](Handle a, Handle b) {
+    std::uint64_t x = s.user_data(a), y = s.user_data(b);
+    if (x > y) std::swap(x, y);
+    EXPECT_TRUE(out.insert({x, y}).second) << "pair reported twice: " << x << ", " << y;
+  });
+  return out;
+}
+
+Config with_option(const char* key, const char* value) {
+  Config c;
+  c.options[key] = value;
+  return c;
+}
+
+TEST(FastGrid, RejectsUnknownAndBadOptions) {
+  EXPECT_THROW(FastGrid(with_option("cells", "2")), UnknownStructure);
+  EXPECT_THROW(FastGrid(with_option("threads", "1.5")), UnknownStructure);
+  EXPECT_THROW(FastGrid(with_option("threads", "-1")), UnknownStructure);
+  EXPECT_GE(FastGrid(with_option("threads", "0")).threads(), 1u);
+  EXPECT_EQ(FastGrid(with_option("threads", "2")).threads(), 2u);
+}
+
+TEST(FastGrid, CachedFixedPairsFollowRemovalAndUpdate) {
+  FastGrid g;
+  const Handle a = g.insert(Shape::sphere({0, 0, 0}, 1), 0, Motion::fixed);
+  const Handle b = g.insert(Shape::sphere({1.5, 0, 0}, 1), 1, Motion::fixed);
+  const Handle c = g.insert(Shape::sphere({3, 0, 0}, 1), 2, Motion::fixed);
+  g.update(std::span<const Move>{});  // folds the fixed objects into the cache
+  g.validate();
+  EXPECT_EQ(pairs_of(g), (IdPairs{{0, 1}, {1, 2}}));
+  g.update(b, Shape::sphere({100, 0, 0}, 1));  // a fixed object moved: its cached pairs go
+  g.validate();
+  EXPECT_EQ(pairs_of(g), IdPairs{});
+  g.update(b, Shape::sphere({0.5, 0, 0}, 1));
+  g.remove(a);
+  g.validate();
+  EXPECT_EQ(pairs_of(g), IdPairs{});
+  EXPECT_FALSE(g.contains(a));
+  EXPECT_THROW(g.remove(a), InvalidHandle);
+  EXPECT_THROW(g.update(a, Shape::sphere({0, 0, 0}, 1)), InvalidHandle);
+  g.update(b, Shape::sphere({2, 0, 0}, 1));
+  g.update(std::span<const Move>{});
+  g.validate();
+  EXPECT_EQ(pairs_of(g), (IdPairs{{1, 2}}));
+  EXPECT_TRUE(g.contains(c));
+}
+
+TEST(FastGrid, HeldSlotsAreNotReusedBeforeARebuild) {
+  FastGrid g;
+  std::vector<Handle> h;
+  for (int i = 0; i < 10; ++i)
+    h.push_back(g.insert(Shape::sphere({i * 10.0, 0, 0}, 6), static_cast<std::uint64_t>(i)));
+  g.update(std::span<const Move>{});  // all in the moving grid now
+  g.remove(h[3]);
+  const Handle fresh = g.insert(Shape::sphere({30, 0, 0}, 6), 99);
+  EXPECT_NE(fresh.index, h[3].index) << "a slot still named by a grid entry was handed out";
+  g.validate();
+  IdPairs expect;
+  for (int i = 0; i + 1 < 10; ++i)
+    if (i != 2 && i != 3)
+      expect.insert({static_cast<std::uint64_t>(i), static_cast<std::uint64_t>(i + 1)});
+  expect.insert({2, 99});
+  expect.insert({4, 99});
+  expect.erase({3, 4});
+  EXPECT_EQ(pairs_of(g), expect);
+}
+
+TEST(FastGrid, ManyInsertsStayExactAcrossRebuilds) {
+  // Crosses the loose-list threshold many times, with fixed and moving objects.
+  FastGrid g;
+  Naive n;
+  Rng rng(7);
+  std::vector<std::pair<Handle, Handle>> live;
+  for (int i = 0; i < 3000; ++i) {
+    const Shape s = Shape::sphere({rng.uniform(0, 200), rng.uniform(0, 200), rng.uniform(0, 200)},
+                                  rng.uniform(0, 6));
+    const Motion m = i % 3 ? Motion::fixed : Motion::dynamic;
+    live.push_back({g.insert(s, static_cast<std::uint64_t>(i), m),
+                    n.insert(s, static_cast<std::uint64_t>(i), m)});
+    if (i % 7 == 0) {
+      const std::size_t k = rng.below(live.size());
+      g.remove(live[k].first);
+      n.remove(live[k].second);
+      live[k] = live.back();
+      live.pop_back();
+    }
+  }
+  g.validate();
+  EXPECT_EQ(pairs_of(g), pairs_of(n));
+}
+
+TEST(FastGrid, CandidateListsStayCompleteForFastAndSlowMovers) {
+  Scene scene = generate(Distribution::even, 1500, 3);
+  FastGrid g;
+  std::vector<Handle> h;
+  for (std::size_t i = 0; i < scene.size(); ++i)
+    h.push_back(
+        g.insert(scene.objects[i], i, scene.is_moving(i) ? Motion::dynamic : Motion::fixed));
+  std::vector<Move> moves;
+  for (int f = 0; f < 12; ++f) {
+    // Every third frame the movers jump far: their lists must be rebuilt.
+    for (std::size_t i = 0; i < scene.size(); ++i)
+      if (scene.is_moving(i)) scene.velocity[i] = scene.velocity[i] * (f % 3 == 0 ? 40.0 : 0.025);
+    step(scene);
+    moves.clear();
+    for (std::size_t i = 0; i < scene.size(); ++i)
+      if (scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
+    g.update(moves);
+    g.validate();
+    Naive n;
+    for (std::size_t i = 0; i < scene.size(); ++i) n.insert(scene.objects[i], i);
+    ASSERT_EQ(pairs_of(g), pairs_of(n)) << "frame " << f;
+  }
+}
+
+TEST(FastGrid, PairOrderDoesNotDependOnThreads) {
+  // 32 000 objects give 6400 moving ones: enough for three threads to split
+  // both the candidate lists and the pair finding.
+  const Scene start = generate(Distribution::scaled_even, 32000, 5);
+  std::vector<std::vector<std::pair<std::uint64_t, std::uint64_t>>> orders;
+  for (const char* t : {"1", "2", "3"}) {
+    Scene scene = start;
+    FastGrid g(with_option("threads", t));
+    std::vector<Handle> h;
+    for (std::size_t i = 0; i < scene.size(); ++i)
+      h.push_back(
+          g.insert(scene.objects[i], i, scene.is_moving(i) ? Motion::dynamic : Motion::fixed));
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> ids;
+    std::vector<Move> moves;
+    for (int f = 0; f < 3; ++f) {
+      if (f > 0) {
+        for (std::size_t i = 0; i < scene.size(); ++i)
+          if (scene.is_moving(i)) scene.velocity[i] = scene.velocity[i] * (f == 1 ? 30.0 : 1.0);
+        step(scene);
+      }
+      moves.clear();
+      for (std::size_t i = 0; i < scene.size(); ++i)
+        if (scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
+      g.update(moves);
+      g.validate();
+      std::vector<HandlePair> out;
+      g.find_pairs(out);
+      std::vector<std::pair<std::uint64_t, std::uint64_t>> frame;
+      for (const HandlePair& p : out) frame.push_back({g.user_data(p.a), g.user_data(p.b)});
+      std::vector<std::pair<std::uint64_t, std::uint64_t>> visited;
+      g.for_each_pair([&](Handle a, Handle b) {
+        visited.push_back({g.user_data(a), g.user_data(b)});
+      });
+      EXPECT_EQ(frame, visited) << "find_pairs and for_each_pair disagree with threads=" << t;
+      ids.insert(ids.end(), frame.begin(), frame.end());
+    }
+    orders.push_back(std::move(ids));
+  }
+  EXPECT_FALSE(orders[0].empty());
+  EXPECT_EQ(orders[0], orders[1]);
+  EXPECT_EQ(orders[0], orders[2]);
+}
+
+TEST(FastGrid, UnboundedAndHugeObjects) {
+  FastGrid g;
+  const double big = 1e300;
+  g.insert(Shape::sphere({big, 0, 0}, 1), 0, Motion::fixed);
+  g.insert(Shape::sphere({big, 0, 0}, 0), 1, Motion::fixed);
+  g.insert(Shape::sphere({-big, 0, 0}, big), 2);
+  g.insert(Shape::sphere({500, 500, 500}, 1e6), 3);
+  g.insert(Shape::box({0, 0, 0}, {0, 0, 0}), 4, Motion::fixed);
+  g.update(std::span<const Move>{});
+  g.validate();
+  Naive n;
+  n.insert(Shape::sphere({big, 0, 0}, 1), 0);
+  n.insert(Shape::sphere({big, 0, 0}, 0), 1);
+  n.insert(Shape::sphere({-big, 0, 0}, big), 2);
+  n.insert(Shape::sphere({500, 500, 500}, 1e6), 3);
+  n.insert(Shape::box({0, 0, 0}, {0, 0, 0}), 4);
+  EXPECT_EQ(pairs_of(g), pairs_of(n));
+  int hits = 0, expect = 0;
+  g.query(Shape::sphere({big, 0, 0}, 0), [&](Handle) { ++hits; });
+  n.query(Shape::sphere({big, 0, 0}, 0), [&](Handle) { ++expect; });
+  EXPECT_EQ(hits, expect);
+  EXPECT_GE(hits, 2);
+}
+
+TEST(FastGrid, VisitorCanStopEarly) {
+  FastGrid g;
+  for (int i = 0; i < 50; ++i) g.insert(Shape::sphere({0, 0, 0}, 1), static_cast<std::uint64_t>(i));
+  int seen = 0;
+  const QueryCost c = g.for_each_pair([&](Handle, Handle) { return ++seen < 5; });
+  EXPECT_TRUE(c.stopped);
+  EXPECT_EQ(seen, 5);
+  seen = 0;
+  const QueryCost q = g.query(Shape::sphere({0, 0, 0}, 1), [&](Handle) { return ++seen < 3; });
+  EXPECT_TRUE(q.stopped);
+  EXPECT_EQ(seen, 3);
+}
+
+TEST(FastGrid, MemoryIsReported) {
+  FastGrid g;
+  const std::size_t empty = g.memory_bytes();
+  for (int i = 0; i < 1000; ++i)
+    g.insert(Shape::sphere({i * 1.0, 0, 0}, 1), static_cast<std::uint64_t>(i));
+  EXPECT_GT(g.memory_bytes(), empty + 1000 * sizeof(Shape));
+}
+
+}  // namespace
+}  // namespace broadphase
