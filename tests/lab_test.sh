@@ -16,13 +16,16 @@ check() {  # check NAME COMMAND...
 
 out=$tmp/run
 start=$(date +%s)
-"$cli" paper --quick --out "$out" >"$tmp/stdout" 2>"$tmp/stderr"
+TIMEFORMAT='%U %S'
+{ time "$cli" paper --quick --out "$out" >"$tmp/stdout" 2>"$tmp/stderr"; } 2>"$tmp/time"
 rc=$?
 took=$(( $(date +%s) - start ))
+cpu=$(awk '{printf "%d", $1 + $2}' "$tmp/time")
 check "paper --quick exits 0 (exit $rc: $(tail -3 "$tmp/stderr"))" test $rc -eq 0
-# Sanitizer builds run several times slower; the budget holds for Release.
+# "Under a minute" is checked on CPU time, which a busy machine does not
+# inflate; sanitizer builds run several times slower and are exempt.
 if [ -z "${BROADPHASE_SANITIZED:-}" ]; then
-  check "paper --quick takes under a minute (took ${took}s)" test "$took" -lt 60
+  check "paper --quick takes under a minute of CPU (took ${cpu}s CPU, ${took}s wall)" test "$cpu" -lt 60
 fi
 for f in results.csv results.json REPORT.md; do
   check "$f written" test -s "$out/$f"

@@ -269,7 +269,7 @@ void run_paper(const PaperOptions& o) {
   fill_provenance(info);
   info.quick = o.quick;
   info.seed = o.seed;
-  info.budget_seconds = o.budget > 0 ? o.budget : (o.quick ? 50 : 1200);
+  info.budget_seconds = o.budget > 0 ? o.budget : (o.quick ? 35 : 1200);
   info.study_budget_seconds = info.budget_seconds * (o.quick ? 0.6 : 0.7);
   // Most structures stop well short of the cap at most sizes, so a full run
   // affords each up to 1.5 shares of the study's budget at one size; the
@@ -532,7 +532,7 @@ void add_paper_command(CLI::App& app) {
       cmd->add_option("--max-n", o->max_n, "Largest number of objects to run (at least 50)");
   cmd->add_option("--seed", o->seed, "Random seed of the scenes")->default_val(1);
   cmd->add_option("--budget", o->budget,
-                  "Seconds the whole run should take at most (default 1200, 50 with --quick); "
+                  "Seconds the whole run should take at most (default 1200, 35 with --quick); "
                   "structures whose projected time does not fit are skipped at large sizes");
   cmd->add_flag("--peers,!--no-peers", o->peers, "Include the peer libraries (default: yes)");
   cmd->callback([o, max_n] {
