@@ -18,6 +18,45 @@ const Scene& uneven_6400() {
   return s;
 }
 
+// Inserts every object of `s`, with its index as user data.
+template <class S>
+std::vector<Handle> insert_all(S& bp, const Scene& s) {
+  std::vector<Handle> hs;
+  for (std::size_t i = 0; i < s.size(); ++i) hs.push_back(bp.insert(s.objects[i], i));
+  return hs;
+}
+
+// 1024 points drawn uniformly in the cube [lo, hi)^3.
+std::vector<Shape> points_in(double lo, double hi) {
+  Rng rng(3);
+  std::vector<Shape> points;
+  for (int i = 0; i < 1024; ++i)
+    points.push_back(
+        Shape::sphere({rng.uniform(lo, hi), rng.uniform(lo, hi), rng.uniform(lo, hi)}, 0));
+  return points;
+}
+
+// One query per iteration, cycling through `points`.
+template <class S>
+void query_points(benchmark::State& state, const S& bp, const std::vector<Shape>& points) {
+  std::size_t i = 0, hits = 0;
+  for (auto _ : state) bp.query(points[i++ & 1023], [&](Handle) { ++hits; });
+  benchmark::DoNotOptimize(hits);
+}
+
+// Removes an object and inserts it back, per iteration, so that the
+// structure keeps its population.
+template <class S>
+void remove_insert(benchmark::State& state, S& bp, const Scene& s) {
+  std::vector<Handle> hs = insert_all(bp, s);
+  std::size_t i = 0;
+  for (auto _ : state) {
+    const std::size_t k = i++ % s.size();
+    bp.remove(hs[k]);
+    hs[k] = bp.insert(s.objects[k], k);
+  }
+}
+
 // The O(1) node choice from the corners' finest cells.
 void BM_OctreeNodeOf(benchmark::State& state) {
   const Scene& s = uneven_6400();
@@ -32,15 +71,8 @@ BENCHMARK(BM_OctreeNodeOf);
 void BM_OctreeNodeDescent(benchmark::State& state) {
   const Scene& s = uneven_6400();
   OctreePaper t{Config{}};
-  for (std::size_t i = 0; i < s.size(); ++i) t.insert(s.objects[i], i);
-  Rng rng(3);
-  std::vector<Shape> points;
-  for (int i = 0; i < 1024; ++i)
-    points.push_back(
-        Shape::sphere({rng.uniform(0, 1000), rng.uniform(0, 1000), rng.uniform(0, 1000)}, 0));
-  std::size_t i = 0, hits = 0;
-  for (auto _ : state) t.query(points[i++ & 1023], [&](Handle) { ++hits; });
-  benchmark::DoNotOptimize(hits);
+  insert_all(t, s);
+  query_points(state, t, points_in(0, 1000));
 }
 BENCHMARK(BM_OctreeNodeDescent);
 
@@ -49,14 +81,7 @@ BENCHMARK(BM_OctreeNodeDescent);
 void BM_OctreeRemoveInsert(benchmark::State& state) {
   const Scene& s = uneven_6400();
   OctreePaper t{Config{}};
-  std::vector<Handle> hs;
-  for (std::size_t i = 0; i < s.size(); ++i) hs.push_back(t.insert(s.objects[i], i));
-  std::size_t i = 0;
-  for (auto _ : state) {
-    const std::size_t k = i++ % s.size();
-    t.remove(hs[k]);
-    hs[k] = t.insert(s.objects[k], k);
-  }
+  remove_insert(state, t, s);
 }
 BENCHMARK(BM_OctreeRemoveInsert);
 
@@ -74,15 +99,8 @@ BENCHMARK(BM_HGridPlacement);
 void BM_HGridPointQuery(benchmark::State& state) {
   const Scene& s = uneven_6400();
   HGridPaper g{Config{}};
-  for (std::size_t i = 0; i < s.size(); ++i) g.insert(s.objects[i], i);
-  Rng rng(3);
-  std::vector<Shape> points;
-  for (int i = 0; i < 1024; ++i)
-    points.push_back(
-        Shape::sphere({rng.uniform(0, 1000), rng.uniform(0, 1000), rng.uniform(0, 1000)}, 0));
-  std::size_t i = 0, hits = 0;
-  for (auto _ : state) g.query(points[i++ & 1023], [&](Handle) { ++hits; });
-  benchmark::DoNotOptimize(hits);
+  insert_all(g, s);
+  query_points(state, g, points_in(0, 1000));
 }
 BENCHMARK(BM_HGridPointQuery);
 
@@ -91,15 +109,8 @@ BENCHMARK(BM_HGridPointQuery);
 void BM_HGridCellHashing(benchmark::State& state) {
   const Scene& s = uneven_6400();
   HGridPaper g{Config{}};
-  for (std::size_t i = 0; i < s.size(); ++i) g.insert(s.objects[i], i);
-  Rng rng(3);
-  std::vector<Shape> points;
-  for (int i = 0; i < 1024; ++i)
-    points.push_back(Shape::sphere(
-        {rng.uniform(3000, 9000), rng.uniform(3000, 9000), rng.uniform(3000, 9000)}, 0));
-  std::size_t i = 0, hits = 0;
-  for (auto _ : state) g.query(points[i++ & 1023], [&](Handle) { ++hits; });
-  benchmark::DoNotOptimize(hits);
+  insert_all(g, s);
+  query_points(state, g, points_in(3000, 9000));
 }
 BENCHMARK(BM_HGridCellHashing);
 
@@ -107,14 +118,7 @@ BENCHMARK(BM_HGridCellHashing);
 void BM_HGridRemoveInsert(benchmark::State& state) {
   const Scene& s = uneven_6400();
   HGridPaper g{Config{}};
-  std::vector<Handle> hs;
-  for (std::size_t i = 0; i < s.size(); ++i) hs.push_back(g.insert(s.objects[i], i));
-  std::size_t i = 0;
-  for (auto _ : state) {
-    const std::size_t k = i++ % s.size();
-    g.remove(hs[k]);
-    hs[k] = g.insert(s.objects[k], k);
-  }
+  remove_insert(state, g, s);
 }
 BENCHMARK(BM_HGridRemoveInsert);
 
@@ -123,7 +127,7 @@ template <class S>
 void BM_QueryUneven6400(benchmark::State& state) {
   const Scene& s = uneven_6400();
   S bp{Config{}};
-  for (std::size_t i = 0; i < s.size(); ++i) bp.insert(s.objects[i], i);
+  insert_all(bp, s);
   std::size_t i = 0, hits = 0, tests = 0;
   for (auto _ : state) tests += bp.query(s.objects[i++ % s.size()], [&](Handle) { ++hits; }).tests;
   state.counters["tests/query"] =

@@ -6,28 +6,14 @@
 #include <broadphase/scene.hpp>
 #include <vector>
 
+#include "structure_testing.hpp"
+
 namespace broadphase {
 namespace {
 
-using Pairs = std::vector<std::pair<std::uint64_t, std::uint64_t>>;
-
-Pairs pairs_of(const GridHybrid& s) {
-  Pairs out;
-  s.for_each_pair([&](Handle a, Handle b) {
-    const std::uint64_t x = s.user_data(a), y = s.user_data(b);
-    out.emplace_back(std::min(x, y), std::max(x, y));
-  });
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-Pairs brute(const std::vector<Shape>& shapes) {
-  Pairs out;
-  for (std::size_t i = 0; i < shapes.size(); ++i)
-    for (std::size_t j = i + 1; j < shapes.size(); ++j)
-      if (overlaps(shapes[i], shapes[j])) out.emplace_back(i, j);
-  return out;
-}
+using testing::brute;
+using testing::Pairs;
+using testing::pairs_of;
 
 TEST(GridHybrid, CityAndSkyWithMotion) {
   GridHybrid g;

@@ -10,27 +10,16 @@
 #include <utility>
 #include <vector>
 
+#include "structure_testing.hpp"
 #include "testing.hpp"
 
 namespace broadphase {
 namespace {
 
-std::vector<std::pair<std::uint64_t, std::uint64_t>> pairs_of(const HGridPaper& g) {
-  std::vector<std::pair<std::uint64_t, std::uint64_t>> out;
-  g.for_each_pair([&](Handle a, Handle b) {
-    const std::uint64_t x = g.user_data(a), y = g.user_data(b);
-    out.emplace_back(std::min(x, y), std::max(x, y));
-  });
-  std::sort(out.begin(), out.end());
-  return out;
-}
-std::vector<std::pair<std::uint64_t, std::uint64_t>> brute_pairs(const std::vector<Shape>& s) {
-  std::vector<std::pair<std::uint64_t, std::uint64_t>> out;
-  for (std::size_t i = 0; i < s.size(); ++i)
-    for (std::size_t j = i + 1; j < s.size(); ++j)
-      if (overlaps(s[i], s[j])) out.emplace_back(i, j);
-  return out;
-}
+// Pairs by user id, sorted, from the structure and by brute force.
+using testing::brute;
+using testing::pairs_of;
+
 std::set<std::uint64_t> query_ids(const HGridPaper& g, const Shape& q) {
   std::set<std::uint64_t> ids;
   g.query(q, [&](Handle h) { ids.insert(g.user_data(h)); });
@@ -112,7 +101,7 @@ TEST(HGridPaper, HugeAndFarObjectsGoToTheOversizeList) {
   // far away is as coarse as its slack, and its cell number stays small.
   EXPECT_EQ(g.level_of(Shape::sphere({2e12, 0, 0}, 0)), 6);
   EXPECT_EQ(g.oversize_count(), 5u);
-  EXPECT_EQ(pairs_of(g), brute_pairs(shapes));
+  EXPECT_EQ(pairs_of(g), brute(shapes));
   for (const Shape& q : shapes) EXPECT_EQ(query_ids(g, q), brute_query(shapes, q));
 }
 
@@ -129,7 +118,7 @@ TEST(HGridPaper, CellNumbersPastTwoToTheFortyGoOversize) {
                                Shape::sphere({1e13 + 6, 1e13, 1e13}, 1)};
   for (std::size_t i = 0; i < shapes.size(); ++i) g.insert(shapes[i], i);
   EXPECT_EQ(g.oversize_count(), 1u);  // the point; the unit sphere is level 6, cell -6.4e11
-  EXPECT_EQ(pairs_of(g), brute_pairs(shapes));
+  EXPECT_EQ(pairs_of(g), brute(shapes));
   g.validate();
 }
 
@@ -166,7 +155,7 @@ TEST(HGridPaper, ThousandsInOneCell) {
   g.validate();
   const auto got = pairs_of(g);
   EXPECT_EQ(std::adjacent_find(got.begin(), got.end()), got.end());
-  EXPECT_EQ(got, brute_pairs(shapes));
+  EXPECT_EQ(got, brute(shapes));
 }
 
 TEST(HGridPaper, WideQueriesScanInsteadOfProbing) {
@@ -239,7 +228,7 @@ TEST(HGridPaper, TableGrowsAndKeepsEveryObject) {
   for (std::size_t i = 0; i < s.size(); ++i) g.insert(s.objects[i], i);
   EXPECT_GE(g.bucket_count(), 2048u);
   g.validate();
-  EXPECT_EQ(pairs_of(g), brute_pairs(s.objects));
+  EXPECT_EQ(pairs_of(g), brute(s.objects));
   int seen = 0;
   EXPECT_TRUE(g.for_each_pair([&](Handle, Handle) { return ++seen < 5; }).stopped);
   EXPECT_EQ(seen, 5);

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "structure_testing.hpp"
 #include "testing.hpp"
 
 namespace broadphase {
@@ -27,22 +28,8 @@ std::uint32_t node(int level, int x, int y, int z) {
 }
 
 // Pairs by user id, sorted, from the structure and by brute force.
-std::vector<std::pair<std::uint64_t, std::uint64_t>> pairs_of(const OctreePaper& t) {
-  std::vector<std::pair<std::uint64_t, std::uint64_t>> out;
-  t.for_each_pair([&](Handle a, Handle b) {
-    const std::uint64_t x = t.user_data(a), y = t.user_data(b);
-    out.emplace_back(std::min(x, y), std::max(x, y));
-  });
-  std::sort(out.begin(), out.end());
-  return out;
-}
-std::vector<std::pair<std::uint64_t, std::uint64_t>> brute_pairs(const std::vector<Shape>& s) {
-  std::vector<std::pair<std::uint64_t, std::uint64_t>> out;
-  for (std::size_t i = 0; i < s.size(); ++i)
-    for (std::size_t j = i + 1; j < s.size(); ++j)
-      if (overlaps(s[i], s[j])) out.emplace_back(i, j);
-  return out;
-}
+using testing::brute;
+using testing::pairs_of;
 
 TEST(OctreePaper, LevelsOfNodeIndices) {
   EXPECT_EQ(OctreePaper::level_of(0), 0);
@@ -111,7 +98,7 @@ TEST(OctreePaper, ExactWithObjectsEverywhere) {
   };
   for (std::size_t i = 0; i < shapes.size(); ++i) t.insert(shapes[i], i);
   t.validate();
-  EXPECT_EQ(pairs_of(t), brute_pairs(shapes));
+  EXPECT_EQ(pairs_of(t), brute(shapes));
   for (const Shape& q : shapes) {
     std::set<std::uint64_t> got;
     t.query(q, [&](Handle h) { got.insert(t.user_data(h)); });
@@ -195,7 +182,7 @@ TEST(OctreePaper, EveryPairOnceAndEarlyStop) {
   for (std::size_t i = 0; i < s.size(); ++i) t.insert(s.objects[i], i);
   const auto got = pairs_of(t);
   EXPECT_EQ(std::adjacent_find(got.begin(), got.end()), got.end());
-  EXPECT_EQ(got, brute_pairs(s.objects));
+  EXPECT_EQ(got, brute(s.objects));
   int seen = 0;
   const QueryCost c = t.for_each_pair([&](Handle, Handle) { return ++seen < 3; });
   EXPECT_EQ(seen, 3);
@@ -235,7 +222,7 @@ TEST(OctreePaper, ClampPlacesOutsideObjectsByTheirClippedBounds) {
       Shape::sphere({-2000, 900, 62.5}, 1e6), Shape::sphere({500, 500, 500}, 5000)};
   for (std::size_t i = 0; i < shapes.size(); ++i) t.insert(shapes[i], i);
   t.validate();
-  EXPECT_EQ(pairs_of(t), brute_pairs(shapes));
+  EXPECT_EQ(pairs_of(t), brute(shapes));
   // A query wholly outside still reaches the objects clipped to the face.
   std::set<std::uint64_t> got;
   t.query(Shape::sphere({62.5, -25, 62.5}, 6), [&](Handle h) { got.insert(t.user_data(h)); });

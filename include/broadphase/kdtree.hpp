@@ -97,7 +97,6 @@ class KdTree {
   void split_leaf(std::uint32_t node);
   void refit_path(std::uint32_t node);
   void refit_all();
-  void attach(std::uint32_t node, std::uint32_t slot, const AabbF& box);
   void after_motion();
   void after_resize();
 
@@ -110,8 +109,7 @@ class KdTree {
   std::uint32_t root_ = 0;
   std::vector<detail::OctItem> scratch_;      // rebuild's working copy
   std::vector<std::uint32_t> scratch_order_;  // refit_all's node order
-  std::vector<std::uint32_t> node_of_;        // slot -> leaf
-  std::vector<std::uint32_t> pos_of_;         // slot -> position in the leaf
+  detail::ItemIndex index_;                   // slot -> leaf and position
   double surface_ = 0;
   double built_surface_ = 0;
   std::size_t built_size_ = 0;

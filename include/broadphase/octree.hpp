@@ -12,6 +12,7 @@
 #include <array>
 #include <broadphase/broad_phase.hpp>
 #include <broadphase/detail/inline_stack.hpp>
+#include <broadphase/detail/node_items.hpp>
 #include <broadphase/registry.hpp>
 #include <cmath>
 #include <cstddef>
@@ -26,13 +27,6 @@ namespace detail {
 
 /// The null node index.
 inline constexpr std::uint32_t kNoNode = 0xffffffffu;
-
-/// An object as a node stores it: its conservative float box beside its
-/// slot, so that the scans over a node's objects read one contiguous array.
-struct OctItem {
-  AabbF box;
-  std::uint32_t slot;
-};
 
 /// A float box widened to double (exact: every float is a double).
 inline Aabb to_double(const AabbF& b) {
@@ -368,7 +362,6 @@ class Octree {
 
   Vec3 mid(const Node& n) const;
   std::uint32_t descend(std::uint32_t from, const Aabb& b) const;
-  void place(std::uint32_t node, std::uint32_t slot, const AabbF& box);
   void detach(std::uint32_t slot);
   void add_count(std::uint32_t node, int delta);
   int child_octant(std::uint32_t node, std::uint32_t slot, const Vec3& m) const;
@@ -382,8 +375,7 @@ class Octree {
   std::size_t split_ = 32;
   std::vector<Node> nodes_;
   std::vector<std::uint32_t> free_blocks_;  // first nodes of free blocks of eight
-  std::vector<std::uint32_t> node_of_;      // slot -> node
-  std::vector<std::uint32_t> pos_of_;       // slot -> position in the node's items
+  detail::ItemIndex index_;                 // slot -> node and position
 };
 
 }  // namespace broadphase

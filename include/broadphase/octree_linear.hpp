@@ -100,8 +100,6 @@ class LinearOctree {
 
   std::uint64_t key_of(const Aabb& b) const;
   std::uint32_t node_at(std::uint64_t key);
-  void attach(std::uint32_t node, std::uint32_t slot, const AabbF& box);
-  void detach(std::uint32_t slot);
   void prune(std::uint32_t node);
 
   ObjectStore store_;
@@ -109,9 +107,8 @@ class LinearOctree {
   int max_depth_ = 4;
   std::vector<Node> nodes_;
   std::vector<std::uint32_t> free_;
-  detail::KeyTable table_;              // Morton key -> node
-  std::vector<std::uint32_t> node_of_;  // slot -> node
-  std::vector<std::uint32_t> pos_of_;   // slot -> position in the node's items
+  detail::KeyTable table_;   // Morton key -> node
+  detail::ItemIndex index_;  // slot -> node and position
 };
 
 }  // namespace broadphase

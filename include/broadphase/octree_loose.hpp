@@ -105,8 +105,6 @@ class LooseOctree {
   Aabb loose_box(int depth, std::uint32_t ix, std::uint32_t iy, std::uint32_t iz) const;
   Place place_of(const Shape& s) const;
   std::uint32_t node_at(const Place& p);
-  void attach(std::uint32_t node, std::uint32_t slot, const AabbF& box);
-  void detach(std::uint32_t slot);
   void prune(std::uint32_t node);
 
   ObjectStore store_;
@@ -115,9 +113,8 @@ class LooseOctree {
   int max_depth_ = 4;
   std::vector<Node> nodes_;
   std::vector<std::uint32_t> free_;
-  detail::KeyTable table_;              // key -> node
-  std::vector<std::uint32_t> node_of_;  // slot -> node
-  std::vector<std::uint32_t> pos_of_;   // slot -> position in the node's items
+  detail::KeyTable table_;   // key -> node
+  detail::ItemIndex index_;  // slot -> node and position
 };
 
 template <class V>

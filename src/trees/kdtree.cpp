@@ -23,12 +23,6 @@ AabbF merged(const AabbF& a, const AabbF& b) {
   return m;
 }
 
-bool same(const AabbF& a, const AabbF& b) {
-  for (int k = 0; k < 3; ++k)
-    if (a.lo[k] != b.lo[k] || a.hi[k] != b.hi[k]) return false;
-  return true;
-}
-
 // Half the surface area, in double; 0 for an empty box.
 double area(const AabbF& b) {
   if (b.lo[0] > b.hi[0]) return 0;
@@ -54,10 +48,7 @@ KdTree::KdTree(const Config& c) {
   leaf_size_ = static_cast<std::size_t>(opt.number("leaf", 8, 1, 1024));
   opt.finish();
   root_ = new_node(kNoNode);
-  if (c.expected_objects != 0) {
-    node_of_.reserve(c.expected_objects);
-    pos_of_.reserve(c.expected_objects);
-  }
+  if (c.expected_objects != 0) index_.reserve(c.expected_objects);
 }
 
 std::uint32_t KdTree::new_node(std::uint32_t parent) {
@@ -77,13 +68,6 @@ std::uint32_t KdTree::new_node(std::uint32_t parent) {
   node.split = 0;
   node.axis = 0;
   return n;
-}
-
-void KdTree::attach(std::uint32_t node, std::uint32_t slot, const AabbF& box) {
-  std::vector<OctItem>& items = nodes_[node].items;
-  node_of_[slot] = node;
-  pos_of_[slot] = static_cast<std::uint32_t>(items.size());
-  items.push_back({box, slot});
 }
 
 void KdTree::build(std::uint32_t node, std::size_t begin, std::size_t end) {
@@ -165,7 +149,7 @@ void KdTree::build(std::uint32_t node, std::size_t begin, std::size_t end) {
       }
     }
     if (widest < 0) {  // few objects, or all centres equal: a leaf
-      for (const OctItem& it : items) attach(t.node, it.slot, it.box);
+      for (const OctItem& it : items) index_.attach(nodes_, t.node, it.slot, it.box);
       continue;
     }
 
@@ -207,8 +191,7 @@ void KdTree::build(std::uint32_t node, std::size_t begin, std::size_t end) {
 void KdTree::rebuild() {
   scratch_.clear();
   for (std::uint32_t slot = 0; slot < store_.slot_count(); ++slot)
-    if (store_.slots().alive(slot))
-      scratch_.push_back({nodes_[node_of_[slot]].items[pos_of_[slot]].box, slot});
+    if (store_.slots().alive(slot)) scratch_.push_back({index_.item(nodes_, slot).box, slot});
   free_.clear();
   for (std::uint32_t i = static_cast<std::uint32_t>(nodes_.size()); i-- > 0;) free_.push_back(i);
   surface_ = 0;
@@ -232,7 +215,7 @@ void KdTree::refit_path(std::uint32_t node) {
     Node& x = nodes_[n];
     const AabbF fresh =
         x.left == kNoNode ? union_of(x.items) : merged(nodes_[x.left].box, nodes_[x.right].box);
-    if (same(fresh, x.box)) return;
+    if (detail::same_box(fresh, x.box)) return;
     surface_ += area(fresh) - area(x.box);
     x.box = fresh;
   }
@@ -269,20 +252,17 @@ void KdTree::after_resize() {
 
 Handle KdTree::insert(const Shape& s, std::uint64_t user, Motion) {
   const Handle h = store_.insert(s, user);
-  if (h.index >= node_of_.size()) {
-    node_of_.resize(h.index + 1);
-    pos_of_.resize(h.index + 1);
-  }
+  index_.fit(h.index);
   std::uint32_t n = root_;
   while (!leaf(n)) {
     const Node& x = nodes_[n];
     n = s.center[x.axis] < static_cast<double>(x.split) ? x.left : x.right;
   }
   const AabbF f = bounds_f(s);
-  attach(n, h.index, f);
+  index_.attach(nodes_, n, h.index, f);
   for (std::uint32_t m = n; m != kNoNode; m = nodes_[m].parent) {
     const AabbF grown = merged(nodes_[m].box, f);
-    if (same(grown, nodes_[m].box)) break;
+    if (detail::same_box(grown, nodes_[m].box)) break;
     surface_ += area(grown) - area(nodes_[m].box);
     nodes_[m].box = grown;
   }
@@ -293,14 +273,10 @@ Handle KdTree::insert(const Shape& s, std::uint64_t user, Motion) {
 
 void KdTree::remove(Handle h) {
   const std::uint32_t slot = store_.erase(h);
-  const std::uint32_t n = node_of_[slot];
-  std::vector<OctItem>& items = nodes_[n].items;
-  const std::uint32_t p = pos_of_[slot];
-  items[p] = items.back();
-  pos_of_[items[p].slot] = p;
-  items.pop_back();
+  const std::uint32_t n = index_.node_of[slot];
+  index_.detach(nodes_, slot);
   refit_path(n);
-  if (items.empty() && n != root_) {
+  if (nodes_[n].items.empty() && n != root_) {
     // Replace the parent by the sibling: the parent's box equals the
     // sibling's now, so nothing above changes.
     const std::uint32_t parent = nodes_[n].parent;
@@ -323,8 +299,8 @@ void KdTree::remove(Handle h) {
 
 void KdTree::update(Handle h, const Shape& s) {
   const std::uint32_t slot = store_.set_shape(h, s);
-  const std::uint32_t n = node_of_[slot];
-  nodes_[n].items[pos_of_[slot]].box = bounds_f(s);
+  const std::uint32_t n = index_.node_of[slot];
+  index_.item(nodes_, slot).box = bounds_f(s);
   refit_path(n);
   after_motion();
 }
@@ -333,7 +309,7 @@ void KdTree::update(std::span<const Move> moves) {
   try {
     for (const Move& m : moves) {
       const std::uint32_t slot = store_.set_shape(m.handle, m.shape);
-      nodes_[node_of_[slot]].items[pos_of_[slot]].box = bounds_f(m.shape);
+      index_.item(nodes_, slot).box = bounds_f(m.shape);
     }
   } catch (...) {
     refit_all();  // the moves made before the bad one stand
@@ -344,13 +320,11 @@ void KdTree::update(std::span<const Move> moves) {
 }
 
 std::size_t KdTree::memory_bytes() const {
-  std::size_t bytes =
-      store_.memory_bytes() + nodes_.capacity() * sizeof(Node) +
-      scratch_.capacity() * sizeof(OctItem) +
-      (free_.capacity() + scratch_order_.capacity() + node_of_.capacity() + pos_of_.capacity()) *
-          sizeof(std::uint32_t);
-  for (const Node& n : nodes_) bytes += n.items.capacity() * sizeof(OctItem);
-  return bytes;
+  std::size_t bytes = store_.memory_bytes() + nodes_.capacity() * sizeof(Node) +
+                      scratch_.capacity() * sizeof(OctItem) +
+                      (free_.capacity() + scratch_order_.capacity()) * sizeof(std::uint32_t) +
+                      index_.memory_bytes();
+  return bytes + detail::items_bytes(nodes_);
 }
 
 void KdTree::validate() const {
@@ -360,11 +334,9 @@ void KdTree::validate() const {
   for (std::uint32_t slot = 0; slot < store_.slot_count(); ++slot) {
     if (!store_.slots().alive(slot)) continue;
     ++placed;
-    const std::uint32_t n = node_of_[slot];
-    if (n >= nodes_.size() || !leaf(n) || pos_of_[slot] >= nodes_[n].items.size() ||
-        nodes_[n].items[pos_of_[slot]].slot != slot)
+    if (!index_.consistent(nodes_, slot) || !leaf(index_.node_of[slot]))
       fail("an object's leaf and position disagree with the leaf's items");
-    if (!same(nodes_[n].items[pos_of_[slot]].box, bounds_f(store_.shape(slot))))
+    if (!detail::same_box(index_.item(nodes_, slot).box, bounds_f(store_.shape(slot))))
       fail("stale stored box");
   }
   std::size_t reachable = 0, items = 0;
@@ -378,13 +350,14 @@ void KdTree::validate() const {
     items += x.items.size();
     if (x.left == kNoNode) {
       if (x.right != kNoNode) fail("half a leaf");
-      if (!same(x.box, union_of(x.items))) fail("leaf box is not the union of its objects");
+      if (!detail::same_box(x.box, union_of(x.items)))
+        fail("leaf box is not the union of its objects");
       if (x.items.empty() && n != root_) fail("empty leaf below the root");
       continue;
     }
     if (!x.items.empty()) fail("objects in an inner node");
     if (nodes_[x.left].parent != n || nodes_[x.right].parent != n) fail("child links");
-    if (!same(x.box, merged(nodes_[x.left].box, nodes_[x.right].box)))
+    if (!detail::same_box(x.box, merged(nodes_[x.left].box, nodes_[x.right].box)))
       fail("inner box is not the union of its children");
     stack.push_back(x.left);
     stack.push_back(x.right);

@@ -11,10 +11,7 @@ Octree::Octree(const Config& c) : cube_(detail::Cube::around(c.world)) {
   opt.finish();
   nodes_.emplace_back();
   nodes_[0].cell = cube_.cell(0, 0, 0, 0);
-  if (c.expected_objects != 0) {
-    node_of_.reserve(c.expected_objects);
-    pos_of_.reserve(c.expected_objects);
-  }
+  if (c.expected_objects != 0) index_.reserve(c.expected_objects);
 }
 
 Vec3 Octree::mid(const Node& n) const {
@@ -49,20 +46,9 @@ std::uint32_t Octree::descend(std::uint32_t from, const Aabb& b) const {
   return n;
 }
 
-void Octree::place(std::uint32_t node, std::uint32_t slot, const AabbF& box) {
-  std::vector<detail::OctItem>& items = nodes_[node].items;
-  node_of_[slot] = node;
-  pos_of_[slot] = static_cast<std::uint32_t>(items.size());
-  items.push_back({box, slot});
-}
-
 void Octree::detach(std::uint32_t slot) {
-  const std::uint32_t n = node_of_[slot];
-  std::vector<detail::OctItem>& items = nodes_[n].items;
-  const std::uint32_t p = pos_of_[slot];
-  items[p] = items.back();
-  pos_of_[items[p].slot] = p;
-  items.pop_back();
+  const std::uint32_t n = index_.node_of[slot];
+  index_.detach(nodes_, slot);
   add_count(n, -1);
 }
 
@@ -126,11 +112,9 @@ void Octree::split(std::uint32_t node) {
       ++i;
       continue;
     }
-    items[i] = items.back();
-    pos_of_[items[i].slot] = static_cast<std::uint32_t>(i);
-    items.pop_back();
+    index_.detach(nodes_, it.slot);  // the last item moves to i
     const std::uint32_t c = first + static_cast<std::uint32_t>(o);
-    place(c, it.slot, it.box);
+    index_.attach(nodes_, c, it.slot, it.box);
     ++nodes_[c].subtree;
   }
   for (std::uint32_t c = first; c < first + 8; ++c)
@@ -156,13 +140,10 @@ void Octree::merge_empty_above(std::uint32_t node) {
 
 Handle Octree::insert(const Shape& s, std::uint64_t user, Motion) {
   const Handle h = store_.insert(s, user);
-  if (h.index >= node_of_.size()) {
-    node_of_.resize(h.index + 1);
-    pos_of_.resize(h.index + 1);
-  }
+  index_.fit(h.index);
   const Aabb b = bounds(s);
   const std::uint32_t n = nodes_[0].cell.contains(b) ? descend(0, b) : 0;
-  place(n, h.index, bounds_f(s));
+  index_.attach(nodes_, n, h.index, bounds_f(s));
   add_count(n, +1);
   if (nodes_[n].first_child == kNoNode && nodes_[n].items.size() > split_ &&
       nodes_[n].depth < kMaxDepth)
@@ -172,7 +153,7 @@ Handle Octree::insert(const Shape& s, std::uint64_t user, Motion) {
 
 void Octree::remove(Handle h) {
   const std::uint32_t slot = store_.erase(h);
-  const std::uint32_t n = node_of_[slot];
+  const std::uint32_t n = index_.node_of[slot];
   detach(slot);
   merge_empty_above(n);
 }
@@ -180,7 +161,7 @@ void Octree::remove(Handle h) {
 void Octree::update(Handle h, const Shape& s) {
   const std::uint32_t slot = store_.set_shape(h, s);
   const Aabb b = bounds(s);
-  const std::uint32_t n = node_of_[slot];
+  const std::uint32_t n = index_.node_of[slot];
   // Climb to the nearest cell that may hold the new box, then go down again.
   std::uint32_t a = n;
   while (a != 0) {
@@ -191,11 +172,11 @@ void Octree::update(Handle h, const Shape& s) {
   }
   const std::uint32_t target = (a != 0 || nodes_[0].cell.contains(b)) ? descend(a, b) : 0;
   if (target == n) {
-    nodes_[n].items[pos_of_[slot]].box = bounds_f(s);
+    index_.item(nodes_, slot).box = bounds_f(s);
     return;
   }
   detach(slot);
-  place(target, slot, bounds_f(s));
+  index_.attach(nodes_, target, slot, bounds_f(s));
   add_count(target, +1);
   if (nodes_[target].first_child == kNoNode && nodes_[target].items.size() > split_ &&
       nodes_[target].depth < kMaxDepth)
@@ -205,10 +186,8 @@ void Octree::update(Handle h, const Shape& s) {
 
 std::size_t Octree::memory_bytes() const {
   std::size_t bytes = store_.memory_bytes() + nodes_.capacity() * sizeof(Node) +
-                      free_blocks_.capacity() * sizeof(std::uint32_t) +
-                      (node_of_.capacity() + pos_of_.capacity()) * sizeof(std::uint32_t);
-  for (const Node& n : nodes_) bytes += n.items.capacity() * sizeof(detail::OctItem);
-  return bytes;
+                      free_blocks_.capacity() * sizeof(std::uint32_t) + index_.memory_bytes();
+  return bytes + detail::items_bytes(nodes_);
 }
 
 void Octree::validate() const {
@@ -218,14 +197,11 @@ void Octree::validate() const {
   for (std::uint32_t slot = 0; slot < store_.slot_count(); ++slot) {
     if (!store_.slots().alive(slot)) continue;
     ++placed;
-    const std::uint32_t n = node_of_[slot];
-    if (n >= nodes_.size() || pos_of_[slot] >= nodes_[n].items.size() ||
-        nodes_[n].items[pos_of_[slot]].slot != slot)
+    if (!index_.consistent(nodes_, slot))
       fail("an object's node and position disagree with the node's items");
-    const detail::OctItem& it = nodes_[n].items[pos_of_[slot]];
-    const AabbF f = bounds_f(store_.shape(slot));
-    for (int a = 0; a < 3; ++a)
-      if (it.box.lo[a] != f.lo[a] || it.box.hi[a] != f.hi[a]) fail("stale stored box");
+    const std::uint32_t n = index_.node_of[slot];
+    if (!detail::same_box(nodes_[n].items[index_.pos_of[slot]].box, bounds_f(store_.shape(slot))))
+      fail("stale stored box");
     const Aabb b = bounds(store_.shape(slot));
     const std::uint32_t want = nodes_[0].cell.contains(b) ? descend(0, b) : 0;
     if (want != n) fail("object " + std::to_string(slot) + " is not at its smallest cell");

@@ -12,10 +12,7 @@ LinearOctree::LinearOctree(const Config& c) : cube_(detail::Cube::around(c.world
   opt.finish();
   nodes_.emplace_back();
   table_.insert(1, 0);
-  if (c.expected_objects != 0) {
-    node_of_.reserve(c.expected_objects);
-    pos_of_.reserve(c.expected_objects);
-  }
+  if (c.expected_objects != 0) index_.reserve(c.expected_objects);
 }
 
 std::uint64_t LinearOctree::key_of(const Aabb& b) const {
@@ -64,21 +61,6 @@ std::uint32_t LinearOctree::node_at(std::uint64_t key) {
   return n;
 }
 
-void LinearOctree::attach(std::uint32_t node, std::uint32_t slot, const AabbF& box) {
-  std::vector<detail::OctItem>& items = nodes_[node].items;
-  node_of_[slot] = node;
-  pos_of_[slot] = static_cast<std::uint32_t>(items.size());
-  items.push_back({box, slot});
-}
-
-void LinearOctree::detach(std::uint32_t slot) {
-  std::vector<detail::OctItem>& items = nodes_[node_of_[slot]].items;
-  const std::uint32_t p = pos_of_[slot];
-  items[p] = items.back();
-  pos_of_[items[p].slot] = p;
-  items.pop_back();
-}
-
 void LinearOctree::prune(std::uint32_t node) {
   std::uint32_t n = node;
   while (n != 0 && nodes_[n].items.empty() && nodes_[n].child_mask == 0) {
@@ -93,40 +75,36 @@ void LinearOctree::prune(std::uint32_t node) {
 
 Handle LinearOctree::insert(const Shape& s, std::uint64_t user, Motion) {
   const Handle h = store_.insert(s, user);
-  if (h.index >= node_of_.size()) {
-    node_of_.resize(h.index + 1);
-    pos_of_.resize(h.index + 1);
-  }
-  attach(node_at(key_of(bounds(s))), h.index, bounds_f(s));
+  index_.fit(h.index);
+  index_.attach(nodes_, node_at(key_of(bounds(s))), h.index, bounds_f(s));
   return h;
 }
 
 void LinearOctree::remove(Handle h) {
   const std::uint32_t slot = store_.erase(h);
-  const std::uint32_t n = node_of_[slot];
-  detach(slot);
+  const std::uint32_t n = index_.node_of[slot];
+  index_.detach(nodes_, slot);
   prune(n);
 }
 
 void LinearOctree::update(Handle h, const Shape& s) {
   const std::uint32_t slot = store_.set_shape(h, s);
-  const std::uint32_t n = node_of_[slot];
+  const std::uint32_t n = index_.node_of[slot];
   const std::uint64_t key = key_of(bounds(s));
   if (nodes_[n].key == key) {
-    nodes_[n].items[pos_of_[slot]].box = bounds_f(s);
+    index_.item(nodes_, slot).box = bounds_f(s);
     return;
   }
-  detach(slot);
-  attach(node_at(key), slot, bounds_f(s));
+  index_.detach(nodes_, slot);
+  index_.attach(nodes_, node_at(key), slot, bounds_f(s));
   prune(n);
 }
 
 std::size_t LinearOctree::memory_bytes() const {
   std::size_t bytes = store_.memory_bytes() + nodes_.capacity() * sizeof(Node) +
                       free_.capacity() * sizeof(std::uint32_t) + table_.memory_bytes() +
-                      (node_of_.capacity() + pos_of_.capacity()) * sizeof(std::uint32_t);
-  for (const Node& n : nodes_) bytes += n.items.capacity() * sizeof(detail::OctItem);
-  return bytes;
+                      index_.memory_bytes();
+  return bytes + detail::items_bytes(nodes_);
 }
 
 void LinearOctree::validate() const {
@@ -136,15 +114,12 @@ void LinearOctree::validate() const {
   for (std::uint32_t slot = 0; slot < store_.slot_count(); ++slot) {
     if (!store_.slots().alive(slot)) continue;
     ++placed;
-    const std::uint32_t n = node_of_[slot];
-    if (n >= nodes_.size() || pos_of_[slot] >= nodes_[n].items.size() ||
-        nodes_[n].items[pos_of_[slot]].slot != slot)
+    if (!index_.consistent(nodes_, slot))
       fail("an object's node and position disagree with the node's items");
+    const std::uint32_t n = index_.node_of[slot];
     const Shape& s = store_.shape(slot);
-    const AabbF f = bounds_f(s);
-    const detail::OctItem& it = nodes_[n].items[pos_of_[slot]];
-    for (int a = 0; a < 3; ++a)
-      if (it.box.lo[a] != f.lo[a] || it.box.hi[a] != f.hi[a]) fail("stale stored box");
+    if (!detail::same_box(nodes_[n].items[index_.pos_of[slot]].box, bounds_f(s)))
+      fail("stale stored box");
     if (nodes_[n].key != key_of(bounds(s)))
       fail("object " + std::to_string(slot) + " is not at its smallest cell");
     if (n != 0 && !box(n).contains(bounds(s))) fail("object outside its cell");

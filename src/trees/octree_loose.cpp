@@ -16,10 +16,7 @@ LooseOctree::LooseOctree(const Config& c) : cube_(detail::Cube::around(c.world))
   nodes_.emplace_back();
   nodes_[0].loose = loose_box(0, 0, 0, 0);
   table_.insert(1, 0);
-  if (c.expected_objects != 0) {
-    node_of_.reserve(c.expected_objects);
-    pos_of_.reserve(c.expected_objects);
-  }
+  if (c.expected_objects != 0) index_.reserve(c.expected_objects);
 }
 
 Aabb LooseOctree::loose_box(int depth, std::uint32_t ix, std::uint32_t iy, std::uint32_t iz) const {
@@ -89,21 +86,6 @@ std::uint32_t LooseOctree::node_at(const Place& p) {
   return n;
 }
 
-void LooseOctree::attach(std::uint32_t node, std::uint32_t slot, const AabbF& box) {
-  std::vector<detail::OctItem>& items = nodes_[node].items;
-  node_of_[slot] = node;
-  pos_of_[slot] = static_cast<std::uint32_t>(items.size());
-  items.push_back({box, slot});
-}
-
-void LooseOctree::detach(std::uint32_t slot) {
-  std::vector<detail::OctItem>& items = nodes_[node_of_[slot]].items;
-  const std::uint32_t p = pos_of_[slot];
-  items[p] = items.back();
-  pos_of_[items[p].slot] = p;
-  items.pop_back();
-}
-
 void LooseOctree::prune(std::uint32_t node) {
   std::uint32_t n = node;
   while (n != 0 && nodes_[n].items.empty() && nodes_[n].children == 0) {
@@ -118,41 +100,37 @@ void LooseOctree::prune(std::uint32_t node) {
 
 Handle LooseOctree::insert(const Shape& s, std::uint64_t user, Motion) {
   const Handle h = store_.insert(s, user);
-  if (h.index >= node_of_.size()) {
-    node_of_.resize(h.index + 1);
-    pos_of_.resize(h.index + 1);
-  }
-  attach(node_at(place_of(s)), h.index, bounds_f(s));
+  index_.fit(h.index);
+  index_.attach(nodes_, node_at(place_of(s)), h.index, bounds_f(s));
   return h;
 }
 
 void LooseOctree::remove(Handle h) {
   const std::uint32_t slot = store_.erase(h);
-  const std::uint32_t n = node_of_[slot];
-  detach(slot);
+  const std::uint32_t n = index_.node_of[slot];
+  index_.detach(nodes_, slot);
   prune(n);
 }
 
 void LooseOctree::update(Handle h, const Shape& s) {
   const std::uint32_t slot = store_.set_shape(h, s);
-  const std::uint32_t n = node_of_[slot];
+  const std::uint32_t n = index_.node_of[slot];
   const Place p = place_of(s);
   const Node& old = nodes_[n];
   if (old.depth == p.depth && old.ix == p.ix && old.iy == p.iy && old.iz == p.iz) {
-    nodes_[n].items[pos_of_[slot]].box = bounds_f(s);
+    index_.item(nodes_, slot).box = bounds_f(s);
     return;
   }
-  detach(slot);
-  attach(node_at(p), slot, bounds_f(s));
+  index_.detach(nodes_, slot);
+  index_.attach(nodes_, node_at(p), slot, bounds_f(s));
   prune(n);
 }
 
 std::size_t LooseOctree::memory_bytes() const {
   std::size_t bytes = store_.memory_bytes() + nodes_.capacity() * sizeof(Node) +
                       free_.capacity() * sizeof(std::uint32_t) + table_.memory_bytes() +
-                      (node_of_.capacity() + pos_of_.capacity()) * sizeof(std::uint32_t);
-  for (const Node& n : nodes_) bytes += n.items.capacity() * sizeof(detail::OctItem);
-  return bytes;
+                      index_.memory_bytes();
+  return bytes + detail::items_bytes(nodes_);
 }
 
 void LooseOctree::validate() const {
@@ -162,15 +140,12 @@ void LooseOctree::validate() const {
   for (std::uint32_t slot = 0; slot < store_.slot_count(); ++slot) {
     if (!store_.slots().alive(slot)) continue;
     ++placed;
-    const std::uint32_t n = node_of_[slot];
-    if (n >= nodes_.size() || pos_of_[slot] >= nodes_[n].items.size() ||
-        nodes_[n].items[pos_of_[slot]].slot != slot)
+    if (!index_.consistent(nodes_, slot))
       fail("an object's node and position disagree with the node's items");
+    const std::uint32_t n = index_.node_of[slot];
     const Shape& s = store_.shape(slot);
-    const AabbF f = bounds_f(s);
-    const detail::OctItem& it = nodes_[n].items[pos_of_[slot]];
-    for (int a = 0; a < 3; ++a)
-      if (it.box.lo[a] != f.lo[a] || it.box.hi[a] != f.hi[a]) fail("stale stored box");
+    if (!detail::same_box(nodes_[n].items[index_.pos_of[slot]].box, bounds_f(s)))
+      fail("stale stored box");
     const Place p = place_of(s);
     const Node& node = nodes_[n];
     if (node.depth != p.depth || node.ix != p.ix || node.iy != p.iy || node.iz != p.iz)
