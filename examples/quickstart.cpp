@@ -1,6 +1,5 @@
 // The README's example: build a structure, add objects, find pairs, query.
 #include <broadphase/broadphase.hpp>
-
 #include <cstdio>
 
 int main() {

@@ -3,7 +3,6 @@
 #pragma once
 
 #include <broadphase/registry.hpp>
-
 #include <memory>
 
 namespace broadphase::detail {

@@ -1,6 +1,5 @@
-#include <broadphase/registry.hpp>
-
 #include <algorithm>
+#include <broadphase/registry.hpp>
 #include <charconv>
 #include <cmath>
 #include <sstream>
@@ -47,8 +46,9 @@ void OptionReader::finish() const {
     if (std::find(read_.begin(), read_.end(), key) == read_.end()) {
       std::string known;
       for (const std::string& k : read_) known += (known.empty() ? "" : ", ") + k;
-      throw UnknownStructure(structure_ + ": unknown option '" + key + "'" +
-                             (known.empty() ? " (it takes no options)" : " (known: " + known + ")"));
+      throw UnknownStructure(
+          structure_ + ": unknown option '" + key + "'" +
+          (known.empty() ? " (it takes no options)" : " (known: " + known + ")"));
     }
   }
 }

@@ -1,5 +1,4 @@
 #include <broadphase/replay.hpp>
-
 #include <chrono>
 
 namespace broadphase {

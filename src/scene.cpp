@@ -1,5 +1,4 @@
 #include <broadphase/scene.hpp>
-
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -84,13 +83,17 @@ Scene parse_scene(std::istream& in, const std::string& name) {
   if (!r.raw(header)) r.fail("empty file; expected 'broadphase-scene 1' or 'broadphase-scene 2'");
   if (!header.empty() && header.back() == '\r') header.pop_back();
   int version = 0;
-  if (header == "broadphase-scene 1") version = 1;
-  else if (header == "broadphase-scene 2") version = 2;
-  else r.fail("expected 'broadphase-scene 1' or 'broadphase-scene 2', got '" + header + "'");
+  if (header == "broadphase-scene 1")
+    version = 1;
+  else if (header == "broadphase-scene 2")
+    version = 2;
+  else
+    r.fail("expected 'broadphase-scene 1' or 'broadphase-scene 2', got '" + header + "'");
   Scene scene;
   auto expect_keyword = [&](const char* key) {
     if (!r.next(f)) r.fail(std::string("missing '") + key + " ...' line");
-    if (f[0] != key) r.fail(std::string("expected '") + key + " ...', got '" + std::string(f[0]) + "'");
+    if (f[0] != key)
+      r.fail(std::string("expected '") + key + " ...', got '" + std::string(f[0]) + "'");
     if (f.size() != 2) r.fail(std::string("'") + key + "' takes exactly one value");
   };
   expect_keyword("world");
@@ -111,9 +114,13 @@ Scene parse_scene(std::istream& in, const std::string& name) {
     std::size_t k = 0;
     ShapeKind kind = ShapeKind::sphere;
     if (version == 2) {
-      if (f[0] == "sphere") kind = ShapeKind::sphere;
-      else if (f[0] == "box") kind = ShapeKind::box;
-      else r.fail("expected 'sphere' or 'box' at the start of an object line, got '" + std::string(f[0]) + "'");
+      if (f[0] == "sphere")
+        kind = ShapeKind::sphere;
+      else if (f[0] == "box")
+        kind = ShapeKind::box;
+      else
+        r.fail("expected 'sphere' or 'box' at the start of an object line, got '" +
+               std::string(f[0]) + "'");
       k = 1;
     }
     const std::size_t want = kind == ShapeKind::sphere ? 7 : 9;
@@ -131,7 +138,8 @@ Scene parse_scene(std::istream& in, const std::string& name) {
       scene.velocity.push_back({v[4], v[5], v[6]});
     } else {
       for (int a = 3; a < 6; ++a)
-        if (v[a] < 0) r.fail(std::string(kBoxNames[a]) + " " + std::string(f[k + a]) + " is negative");
+        if (v[a] < 0)
+          r.fail(std::string(kBoxNames[a]) + " " + std::string(f[k + a]) + " is negative");
       scene.objects.push_back(Shape::box({v[0], v[1], v[2]}, {v[3], v[4], v[5]}));
       scene.velocity.push_back({v[6], v[7], v[8]});
     }
@@ -170,7 +178,8 @@ void write_scene(std::ostream& out, const Scene& scene) {
     if (s.kind == ShapeKind::sphere) {
       out << ' ', put(out, s.half.x);
     } else {
-      out << ' ', put(out, s.half.x), out << ' ', put(out, s.half.y), out << ' ', put(out, s.half.z);
+      out << ' ', put(out, s.half.x), out << ' ', put(out, s.half.y), out << ' ',
+          put(out, s.half.z);
     }
     const Vec3& v = scene.velocity[i];
     out << ' ', put(out, v.x), out << ' ', put(out, v.y), out << ' ', put(out, v.z);
@@ -215,17 +224,28 @@ Distribution parse_distribution(std::string_view name) {
 
 std::string_view to_string(Distribution d) {
   switch (d) {
-    case Distribution::even: return "even";
-    case Distribution::uneven: return "uneven";
-    case Distribution::scaled_even: return "scaled-even";
-    case Distribution::scaled_uneven: return "scaled-uneven";
-    case Distribution::clusters: return "clusters";
-    case Distribution::decades: return "decades";
-    case Distribution::all_moving: return "all-moving";
-    case Distribution::explosion: return "explosion";
-    case Distribution::flat: return "flat";
-    case Distribution::coincident: return "coincident";
-    case Distribution::outside: return "outside";
+    case Distribution::even:
+      return "even";
+    case Distribution::uneven:
+      return "uneven";
+    case Distribution::scaled_even:
+      return "scaled-even";
+    case Distribution::scaled_uneven:
+      return "scaled-uneven";
+    case Distribution::clusters:
+      return "clusters";
+    case Distribution::decades:
+      return "decades";
+    case Distribution::all_moving:
+      return "all-moving";
+    case Distribution::explosion:
+      return "explosion";
+    case Distribution::flat:
+      return "flat";
+    case Distribution::coincident:
+      return "coincident";
+    case Distribution::outside:
+      return "outside";
   }
   return "?";
 }
@@ -290,9 +310,8 @@ Scene generate_stress(Distribution d, std::size_t n, Rng& rng) {
   Scene s;
   s.world = 1000.0;
   const double L = s.world;
-  const std::size_t movers = d == Distribution::all_moving || d == Distribution::explosion
-                                 ? n
-                                 : (n * 2 + 5) / 10;
+  const std::size_t movers =
+      d == Distribution::all_moving || d == Distribution::explosion ? n : (n * 2 + 5) / 10;
   const std::vector<char> moving = choose(n, movers, rng);
   const std::size_t clusters = std::max<std::size_t>(1, n / 500);
   std::vector<Vec3> cluster_centre(clusters);
@@ -309,10 +328,13 @@ Scene generate_stress(Distribution d, std::size_t n, Rng& rng) {
     switch (d) {
       case Distribution::clusters: {
         const Vec3& k = cluster_centre[rng.below(clusters)];
-        c = {k.x + gaussian(rng) * L / 40, k.y + gaussian(rng) * L / 40, k.z + gaussian(rng) * L / 40};
+        c = {k.x + gaussian(rng) * L / 40, k.y + gaussian(rng) * L / 40,
+             k.z + gaussian(rng) * L / 40};
         break;
       }
-      case Distribution::decades: r = std::pow(10.0, rng.uniform(-3, 2)); break;
+      case Distribution::decades:
+        r = std::pow(10.0, rng.uniform(-3, 2));
+        break;
       case Distribution::explosion: {
         // Debris packed in a ball of radius L/10, flying outwards at up to
         // 20 units a frame in all directions: pairs change wholesale.
@@ -321,7 +343,9 @@ Scene generate_stress(Distribution d, std::size_t n, Rng& rng) {
         v = (dir * 0.7 + rng.direction() * 0.3) * rng.uniform(1.0, 20.0);
         break;
       }
-      case Distribution::flat: c.y = rng.uniform(0, 1); break;
+      case Distribution::flat:
+        c.y = rng.uniform(0, 1);
+        break;
       case Distribution::coincident:
         if (rng.uniform() < 0.25) c = shared_centre[rng.below(shared_centre.size())];
         break;
@@ -333,7 +357,8 @@ Scene generate_stress(Distribution d, std::size_t n, Rng& rng) {
           if (rng.uniform() < 0.002) r = rng.uniform(L, 2 * L);
         }
         break;
-      default: break;
+      default:
+        break;
     }
     s.objects.push_back(Shape::sphere(c, r));
     s.velocity.push_back(moving[i] ? v : Vec3{});
@@ -349,8 +374,10 @@ Scene generate(Distribution d, std::size_t n, std::uint64_t seed) {
     case Distribution::even:
     case Distribution::uneven:
     case Distribution::scaled_even:
-    case Distribution::scaled_uneven: return generate_study(d, n, rng);
-    default: return generate_stress(d, n, rng);
+    case Distribution::scaled_uneven:
+      return generate_study(d, n, rng);
+    default:
+      return generate_stress(d, n, rng);
   }
 }
 

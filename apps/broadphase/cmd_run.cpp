@@ -1,8 +1,7 @@
 // `list`, `run` and `gen`: the structures, the replay contract, and scenes.
+#include <algorithm>
 #include <broadphase/replay.hpp>
 #include <broadphase/scene.hpp>
-
-#include <algorithm>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -68,7 +67,8 @@ void run(const RunOptions& o) {
     frame_ms.push_back(r.seconds() * 1e3);
     total_ms += r.seconds() * 1e3;
     if (!o.json) {
-      out += std::to_string(f) + ' ' + std::to_string(r.digest.pairs) + ' ' + hex16(r.digest.hash) + '\n';
+      out += std::to_string(f) + ' ' + std::to_string(r.digest.pairs) + ' ' + hex16(r.digest.hash) +
+             '\n';
       if (out.size() > (1u << 16)) {
         std::fwrite(out.data(), 1, out.size(), stdout);
         out.clear();
@@ -97,7 +97,8 @@ void run(const RunOptions& o) {
 }  // namespace
 
 void add_run_command(CLI::App& app) {
-  auto* cmd = app.add_subcommand("run", "Replay a scene and print each frame's pair count and hash");
+  auto* cmd =
+      app.add_subcommand("run", "Replay a scene and print each frame's pair count and hash");
   auto o = std::make_shared<RunOptions>();
   cmd->add_option("--scene", o->scene, "Scene file (SCENE-FORMAT.md)")->required();
   cmd->add_option("--algo", o->algo, "Structure name, optionally with options: name:key=value,...")
@@ -117,8 +118,13 @@ void add_gen_command(CLI::App& app) {
     std::uint64_t seed = 1;
   };
   auto o = std::make_shared<GenOptions>();
-  cmd->add_option("--dist", o->dist, "even | uneven | scaled-even | scaled-uneven (the study); clusters | decades | all-moving | explosion | flat | coincident | outside (stress kinds)")->required();
-  cmd->add_option("--n", o->n, "Number of objects")->required()->check(CLI::Range(0ul, 100000000ul));
+  cmd->add_option("--dist", o->dist,
+                  "even | uneven | scaled-even | scaled-uneven (the study); clusters | decades | "
+                  "all-moving | explosion | flat | coincident | outside (stress kinds)")
+      ->required();
+  cmd->add_option("--n", o->n, "Number of objects")
+      ->required()
+      ->check(CLI::Range(0ul, 100000000ul));
   cmd->add_option("--seed", o->seed, "Random seed")->default_val(1);
   cmd->add_option("--out", o->out, "Output scene file")->required();
   cmd->callback([o] {

@@ -1,5 +1,5 @@
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 
 #include "lab.hpp"
@@ -10,8 +10,10 @@ namespace {
 std::string quoted(const std::string& s) {
   std::string out(1, '\'');
   for (char c : s) {
-    if (c == '\'') out.append("'\\''");
-    else out.push_back(c);
+    if (c == '\'')
+      out.append("'\\''");
+    else
+      out.push_back(c);
   }
   out.push_back('\'');
   return out;
@@ -38,7 +40,8 @@ std::string plot_python() {
 }
 
 bool run_plot_script(const std::string& script, const std::vector<std::string>& args) {
-  const std::filesystem::path path = std::filesystem::path(BROADPHASE_SOURCE_DIR) / "tools" / script;
+  const std::filesystem::path path =
+      std::filesystem::path(BROADPHASE_SOURCE_DIR) / "tools" / script;
   if (!std::filesystem::exists(path)) {
     std::fprintf(stderr, "broadphase: plots skipped: %s not found\n", path.c_str());
     return false;

@@ -11,7 +11,6 @@
 
 #include <broadphase/geometry.hpp>
 #include <broadphase/handle.hpp>
-
 #include <concepts>
 #include <cstddef>
 #include <cstdint>
@@ -104,13 +103,13 @@ template <class R, class... Args>
 class FunctionRef<R(Args...)> {
  public:
   template <class F>
-    requires(!std::is_same_v<std::remove_cvref_t<F>, FunctionRef> &&
-             std::is_invocable_r_v<R, F&, Args...>)
-  FunctionRef(F&& f)  // NOLINT(google-explicit-constructor): a reference wrapper
+  requires(!std::is_same_v<std::remove_cvref_t<F>, FunctionRef> &&
+           std::is_invocable_r_v<R, F&, Args...>)
+      FunctionRef(F&& f)  // NOLINT(google-explicit-constructor): a reference wrapper
       : obj_(const_cast<void*>(static_cast<const void*>(std::addressof(f)))),
         call_([](void* o, Args... a) -> R {
-          return static_cast<R>((*static_cast<std::remove_reference_t<F>*>(o))(
-              std::forward<Args>(a)...));
+          return static_cast<R>(
+              (*static_cast<std::remove_reference_t<F>*>(o))(std::forward<Args>(a)...));
         }) {}
   R operator()(Args... a) const { return call_(obj_, std::forward<Args>(a)...); }
 

@@ -181,7 +181,7 @@ class GridStatic {
     std::vector<AabbF> boxes;          // beside entries, fixed table only, sorted by low x
     std::vector<std::uint32_t> start;  // per bucket, plus the end
     std::vector<std::uint32_t> count;  // per bucket
-    bool dirty = false;  // entries are stale until the end of the current mutation
+    bool dirty = false;                // entries are stale until the end of the current mutation
   };
   enum Kind : std::uint8_t { kDead = 0, kFixed = 1, kDynamic = 2 };
 

@@ -10,7 +10,6 @@
 #pragma once
 
 #include <broadphase/geometry.hpp>
-
 #include <cstddef>
 #include <cstdint>
 #include <stdexcept>
@@ -95,9 +94,7 @@ class SlotMap {
   }
 
   /// True when slot `i` holds a live object.
-  bool alive(std::uint32_t i) const {
-    return i < generation_.size() && (generation_[i] & 1u) != 0;
-  }
+  bool alive(std::uint32_t i) const { return i < generation_.size() && (generation_[i] & 1u) != 0; }
   /// The live handle of slot `i` (which must be alive).
   Handle handle(std::uint32_t i) const { return {i, generation_[i]}; }
 
@@ -119,7 +116,8 @@ class SlotMap {
   void validate() const {
     std::size_t free_count = 0;
     for (std::uint32_t i = free_head_; i != Handle::kNullIndex; i = next_free_[i]) {
-      if (i >= generation_.size() || (generation_[i] & 1u) != 0 || ++free_count > generation_.size())
+      if (i >= generation_.size() || (generation_[i] & 1u) != 0 ||
+          ++free_count > generation_.size())
         throw std::logic_error("SlotMap: corrupt free list");
     }
     if (free_count + live_ != generation_.size())

@@ -5,7 +5,6 @@
 
 #include <broadphase/broad_phase.hpp>
 #include <broadphase/registry.hpp>
-
 #include <vector>
 
 namespace broadphase {
@@ -69,7 +68,8 @@ class Naive {
 
   std::size_t size() const { return store_.size(); }
   std::size_t memory_bytes() const {
-    return store_.memory_bytes() + (dense_.capacity() + slot_pos_.capacity()) * sizeof(std::uint32_t);
+    return store_.memory_bytes() +
+           (dense_.capacity() + slot_pos_.capacity()) * sizeof(std::uint32_t);
   }
   bool contains(Handle h) const { return store_.contains(h); }
   const Shape& shape(Handle h) const { return store_.shape_of(h); }

@@ -6,7 +6,6 @@
 #pragma once
 
 #include <broadphase/broad_phase.hpp>
-
 #include <functional>
 #include <initializer_list>
 #include <memory>

@@ -5,7 +5,6 @@
 
 #include <broadphase/broad_phase.hpp>
 #include <broadphase/scene.hpp>
-
 #include <cstdint>
 #include <vector>
 
@@ -14,7 +13,7 @@ namespace broadphase {
 /// What one frame found and cost.
 struct FrameResult {
   FrameDigest digest;
-  std::uint64_t tests = 0;  ///< narrow-phase tests performed
+  std::uint64_t tests = 0;    ///< narrow-phase tests performed
   double update_seconds = 0;  ///< the structure's update of the moved objects
   double pairs_seconds = 0;   ///< finding all pairs
   double seconds() const { return update_seconds + pairs_seconds; }

@@ -4,7 +4,6 @@
 #pragma once
 
 #include <broadphase/geometry.hpp>
-
 #include <cstdint>
 #include <iosfwd>
 #include <stdexcept>
@@ -106,10 +105,10 @@ enum class Distribution {
 
 /// Every distribution, in enum order.
 inline constexpr Distribution kAllDistributions[] = {
-    Distribution::even,       Distribution::uneven,    Distribution::scaled_even,
-    Distribution::scaled_uneven, Distribution::clusters, Distribution::decades,
-    Distribution::all_moving, Distribution::explosion, Distribution::flat,
-    Distribution::coincident, Distribution::outside};
+    Distribution::even,          Distribution::uneven,    Distribution::scaled_even,
+    Distribution::scaled_uneven, Distribution::clusters,  Distribution::decades,
+    Distribution::all_moving,    Distribution::explosion, Distribution::flat,
+    Distribution::coincident,    Distribution::outside};
 
 /// Parses a distribution name ("even", "scaled-even", "all-moving", ...).
 /// Throws std::invalid_argument listing the valid names.

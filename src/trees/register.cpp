@@ -1,10 +1,10 @@
 #include "../register.hpp"
 
+#include <broadphase/aabb_tree.hpp>
 #include <broadphase/kdtree.hpp>
 #include <broadphase/octree.hpp>
 #include <broadphase/octree_linear.hpp>
 #include <broadphase/octree_loose.hpp>
-#include <broadphase/aabb_tree.hpp>
 #include <broadphase/sap.hpp>
 #include <broadphase/sort_sweep.hpp>
 

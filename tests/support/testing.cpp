@@ -1,10 +1,10 @@
 #include "testing.hpp"
 
-#include <broadphase/naive.hpp>
-#include <broadphase/replay.hpp>
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <broadphase/naive.hpp>
+#include <broadphase/replay.hpp>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -68,12 +68,18 @@ FrameDigest brute_force(const std::vector<Shape>& objects) {
 
 const char* to_string(World w) {
   switch (w) {
-    case World::mixed: return "mixed";
-    case World::touching: return "touching";
-    case World::crowded: return "crowded";
-    case World::far: return "far";
-    case World::huge: return "huge";
-    case World::extreme: return "extreme";
+    case World::mixed:
+      return "mixed";
+    case World::touching:
+      return "touching";
+    case World::crowded:
+      return "crowded";
+    case World::far:
+      return "far";
+    case World::huge:
+      return "huge";
+    case World::extreme:
+      return "extreme";
   }
   return "?";
 }
@@ -112,7 +118,8 @@ class ShapeSource {
       }
       case World::huge: {
         const Vec3 c{rng_.uniform(-500, 1500), rng_.uniform(-500, 1500), rng_.uniform(-500, 1500)};
-        const double size = rng_.uniform() < 0.05 ? rng_.uniform(1000, 10000) : rng_.uniform(0.5, 50);
+        const double size =
+            rng_.uniform() < 0.05 ? rng_.uniform(1000, 10000) : rng_.uniform(0.5, 50);
         return shaped(c, size);
       }
       case World::extreme: {
@@ -196,7 +203,8 @@ std::string describe_difference(const std::vector<T>& got, const std::vector<T>&
 
 void differential(const std::string& spec, World world, std::uint64_t seed, int steps,
                   const Config& config) {
-  SCOPED_TRACE("structure=" + spec + " world=" + to_string(world) + " seed=" + std::to_string(seed));
+  SCOPED_TRACE("structure=" + spec + " world=" + to_string(world) +
+               " seed=" + std::to_string(seed));
   Rng rng(seed);
   ShapeSource source(world, rng);
   std::unique_ptr<AnyBroadPhase> bp;
@@ -211,7 +219,8 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
   const std::size_t target = world == World::crowded ? 1500 : 300;
 
   for (int step = 0; step < steps; ++step) {
-    const std::string where = " at step " + std::to_string(step) + " (seed " + std::to_string(seed) + ")";
+    const std::string where =
+        " at step " + std::to_string(step) + " (seed " + std::to_string(seed) + ")";
     const double u = rng.uniform();
     const double insert_p = live.size() < target ? 0.45 : 0.2;
     std::string op;
@@ -299,7 +308,8 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
         });
         std::sort(want.begin(), want.end());
         if (got != want) {
-          ADD_FAILURE() << "all pairs differ from naive: " << describe_difference(got, want) << where;
+          ADD_FAILURE() << "all pairs differ from naive: " << describe_difference(got, want)
+                        << where;
           return;
         }
       }

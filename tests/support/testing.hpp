@@ -5,7 +5,6 @@
 #include <broadphase/broad_phase.hpp>
 #include <broadphase/registry.hpp>
 #include <broadphase/scene.hpp>
-
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -34,12 +33,12 @@ FrameDigest brute_force(const std::vector<Shape>& objects);
 
 /// The kinds of random worlds the differential test draws from.
 enum class World {
-  mixed,       ///< spheres and boxes, sizes over decades, some outside the world
-  touching,    ///< exact touching and identical centres on a lattice
-  crowded,     ///< thousands of objects in one small cell
-  far,         ///< coordinates around 1e7 from the origin
-  huge,        ///< a few objects larger than the world
-  extreme,     ///< coordinates and sizes up to 1e300, where the predicate overflows
+  mixed,     ///< spheres and boxes, sizes over decades, some outside the world
+  touching,  ///< exact touching and identical centres on a lattice
+  crowded,   ///< thousands of objects in one small cell
+  far,       ///< coordinates around 1e7 from the origin
+  huge,      ///< a few objects larger than the world
+  extreme,   ///< coordinates and sizes up to 1e300, where the predicate overflows
 };
 const char* to_string(World w);
 
