@@ -7,6 +7,7 @@
 #include <broadphase/scene.hpp>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 namespace broadphase {
 namespace {
@@ -172,6 +173,45 @@ TEST(Geometry, RoundingOutwardsToFloat) {
   EXPECT_EQ(round_down(-1e300), -std::numeric_limits<float>::infinity());
   EXPECT_EQ(round_up(1e300), std::numeric_limits<float>::infinity());
   EXPECT_EQ(round_up(-1e300), -std::numeric_limits<float>::max());
+  EXPECT_EQ(round_down(1e300), std::numeric_limits<float>::max());
+  EXPECT_EQ(round_down(-1e-300), -std::numeric_limits<float>::denorm_min());
+  EXPECT_EQ(round_up(1e-300), std::numeric_limits<float>::denorm_min());
+}
+
+TEST(Geometry, NextFloatMatchesNextafter) {
+  // The bit-pattern steps must agree with std::nextafter everywhere,
+  // across signs, zeros, subnormals, the float range's ends and infinities.
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  std::vector<float> values = {0.0f,
+                               -0.0f,
+                               std::numeric_limits<float>::denorm_min(),
+                               -std::numeric_limits<float>::denorm_min(),
+                               std::numeric_limits<float>::min(),
+                               -std::numeric_limits<float>::min(),
+                               std::numeric_limits<float>::max(),
+                               -std::numeric_limits<float>::max(),
+                               1.0f,
+                               -1.0f};
+  Rng rng(99);
+  for (int i = 0; i < 20000; ++i) {
+    // Every binade of the finite floats, subnormals included.
+    const double mag = std::ldexp(rng.uniform(0.5, 1), static_cast<int>(rng.below(276)) - 148);
+    values.push_back(static_cast<float>(rng.below(2) ? mag : -mag));
+  }
+  for (float f : values) {
+    EXPECT_EQ(next_float_down(f), std::nextafter(f, -kInf)) << f;
+    EXPECT_EQ(next_float_up(f), std::nextafter(f, kInf)) << f;
+    const double x = static_cast<double>(f) * (1 + 0x1p-30);
+    EXPECT_LE(static_cast<double>(round_down(x)), x) << x;
+    EXPECT_GE(static_cast<double>(round_up(x)), x) << x;
+    // ... and the closest such floats: one step further is on the other side.
+    EXPECT_GT(static_cast<double>(next_float_up(round_down(x))), x) << x;
+    EXPECT_LT(static_cast<double>(next_float_down(round_up(x))), x) << x;
+  }
+  for (float f : {kInf, -kInf}) {
+    EXPECT_EQ(next_float_down(f), std::nextafter(f, -kInf)) << f;
+    EXPECT_EQ(next_float_up(f), std::nextafter(f, kInf)) << f;
+  }
 }
 
 }  // namespace

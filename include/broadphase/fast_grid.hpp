@@ -1,42 +1,49 @@
 /// \file fast_grid.hpp
-/// `fast-grid`: the performance-tuned structure. A hierarchy of row grids
-/// (cells in y and z, each row a list sorted along x) rebuilt in bulk, with
-/// fixed and moving objects kept apart and the pairs among fixed objects
-/// cached, so that a frame of the study retests only what moved.
+/// `fast-grid`: the performance-tuned structure. A hierarchy of cell grids
+/// rebuilt in bulk by counting sort, with fixed and moving objects kept
+/// apart and the pairs among fixed objects cached, so that a frame of the
+/// study retests only what moved.
 ///
 /// Layout. Objects live in slot-indexed arrays (shape, user data,
 /// generation, where the object is). Each of the two grids (fixed objects,
-/// moving objects) is a flat array of 28-byte entries (float bounds rounded
-/// outwards plus the slot) sorted by (level, row, lower x), with one row
-/// index array per level. An object goes into exactly one row of one level:
-/// the level whose reach (4^k times a base) covers its widest extent, the
-/// row of its lower corner. A query box visits on each level the rows whose
-/// lower corner could still reach it and, inside a row, the x range
-/// [q.lo.x - reach, q.hi.x] found by binary search, so every object is met
-/// at most once and every pair is reported once by construction.
+/// moving objects) is a flat array of 32-byte entries (float bounds rounded
+/// outwards, slot and generation) in cell order, with one cell index per
+/// level and a copy of each entry's shape in the same order. An object goes
+/// into exactly one cell of one level: the level whose reach (halved per
+/// level from the largest extent) covers its widest extent, the cell of its
+/// lower corner. Cells along x are contiguous, so a query box visits on each
+/// level one contiguous run of entries per (y, z) row of cells, without any
+/// search; every object is met at most once and every pair is reported once
+/// by construction.
 ///
-/// Mutations. A bulk `update(span)` rebuilds the moving grid in one sort
-/// (and the fixed grid with its pair cache when the fixed set changed).
+/// Mutations. A bulk `update(span)` rebuilds the moving grid (one counting
+/// sort) and, when the fixed set changed, the fixed grid and its pair cache.
 /// A single insert or update puts the object on a short unsorted "loose"
 /// list that every query and frame scans; a removal takes the object out at
-/// once (loose objects leave their list, grid objects are masked and their
-/// slot is held back until the next rebuild so that no stale grid entry can
-/// name a new object). When the loose and held-back objects exceed
-/// max(64, size/8), the mutation that crossed the line rebuilds: amortised
+/// once (loose objects leave their list, grid entries get NaN bounds, which
+/// no test passes, and their slot is held back until the next rebuild so
+/// that no stale grid entry can name a new object). When the loose and
+/// held-back objects exceed max(64, size/8), the mutation that crossed the
+/// line rebuilds the grids (not the pair cache, which the next bulk update
+/// builds; until then pair finding scans the fixed grid): amortised
 /// O(log n) per insert, and no work is ever left for the next query.
 ///
-/// Threads. `find_pairs` splits the moving objects over `threads` threads
-/// (option `threads=N`, default 1, 0 = hardware concurrency); each writes
-/// its own buffer and the buffers are joined in order, so the pair order
-/// and hash never depend on the thread count.
+/// Threads. `find_pairs` and the bulk update split the moving objects over
+/// `threads` threads (option `threads=N`, default 1, 0 = hardware
+/// concurrency) of a pool kept by the structure; each share writes its own
+/// buffers and the buffers are joined in order, so the pair order and hash
+/// never depend on the thread count.
 #pragma once
 
 #include <algorithm>
 #include <broadphase/broad_phase.hpp>
 #include <broadphase/registry.hpp>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <limits>
+#include <memory>
 #include <mutex>
 #include <span>
 #include <utility>
@@ -44,18 +51,23 @@
 
 namespace broadphase {
 
-/// Hierarchical row grid with a fixed/moving split and cached fixed pairs.
+namespace detail {
+class WorkerPool;
+}
+
+/// Hierarchical cell grid with a fixed/moving split and cached fixed pairs.
 /// insert, remove, update: amortised O(log n) (O(1) unless a rebuild is
-/// due); bulk update of m objects: O(m log m) plus a rebuild of the fixed
-/// grid, O(f log f + pairs), only when the fixed set changed. Handles stay
-/// valid until their object is removed. Const members may run concurrently;
-/// mutations need exclusive access.
+/// due); bulk update of m objects: O(m) plus a rebuild of the fixed grid,
+/// O(f + pairs), only when the fixed set changed. Handles stay valid until
+/// their object is removed. Const members may run concurrently; mutations
+/// need exclusive access.
 class FastGrid {
  public:
   /// Options: `threads=N` (0..64; 0 = hardware concurrency; default 1);
-  /// `cell=F` (1..64, default 2): a row's cell in y and z over its level's
-  /// reach (larger: fewer row probes, more candidates per row).
+  /// `cell=F` (0.5..64, default 1): a cell's side over its level's reach
+  /// (larger: fewer cells to visit, more entries per cell).
   explicit FastGrid(const Config& c = {});
+  ~FastGrid();
 
   /// Adds an object (to the loose list). Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion m = Motion::dynamic);
@@ -84,11 +96,12 @@ class FastGrid {
   std::size_t memory_bytes() const;
   /// True when `h` names a live object of this structure. O(1).
   bool contains(Handle h) const {
-    return h.index < gen_.size() && gen_[h.index] == h.generation && (h.generation & 1u) != 0;
+    return h.index < slots_.size() && slots_[h.index].gen == h.generation &&
+           (h.generation & 1u) != 0;
   }
   /// The object's shape. Throws InvalidHandle. The reference lives until
   /// the next mutation.
-  const Shape& shape(Handle h) const { return shapes_[index_of(h)]; }
+  const Shape& shape(Handle h) const { return shape_of(index_of(h)); }
   /// The user data given at insertion. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return user_[index_of(h)]; }
   /// The number of threads find_pairs uses.
@@ -100,92 +113,148 @@ class FastGrid {
   /// Where a slot's object is: which list or grid holds its live entry.
   enum class Home : std::uint8_t { free, held, fixed_grid, moving_grid, loose };
 
-  /// One object in a grid: its float bounds and its slot.
+  /// One object in a grid: its float bounds, slot and generation. A dead
+  /// entry (its object left the grid) has NaN bounds: no comparison passes.
   struct Entry {
     float lo[3];
     float hi[3];
     std::uint32_t slot;
+    std::uint32_t gen;
+    bool dead() const { return lo[0] != lo[0]; }
+    Handle handle() const { return {slot, gen}; }
+    bool overlaps(const AabbF& q) const {
+      return lo[0] <= q.hi[0] && hi[0] >= q.lo[0] && lo[1] <= q.hi[1] && hi[1] >= q.lo[1] &&
+             lo[2] <= q.hi[2] && hi[2] >= q.lo[2];
+    }
+    AabbF box() const { return {{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}}; }
   };
-  static_assert(sizeof(Entry) == 28, "grid entries are packed for the row scans");
+  static_assert(sizeof(Entry) == 32, "grid entries are packed for the cell scans");
 
   /// One level of a grid: objects whose widest extent is at most
-  /// 0.98 * reach, in ny * nz rows of `cell` (>= reach) in y and z.
+  /// 0.98 * reach, in n[0] * n[1] * n[2] cells (side >= reach).
   struct Level {
     double reach = 0;
-    double inv_cell = 0;
-    double origin_y = 0, origin_z = 0;
-    std::uint32_t ny = 1, nz = 1;
-    std::uint32_t first_row = 0;
+    double inv_cell = 0;  // 0: a single cell (infinite reach)
+    double origin[3] = {0, 0, 0};
+    std::uint32_t n[3] = {1, 1, 1};
+    std::uint32_t first_cell = 0;
 
-    std::uint32_t cell(double v, double origin, std::uint32_t n) const {
-      const double t = (v - origin) * inv_cell;
+    std::uint32_t cell(double v, int a) const {
+      const double t = (v - origin[a]) * inv_cell;
       if (!(t >= 0)) return 0;  // also NaN from an infinite reach
-      if (t >= static_cast<double>(n - 1)) return n - 1;
+      if (t >= static_cast<double>(n[a] - 1)) return n[a] - 1;
       return static_cast<std::uint32_t>(t);
+    }
+    std::uint32_t cells() const { return n[0] * n[1] * n[2]; }
+    /// The cell of a lower corner.
+    std::uint32_t cell_of(const float lo[3]) const {
+      return first_cell + (cell(lo[1], 1) * n[2] + cell(lo[2], 2)) * n[0] + cell(lo[0], 0);
     }
   };
 
   struct Grid {
     std::vector<Level> levels;
-    std::vector<std::uint32_t> row_start{0};  // per row, into entries; one extra at the end
+    std::vector<std::uint32_t> cell_start{0};  // per cell, into entries; one extra at the end
     std::vector<Entry> entries;
-    std::vector<std::uint32_t> entry_row;  // per entry, its row (for split ranges)
     // Per entry, a copy of its object's shape: the exact tests of a scan
     // read this array in the grid's spatial order instead of the slot array
     // in insertion order (a cache miss per test on large scenes).
     std::vector<Shape> shapes;
 
-    /// The shape copy of an entry met by scan().
-    const Shape& shape_of(const Entry& e) const {
-      return shapes[static_cast<std::size_t>(&e - entries.data())];
+    std::size_t level_end(std::size_t l) const {
+      return cell_start[levels[l].first_cell + levels[l].cells()];
     }
-
-    /// Calls f(entry) for every entry whose float box overlaps `q`, on
-    /// levels from `first_level` (on that level only entries whose lower x
-    /// is at least `first_min_x`); stops when f returns false.
+    /// Calls f(entry index) for every entry whose float box overlaps `q`, on
+    /// levels from `first_level` (on that level only in cells from the one
+    /// of `first_min_x` along x); stops when f returns false.
     template <class F>
     bool scan(const AabbF& q, std::size_t first_level, double first_min_x, F&& f) const;
     std::size_t memory_bytes() const {
-      return levels.capacity() * sizeof(Level) + row_start.capacity() * 4 +
-             entries.capacity() * sizeof(Entry) + entry_row.capacity() * 4 +
-             shapes.capacity() * sizeof(Shape);
+      return levels.capacity() * sizeof(Level) + cell_start.capacity() * 4 +
+             entries.capacity() * sizeof(Entry) + shapes.capacity() * sizeof(Shape);
     }
   };
 
-  // A row probe (index lookup and binary search) costs about as much as
-  // testing this many entries.
-  static constexpr std::uint64_t kProbeCost = 8;
+  /// Per moving-grid entry (in the same order): where its candidate list
+  /// of fixed objects is in the pool, the box the list covers and its last
+  /// displacement.
+  struct Mover {
+    AabbF fat;
+    std::uint32_t list_begin = 0, list_count = 0;
+    std::uint32_t epoch = 0;  // fixed-grid epoch of the list; 0: none
+    float speed = 0;
+  };
+
+  /// One fixed object in a candidate list: a copy of its sphere (so that a
+  /// frame reads lists front to back, never the fixed grid) and its handle.
+  /// A box has a NaN radius and is tested from the grid's shape copy.
+  struct Candidate {
+    double c[3];
+    double r;
+    Handle handle;
+  };
+  static_assert(sizeof(Candidate) == 40, "candidates are packed for the list scans");
+
+  // A cell probe (two index loads) costs about as much as testing this many
+  // entries.
+  static constexpr std::uint64_t kProbeCost = 2;
   static constexpr double kNoMinX = -std::numeric_limits<double>::infinity();
+  static constexpr std::uint32_t kFromLoose = 0x80000000u;
 
   std::uint32_t index_of(Handle h) const {
     if (!contains(h)) throw InvalidHandle(h);
     return h.index;
   }
-  Handle handle_of(std::uint32_t s) const { return {s, gen_[s]}; }
+  Handle handle_of(std::uint32_t s) const { return {s, slots_[s].gen}; }
+  /// The shape of a live object: each is held once, by its grid or list.
+  const Shape& shape_of(std::uint32_t s) const {
+    switch (slots_[s].home) {
+      case Home::fixed_grid:
+        return fixed_.shapes[slots_[s].pos];
+      case Home::moving_grid:
+        return moving_.shapes[slots_[s].pos];
+      default:
+        return loose_shapes_[slots_[s].pos];
+    }
+  }
   std::uint32_t allocate_slot();
   void free_slot(std::uint32_t s);
-  void add_loose(std::uint32_t s);
+  void add_loose(std::uint32_t s, const Shape& shape);
   void drop_loose(std::uint32_t s);
   void leave_grid(std::uint32_t s);
   void maybe_rebuild();
   void rebuild(bool fixed_too);
   void build_candidate_lists();
-  void build_lists(std::size_t begin, std::size_t end, std::vector<std::uint32_t>& pool);
-  void build_grid(Grid& g, std::vector<Entry>& items) const;
-  static bool entry_before(const Entry& x, const Entry& y);
-  static void sort_row(Entry* b, Entry* e);
+  void build_lists(std::size_t begin, std::size_t end, std::vector<Candidate>& part,
+                   std::vector<std::uint32_t>& renewed);
+  /// Fills `g` from `items` (entries) whose shapes are named by `src`
+  /// (an index into `old_shapes`, or kFromLoose | index into loose_shapes_).
+  void build_grid(Grid& g, std::vector<Entry>& items, const std::vector<std::uint32_t>& src,
+                  std::vector<Shape>& old_shapes);
   void build_fixed_cache();
+  /// Runs job(k) for k in [0, shares), share 0 on the calling thread.
+  void run_shares(unsigned shares, const std::function<void(unsigned)>& job) const;
+  unsigned shares_for(std::size_t entries) const;
 
-  /// Pairs of moving-grid entries [begin, end) with the fixed grid and with
-  /// later moving entries. emit(slot, slot) returns false to stop.
-  template <class E>
-  bool moving_pairs(std::size_t begin, std::size_t end, E& emit, std::uint64_t& tests) const;
+  /// Exact test of two shapes, with the sphere–sphere case inline.
+  static bool exact(const Shape& a, const Shape& b) {
+    if (a.kind == ShapeKind::sphere && b.kind == ShapeKind::sphere)
+      return spheres_overlap(a.center, a.half.x, b.center, b.half.x);
+    return overlaps(a, b);
+  }
+
+  /// Pairs of moving-grid entries [begin, end) with their candidate lists
+  /// of fixed entries. emit(handle, handle) returns false to stop.
   template <class E>
   bool list_pairs(std::size_t begin, std::size_t end, E& emit, std::uint64_t& tests) const;
-  /// Pairs among entries of one grid (each pair once), for the fixed cache.
+  /// Pairs among entries [begin, end) of one grid and later ones (each
+  /// pair once).
   template <class E>
-  bool grid_pairs(const Grid& g, Home home, std::size_t begin, std::size_t end, E& emit,
+  bool grid_pairs(const Grid& g, std::size_t begin, std::size_t end, E& emit,
                   std::uint64_t& tests) const;
+  /// The fixed pairs: the cache when it is built, else a scan of the grid.
+  template <class E>
+  bool fixed_pairs(E& emit, std::uint64_t& tests) const;
   /// Pairs of loose objects with both grids and with later loose objects.
   template <class E>
   bool loose_pairs(E& emit, std::uint64_t& tests) const;
@@ -194,21 +263,26 @@ class FastGrid {
 
   Aabb world_;
   unsigned threads_ = 1;
-  double cell_factor_ = 2;  // row cell size over reach
+  double cell_factor_ = 1;  // cell side over reach
 
-  std::vector<Shape> shapes_;
   std::vector<std::uint64_t> user_;  // for a free slot: the next free slot
-  std::vector<std::uint32_t> gen_;   // odd while alive
-  std::vector<Home> home_;
-  std::vector<Motion> motion_;
-  std::vector<std::uint32_t> loose_pos_;  // for a loose object: its index in loose_
+  /// What a handle leads to, in one record (a lookup is one cache line).
+  struct Slot {
+    std::uint32_t gen = 0;  // odd while alive
+    std::uint32_t pos = 0;  // a loose object's index in loose_, a grid object's entry
+    Home home = Home::free;
+    Motion motion = Motion::dynamic;
+  };
+  std::vector<Slot> slots_;
   std::uint32_t free_head_ = Handle::kNullIndex;
   std::size_t live_ = 0;
 
   std::vector<std::uint32_t> loose_;  // loose slots
   std::vector<AabbF> loose_bounds_;   // parallel to loose_
+  std::vector<Shape> loose_shapes_;   // parallel to loose_
   std::vector<std::uint32_t> held_;   // removed grid objects whose slots wait for a rebuild
   bool fixed_dirty_ = false;          // the fixed set changed since the fixed grid was built
+  bool cache_built_ = true;           // fixed_pairs_ holds the pairs of the fixed grid
   std::size_t fixed_count_ = 0;       // objects of the fixed grid still in it
   std::size_t moving_count_ = 0;      // objects of the moving grid still in it
 
@@ -218,7 +292,13 @@ class FastGrid {
   // reports: while no fixed object has left the grid since the cache was
   // built, a frame appends the whole cache as one block copy.
   std::vector<HandlePair> fixed_pairs_;
-  std::vector<Entry> scratch_items_;  // rebuild input, kept to avoid reallocation
+  // Rebuild scratch, kept to avoid reallocation: the moving grid's input,
+  // where each item came from, the previous shapes and mover states.
+  std::vector<Entry> scratch_items_;
+  std::vector<std::uint32_t> scratch_src_;
+  std::vector<Shape> scratch_shapes_;
+  std::vector<Mover> scratch_movers_;
+  std::vector<std::uint32_t> scratch_tag_;  // per item: its level, then its cell
 
   // Candidate lists of moving objects against the fixed grid. A list holds
   // the fixed entries whose bounds overlap a "fat" box (the object's bounds
@@ -227,19 +307,19 @@ class FastGrid {
   // list instead of probing the fixed grid every frame. Lists live in one
   // pool in moving-grid order, rebuilt (mostly copied) by every rebuild,
   // and are all dropped when the fixed grid is rebuilt.
-  std::vector<std::uint32_t> list_pool_;                // fixed entry indices
-  std::vector<std::uint32_t> list_pool_next_;           // the pool being built
-  std::vector<std::vector<std::uint32_t>> list_parts_;  // per thread, its share of the new pool
-  std::vector<std::uint32_t> list_begin_;               // per slot, into list_pool_
-  std::vector<std::uint32_t> list_count_;               // per slot
-  std::vector<std::uint32_t> list_epoch_;               // per slot: fixed-grid epoch of its list
-  std::vector<AabbF> fat_;                              // per slot: the box its list covers
-  std::vector<float> speed_;  // per slot: bounds displacement of the last move
-  std::uint32_t epoch_ = 1;   // bumped at every fixed-grid rebuild
+  // A list that stays valid stays where it is; a renewed list is appended
+  // and the pool is compacted (lists copied in mover order) once it holds
+  // more than twice the live lists.
+  std::vector<Mover> movers_;                        // parallel to moving_.entries
+  std::vector<Candidate> list_pool_;                 // the lists
+  std::vector<std::vector<Candidate>> list_parts_;   // per share, its renewed lists
+  std::vector<std::vector<std::uint32_t>> renewed_;  // per share, the movers it renewed
+  std::uint32_t epoch_ = 1;                          // bumped at every fixed-grid rebuild
 
-  /// Per-thread pair buffers of find_pairs, reused between frames.
+  /// Per-share pair buffers of find_pairs, reused between frames.
   mutable std::mutex buffers_mutex_;
   mutable std::vector<std::vector<HandlePair>> buffers_;
+  std::unique_ptr<detail::WorkerPool> pool_;
 };
 
 // ---------------------------------------------------------------------------
@@ -251,39 +331,28 @@ bool FastGrid::Grid::scan(const AabbF& q, std::size_t first_level, double first_
     const Level& lv = levels[l];
     double lo_x = static_cast<double>(q.lo[0]) - lv.reach;
     if (l == first_level) lo_x = std::max(lo_x, first_min_x);
-    const std::uint32_t y0 = lv.cell(static_cast<double>(q.lo[1]) - lv.reach, lv.origin_y, lv.ny);
-    const std::uint32_t y1 = lv.cell(q.hi[1], lv.origin_y, lv.ny);
-    const std::uint32_t z0 = lv.cell(static_cast<double>(q.lo[2]) - lv.reach, lv.origin_z, lv.nz);
-    const std::uint32_t z1 = lv.cell(q.hi[2], lv.origin_z, lv.nz);
-    const std::uint32_t level_begin = row_start[lv.first_row];
-    const std::uint32_t level_end = row_start[lv.first_row + lv.ny * lv.nz];
+    const std::uint32_t x0 = lv.cell(lo_x, 0);
+    const std::uint32_t x1 = lv.cell(q.hi[0], 0);
+    const std::uint32_t y0 = lv.cell(static_cast<double>(q.lo[1]) - lv.reach, 1);
+    const std::uint32_t y1 = lv.cell(q.hi[1], 1);
+    const std::uint32_t z0 = lv.cell(static_cast<double>(q.lo[2]) - lv.reach, 2);
+    const std::uint32_t z1 = lv.cell(q.hi[2], 2);
+    const std::uint32_t level_begin = cell_start[lv.first_cell];
+    const std::uint32_t level_end = cell_start[lv.first_cell + lv.cells()];
     if (static_cast<std::uint64_t>(y1 - y0 + 1) * (z1 - z0 + 1) * kProbeCost >
         level_end - level_begin) {
-      // A query far larger than the level's cells: probing its rows would
+      // A query far larger than the level's cells: visiting its rows would
       // cost more than testing every entry of the level.
-      for (std::uint32_t k = level_begin; k < level_end; ++k) {
-        const Entry& en = entries[k];
-        if (en.lo[0] <= q.hi[0] && static_cast<double>(en.lo[0]) >= lo_x && en.hi[0] >= q.lo[0] &&
-            en.lo[1] <= q.hi[1] && en.hi[1] >= q.lo[1] && en.lo[2] <= q.hi[2] &&
-            en.hi[2] >= q.lo[2] && !f(en))
-          return false;
-      }
+      for (std::uint32_t k = level_begin; k < level_end; ++k)
+        if (entries[k].overlaps(q) && !f(k)) return false;
       continue;
     }
     for (std::uint32_t y = y0; y <= y1; ++y) {
-      const std::uint32_t base = lv.first_row + y * lv.nz;
       for (std::uint32_t z = z0; z <= z1; ++z) {
-        const Entry* b = entries.data() + row_start[base + z];
-        const Entry* e = entries.data() + row_start[base + z + 1];
-        if (b == e) continue;
-        const Entry* it = std::partition_point(
-            b, e, [lo_x](const Entry& en) { return static_cast<double>(en.lo[0]) < lo_x; });
-        for (; it != e && it->lo[0] <= q.hi[0]; ++it) {
-          if (it->hi[0] >= q.lo[0] && it->lo[1] <= q.hi[1] && it->hi[1] >= q.lo[1] &&
-              it->lo[2] <= q.hi[2] && it->hi[2] >= q.lo[2]) {
-            if (!f(*it)) return false;
-          }
-        }
+        const std::uint32_t base = lv.first_cell + (y * lv.n[2] + z) * lv.n[0];
+        const std::uint32_t e = cell_start[base + x1 + 1];
+        for (std::uint32_t k = cell_start[base + x0]; k < e; ++k)
+          if (entries[k].overlaps(q) && !f(k)) return false;
       }
     }
   }
@@ -294,29 +363,25 @@ template <class V>
 QueryCost FastGrid::query(const Shape& q, V&& visitor) const {
   QueryCost cost;
   const AabbF b = bounds_f(q);
-  auto test = [&](std::uint32_t s, const Shape& shape) {
+  auto test = [&](Handle h, const Shape& shape) {
     ++cost.tests;
-    if (overlaps(q, shape) && !visit(visitor, handle_of(s))) {
+    if (overlaps(q, shape) && !visit(visitor, h)) {
       cost.stopped = true;
       return false;
     }
     return true;
   };
-  if (!fixed_.scan(b, 0, kNoMinX, [&](const Entry& e) {
-        return home_[e.slot] != Home::fixed_grid || test(e.slot, fixed_.shape_of(e));
-      }))
-    return cost;
-  if (!moving_.scan(b, 0, kNoMinX, [&](const Entry& e) {
-        return home_[e.slot] != Home::moving_grid || test(e.slot, moving_.shape_of(e));
-      }))
-    return cost;
+  for (const Grid* g : {&fixed_, &moving_})
+    if (!g->scan(b, 0, kNoMinX,
+                 [&](std::uint32_t k) { return test(g->entries[k].handle(), g->shapes[k]); }))
+      return cost;
   for (std::size_t i = 0; i < loose_.size(); ++i)
-    if (loose_bounds_[i].overlaps(b) && !test(loose_[i], shapes_[loose_[i]])) return cost;
+    if (loose_bounds_[i].overlaps(b) && !test(handle_of(loose_[i]), loose_shapes_[i])) return cost;
   return cost;
 }
 
 template <class E>
-bool FastGrid::grid_pairs(const Grid& g, Home home, std::size_t begin, std::size_t end, E& emit,
+bool FastGrid::grid_pairs(const Grid& g, std::size_t begin, std::size_t end, E& emit,
                           std::uint64_t& tests) const {
   // Each pair is reported by the entry that comes first in the order
   // (level, lower x, entry index): entries on higher levels are scanned in
@@ -324,22 +389,16 @@ bool FastGrid::grid_pairs(const Grid& g, Home home, std::size_t begin, std::size
   std::size_t level = 0;
   for (std::size_t i = begin; i < end; ++i) {
     const Entry& me = g.entries[i];
-    if (home_[me.slot] != home) continue;
-    const std::uint32_t row = g.entry_row[i];
-    while (level + 1 < g.levels.size() && g.levels[level + 1].first_row <= row) ++level;
+    while (level + 1 < g.levels.size() && i >= g.level_end(level)) ++level;
+    if (me.dead()) continue;
     const Shape& sm = g.shapes[i];
-    const AabbF q{{me.lo[0], me.lo[1], me.lo[2]}, {me.hi[0], me.hi[1], me.hi[2]}};
-    auto test = [&](const Entry& o) {
-      if (home_[o.slot] != home) return true;
+    const std::size_t level_end = g.level_end(level);
+    const float me_x = me.lo[0];
+    const bool go = g.scan(me.box(), level, me_x, [&](std::uint32_t j) {
+      const Entry& o = g.entries[j];
+      if (j < level_end && (o.lo[0] < me_x || (o.lo[0] == me_x && j <= i))) return true;
       ++tests;
-      return !overlaps(sm, g.shape_of(o)) || emit(me.slot, o.slot);
-    };
-    const std::size_t level_end =
-        level + 1 < g.levels.size() ? g.row_start[g.levels[level + 1].first_row] : g.entries.size();
-    const bool go = g.scan(q, level, me.lo[0], [&](const Entry& o) {
-      const std::size_t j = static_cast<std::size_t>(&o - g.entries.data());
-      if (j < level_end && (o.lo[0] < me.lo[0] || (o.lo[0] == me.lo[0] && j <= i))) return true;
-      return test(o);
+      return !exact(sm, g.shapes[j]) || emit(me.handle(), o.handle());
     });
     if (!go) return false;
   }
@@ -347,30 +406,47 @@ bool FastGrid::grid_pairs(const Grid& g, Home home, std::size_t begin, std::size
 }
 
 template <class E>
-bool FastGrid::moving_pairs(std::size_t begin, std::size_t end, E& emit,
-                            std::uint64_t& tests) const {
-  return list_pairs(begin, end, emit, tests) &&
-         grid_pairs(moving_, Home::moving_grid, begin, end, emit, tests);
+bool FastGrid::list_pairs(std::size_t begin, std::size_t end, E& emit, std::uint64_t& tests) const {
+  // While no fixed object has left the grid since it was built, every
+  // candidate is live and the lists are read alone.
+  const bool all_live = fixed_count_ == fixed_.entries.size();
+  for (std::size_t i = begin; i < end; ++i) {
+    const Entry& me = moving_.entries[i];
+    if (me.dead()) continue;
+    const Shape& sm = moving_.shapes[i];
+    const Candidate* c = list_pool_.data() + movers_[i].list_begin;
+    const Candidate* c_end = c + movers_[i].list_count;
+    tests += static_cast<std::uint64_t>(c_end - c);
+    if (all_live && sm.kind == ShapeKind::sphere) {
+      const Vec3 p = sm.center;
+      const double r = sm.half.x;
+      for (; c != c_end; ++c) {
+        bool hit;
+        if (c->r == c->r)
+          hit = spheres_overlap(p, r, {c->c[0], c->c[1], c->c[2]}, c->r);
+        else
+          hit = overlaps(sm, fixed_.shapes[slots_[c->handle.index].pos]);
+        if (hit && !emit(me.handle(), c->handle)) return false;
+      }
+      continue;
+    }
+    for (; c != c_end; ++c) {
+      // A fixed object that left has another home (its slot is held back).
+      if (slots_[c->handle.index].home != Home::fixed_grid) continue;
+      if (exact(sm, fixed_.shapes[slots_[c->handle.index].pos]) && !emit(me.handle(), c->handle))
+        return false;
+    }
+  }
+  return true;
 }
 
 template <class E>
-bool FastGrid::list_pairs(std::size_t begin, std::size_t end, E& emit, std::uint64_t& tests) const {
-  for (std::size_t i = begin; i < end; ++i) {
-    const Entry& me = moving_.entries[i];
-    if (home_[me.slot] != Home::moving_grid) continue;
-    const Shape& sm = moving_.shapes[i];
-    const std::uint32_t* c = list_pool_.data() + list_begin_[me.slot];
-    const std::uint32_t* c_end = c + list_count_[me.slot];
-    for (; c != c_end; ++c) {
-      const Entry& o = fixed_.entries[*c];
-      if (o.lo[0] <= me.hi[0] && o.hi[0] >= me.lo[0] && o.lo[1] <= me.hi[1] &&
-          o.hi[1] >= me.lo[1] && o.lo[2] <= me.hi[2] && o.hi[2] >= me.lo[2] &&
-          home_[o.slot] == Home::fixed_grid) {
-        ++tests;
-        if (overlaps(sm, fixed_.shapes[*c]) && !emit(me.slot, o.slot)) return false;
-      }
-    }
-  }
+bool FastGrid::fixed_pairs(E& emit, std::uint64_t& tests) const {
+  if (!cache_built_) return grid_pairs(fixed_, 0, fixed_.entries.size(), emit, tests);
+  for (const HandlePair& p : fixed_pairs_)
+    if (slots_[p.a.index].home == Home::fixed_grid && slots_[p.b.index].home == Home::fixed_grid &&
+        !emit(p.a, p.b))
+      return false;
   return true;
 }
 
@@ -378,21 +454,19 @@ template <class E>
 bool FastGrid::loose_pairs(E& emit, std::uint64_t& tests) const {
   for (std::size_t i = 0; i < loose_.size(); ++i) {
     const std::uint32_t s = loose_[i];
-    const Shape& sh = shapes_[s];
+    const Shape& sh = loose_shapes_[i];
     const AabbF& q = loose_bounds_[i];
-    auto test_in = [&](const Grid& g, Home home) {
-      return [&, home](const Entry& o) {
-        if (home_[o.slot] != home) return true;
-        ++tests;
-        return !overlaps(sh, g.shape_of(o)) || emit(s, o.slot);
-      };
-    };
-    if (!fixed_.scan(q, 0, kNoMinX, test_in(fixed_, Home::fixed_grid))) return false;
-    if (!moving_.scan(q, 0, kNoMinX, test_in(moving_, Home::moving_grid))) return false;
+    for (const Grid* g : {&fixed_, &moving_}) {
+      if (!g->scan(q, 0, kNoMinX, [&](std::uint32_t k) {
+            ++tests;
+            return !overlaps(sh, g->shapes[k]) || emit(handle_of(s), g->entries[k].handle());
+          }))
+        return false;
+    }
     for (std::size_t j = i + 1; j < loose_.size(); ++j) {
       if (!loose_bounds_[j].overlaps(q)) continue;
       ++tests;
-      if (overlaps(sh, shapes_[loose_[j]]) && !emit(s, loose_[j])) return false;
+      if (overlaps(sh, loose_shapes_[j]) && !emit(handle_of(s), handle_of(loose_[j]))) return false;
     }
   }
   return true;
@@ -400,19 +474,15 @@ bool FastGrid::loose_pairs(E& emit, std::uint64_t& tests) const {
 
 template <class E>
 bool FastGrid::all_pairs(E& emit, std::uint64_t& tests) const {
-  for (const HandlePair& p : fixed_pairs_)
-    if (home_[p.a.index] == Home::fixed_grid && home_[p.b.index] == Home::fixed_grid &&
-        !emit(p.a.index, p.b.index))
-      return false;
-  return moving_pairs(0, moving_.entries.size(), emit, tests) && loose_pairs(emit, tests);
+  const std::size_t m = moving_.entries.size();
+  return fixed_pairs(emit, tests) && list_pairs(0, m, emit, tests) &&
+         grid_pairs(moving_, 0, m, emit, tests) && loose_pairs(emit, tests);
 }
 
 template <class V>
 QueryCost FastGrid::for_each_pair(V&& visitor) const {
   QueryCost cost;
-  auto emit = [&](std::uint32_t a, std::uint32_t b) {
-    return visit(visitor, handle_of(a), handle_of(b));
-  };
+  auto emit = [&](Handle a, Handle b) { return visit(visitor, a, b); };
   cost.stopped = !all_pairs(emit, cost.tests);
   return cost;
 }

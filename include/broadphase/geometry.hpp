@@ -11,6 +11,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -166,24 +167,37 @@ inline Aabb bounds(const Shape& s) {
   return b;
 }
 
+/// The next float towards −∞, by its bit pattern (as std::nextafter, which
+/// is a library call, and bounds are rounded on every move). NaN stays NaN.
+inline float next_float_down(float f) {
+  if (f == 0) return -std::numeric_limits<float>::denorm_min();
+  if (f == -std::numeric_limits<float>::infinity() || f != f) return f;
+  const auto bits = std::bit_cast<std::uint32_t>(f);
+  return std::bit_cast<float>(f > 0 ? bits - 1 : bits + 1);
+}
+/// The next float towards +∞.
+inline float next_float_up(float f) {
+  if (f == 0) return std::numeric_limits<float>::denorm_min();
+  if (f == std::numeric_limits<float>::infinity() || f != f) return f;
+  const auto bits = std::bit_cast<std::uint32_t>(f);
+  return std::bit_cast<float>(f > 0 ? bits + 1 : bits - 1);
+}
 /// The largest float not above `x` (−∞ below the float range).
 inline float round_down(double x) {
   if (x < -static_cast<double>(std::numeric_limits<float>::max()))
     return -std::numeric_limits<float>::infinity();
   float f = static_cast<float>(x);
-  if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  if (static_cast<double>(f) > x) f = next_float_down(f);
   return f;
 }
-
 /// The smallest float not below `x` (+∞ above the float range).
 inline float round_up(double x) {
   if (x > static_cast<double>(std::numeric_limits<float>::max()))
     return std::numeric_limits<float>::infinity();
   float f = static_cast<float>(x);
-  if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  if (static_cast<double>(f) < x) f = next_float_up(f);
   return f;
 }
-
 /// `bounds(s)` rounded outwards to float: as conservative as `bounds`.
 inline AabbF bounds_f(const Shape& s) {
   const Aabb b = bounds(s);

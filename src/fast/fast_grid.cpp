@@ -1,5 +1,6 @@
 #include <broadphase/fast_grid.hpp>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
@@ -19,22 +20,25 @@ constexpr int kFiniteLevels = 20;
 constexpr int kLevelSlots = kFiniteLevels + 1;
 // An object goes to a level only when its widest extent is at most this
 // fraction of the reach: the 2% margin absorbs the rounding of the cell
-// arithmetic, so the row and x-range bounds of a scan stay conservative.
+// arithmetic, so the cell bounds of a scan stay conservative.
 constexpr double kFill = 0.98;
 // A level holding less than 1/kSparseLevel of a grid's objects is merged
 // into the next larger one.
 constexpr std::size_t kSparseLevel = 4;
+// Cells per level at most this many times its objects (a level of few
+// objects over a wide world gets larger cells instead of empty ones).
+constexpr double kCellsPerObject = 2;
 // Loose and held-back objects tolerated before a mutation rebuilds.
 constexpr std::size_t kMinLoose = 64;
 // Candidate-list margins: the last displacement times kMarginFrames, at
 // least kMinMargin of the object's extent, and at most kMaxMargin of the
-// larger of its extent and the fixed grid's finest row cell. The cell term
-// lets tiny fast objects keep a list for several frames (rows that fine
+// larger of its extent and the fixed grid's finest cell. The cell term
+// lets tiny fast objects keep a list for several frames (cells that fine
 // hold few objects), the extent term keeps lists short in dense crowds.
 constexpr double kMarginFrames = 8;
 constexpr double kMinMargin = 0.02;
 constexpr double kMaxMargin = 0.5;
-// Moving entries per thread below which find_pairs stays on one thread.
+// Moving entries per share below which work stays on one thread.
 constexpr std::size_t kMinEntriesPerThread = 2048;
 
 double extent_of(const float lo[3], const float hi[3]) {
@@ -46,28 +50,109 @@ double extent_of(const float lo[3], const float hi[3]) {
 
 }  // namespace
 
+namespace detail {
+
+/// Worker threads kept for the structure's lifetime: run(shares, job) runs
+/// job(0) on the caller and job(1..shares-1) on the workers, and returns
+/// when all are done. One run at a time; a caller that finds the pool busy
+/// (another thread's const call) runs every share itself.
+class WorkerPool {
+ public:
+  explicit WorkerPool(unsigned workers) {
+    for (unsigned w = 0; w < workers; ++w)
+      threads_.emplace_back([this, w](std::stop_token st) { loop(st, w + 1); });
+  }
+  ~WorkerPool() {
+    {
+      std::lock_guard lock(m_);
+      stopping_ = true;
+    }
+    wake_.notify_all();
+    threads_.clear();  // joins
+  }
+
+  void run(unsigned shares, const std::function<void(unsigned)>& job) {
+    std::unique_lock busy(run_mutex_, std::try_to_lock);
+    if (!busy.owns_lock() || shares <= 1) {
+      for (unsigned k = 0; k < shares; ++k) job(k);
+      return;
+    }
+    shares = std::min<unsigned>(shares, static_cast<unsigned>(threads_.size()) + 1);
+    {
+      std::lock_guard lock(m_);
+      job_ = &job;
+      shares_ = shares;
+      pending_ = shares - 1;
+      ++round_;
+    }
+    wake_.notify_all();
+    job(0);
+    std::unique_lock lock(m_);
+    done_.wait(lock, [&] { return pending_ == 0; });
+    job_ = nullptr;
+  }
+  unsigned capacity() const { return static_cast<unsigned>(threads_.size()) + 1; }
+
+ private:
+  void loop(std::stop_token, unsigned share) {
+    std::uint64_t seen = 0;
+    for (;;) {
+      const std::function<void(unsigned)>* job;
+      {
+        std::unique_lock lock(m_);
+        wake_.wait(lock, [&] { return stopping_ || round_ != seen; });
+        if (stopping_) return;
+        seen = round_;
+        if (share >= shares_) continue;
+        job = job_;
+      }
+      (*job)(share);
+      std::lock_guard lock(m_);
+      if (--pending_ == 0) done_.notify_one();
+    }
+  }
+
+  std::mutex run_mutex_;
+  std::mutex m_;
+  std::condition_variable wake_, done_;
+  const std::function<void(unsigned)>* job_ = nullptr;
+  unsigned shares_ = 0, pending_ = 0;
+  std::uint64_t round_ = 0;
+  bool stopping_ = false;
+  std::vector<std::jthread> threads_;
+};
+
+}  // namespace detail
+
 FastGrid::FastGrid(const Config& c) : world_(c.world) {
   OptionReader opt(c, "fast-grid");
   const double t = opt.number("threads", 1, 0, 64);
-  cell_factor_ = opt.number("cell", 2, 1, 64);
+  cell_factor_ = opt.number("cell", 1, 0.5, 64);
   opt.finish();
   if (t != std::floor(t)) throw UnknownStructure("fast-grid: option 'threads' must be an integer");
   threads_ = static_cast<unsigned>(t);
   if (threads_ == 0) threads_ = std::max(1u, std::thread::hardware_concurrency());
+  if (threads_ > 1) pool_ = std::make_unique<detail::WorkerPool>(threads_ - 1);
   if (c.expected_objects > 0) {
     const std::size_t n = c.expected_objects;
-    shapes_.reserve(n);
     user_.reserve(n);
-    gen_.reserve(n);
-    home_.reserve(n);
-    motion_.reserve(n);
-    loose_pos_.reserve(n);
-    list_begin_.reserve(n);
-    list_count_.reserve(n);
-    list_epoch_.reserve(n);
-    fat_.reserve(n);
-    speed_.reserve(n);
+    slots_.reserve(n);
   }
+}
+
+FastGrid::~FastGrid() = default;
+
+unsigned FastGrid::shares_for(std::size_t entries) const {
+  return static_cast<unsigned>(
+      std::min<std::size_t>(threads_, std::max<std::size_t>(1, entries / kMinEntriesPerThread)));
+}
+
+void FastGrid::run_shares(unsigned shares, const std::function<void(unsigned)>& job) const {
+  if (shares <= 1 || !pool_) {
+    for (unsigned k = 0; k < shares; ++k) job(k);
+    return;
+  }
+  pool_->run(shares, job);
 }
 
 std::uint32_t FastGrid::allocate_slot() {
@@ -76,74 +161,76 @@ std::uint32_t FastGrid::allocate_slot() {
     s = free_head_;
     free_head_ = static_cast<std::uint32_t>(user_[s]);
   } else {
-    if (gen_.size() >= Handle::kNullIndex) throw std::length_error("fast-grid: too many objects");
-    s = static_cast<std::uint32_t>(gen_.size());
-    shapes_.emplace_back();
+    if (slots_.size() >= Handle::kNullIndex) throw std::length_error("fast-grid: too many objects");
+    s = static_cast<std::uint32_t>(slots_.size());
     user_.push_back(0);
-    gen_.push_back(0);
-    home_.push_back(Home::free);
-    motion_.push_back(Motion::dynamic);
-    loose_pos_.push_back(0);
-    list_begin_.push_back(0);
-    list_count_.push_back(0);
-    list_epoch_.push_back(0);
-    fat_.emplace_back();
-    speed_.push_back(0);
+    slots_.emplace_back();
   }
-  ++gen_[s];  // even (free) -> odd (alive)
+  ++slots_[s].gen;  // even (free) -> odd (alive)
   ++live_;
   return s;
 }
 
 void FastGrid::free_slot(std::uint32_t s) {
-  home_[s] = Home::free;
+  slots_[s].home = Home::free;
   user_[s] = free_head_;
   free_head_ = s;
 }
 
-void FastGrid::add_loose(std::uint32_t s) {
-  home_[s] = Home::loose;
-  loose_pos_[s] = static_cast<std::uint32_t>(loose_.size());
+void FastGrid::add_loose(std::uint32_t s, const Shape& shape) {
+  slots_[s].home = Home::loose;
+  slots_[s].pos = static_cast<std::uint32_t>(loose_.size());
   loose_.push_back(s);
-  loose_bounds_.push_back(bounds_f(shapes_[s]));
+  loose_bounds_.push_back(bounds_f(shape));
+  loose_shapes_.push_back(shape);
 }
 
 void FastGrid::drop_loose(std::uint32_t s) {
-  const std::uint32_t p = loose_pos_[s];
+  const std::uint32_t p = slots_[s].pos;
   const std::uint32_t last = loose_.back();
   loose_[p] = last;
   loose_bounds_[p] = loose_bounds_.back();
-  loose_pos_[last] = p;
+  loose_shapes_[p] = loose_shapes_.back();
+  slots_[last].pos = p;
   loose_.pop_back();
   loose_bounds_.pop_back();
+  loose_shapes_.pop_back();
 }
 
 void FastGrid::leave_grid(std::uint32_t s) {
-  if (home_[s] == Home::fixed_grid) {
+  Grid* g = nullptr;
+  if (slots_[s].home == Home::fixed_grid) {
     --fixed_count_;
     fixed_dirty_ = true;  // its cached pairs must go at the next rebuild
-  } else if (home_[s] == Home::moving_grid) {
+    g = &fixed_;
+  } else if (slots_[s].home == Home::moving_grid) {
     --moving_count_;
+    g = &moving_;
+  }
+  if (g != nullptr) {
+    Entry& e = g->entries[slots_[s].pos];
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    std::fill(e.lo, e.lo + 3, nan);
+    std::fill(e.hi, e.hi + 3, nan);
   }
 }
 
 Handle FastGrid::insert(const Shape& s, std::uint64_t user, Motion m) {
   require_valid(s);
   const std::uint32_t i = allocate_slot();
-  shapes_[i] = s;
   user_[i] = user;
-  motion_[i] = m;
-  add_loose(i);
+  slots_[i].motion = m;
+  add_loose(i, s);
   if (m == Motion::fixed) fixed_dirty_ = true;
   maybe_rebuild();
-  return {i, gen_[i]};
+  return {i, slots_[i].gen};
 }
 
 void FastGrid::remove(Handle h) {
   const std::uint32_t s = index_of(h);
-  ++gen_[s];  // odd -> even: every handle to the object is stale from now on
+  ++slots_[s].gen;  // odd -> even: every handle to the object is stale from now on
   --live_;
-  if (home_[s] == Home::loose) {
+  if (slots_[s].home == Home::loose) {
     drop_loose(s);
     free_slot(s);
     return;
@@ -151,7 +238,7 @@ void FastGrid::remove(Handle h) {
   // A grid entry still names this slot: hold the slot back until the grid
   // is rebuilt, so that it cannot be handed to a new object meanwhile.
   leave_grid(s);
-  home_[s] = Home::held;
+  slots_[s].home = Home::held;
   held_.push_back(s);
   maybe_rebuild();
 }
@@ -159,14 +246,14 @@ void FastGrid::remove(Handle h) {
 void FastGrid::update(Handle h, const Shape& s) {
   const std::uint32_t i = index_of(h);
   require_valid(s);
-  shapes_[i] = s;
-  motion_[i] = Motion::dynamic;  // a fixed object that moves is moving from now on
-  if (home_[i] == Home::loose) {
-    loose_bounds_[loose_pos_[i]] = bounds_f(s);
+  slots_[i].motion = Motion::dynamic;  // a fixed object that moves is moving from now on
+  if (slots_[i].home == Home::loose) {
+    loose_bounds_[slots_[i].pos] = bounds_f(s);
+    loose_shapes_[slots_[i].pos] = s;
     return;
   }
   leave_grid(i);
-  add_loose(i);
+  add_loose(i, s);
   maybe_rebuild();
 }
 
@@ -177,123 +264,122 @@ void FastGrid::update(std::span<const Move> moves) {
   }
   for (const Move& m : moves) {
     const std::uint32_t i = m.handle.index;
-    shapes_[i] = m.shape;
-    if (home_[i] == Home::fixed_grid) {
-      leave_grid(i);
-      motion_[i] = Motion::dynamic;
-      add_loose(i);
-    } else if (home_[i] == Home::loose) {
-      motion_[i] = Motion::dynamic;
-      loose_bounds_[loose_pos_[i]] = bounds_f(m.shape);
-    } else {
-      Entry& e = moving_.entries[loose_pos_[i]];
+    if (slots_[i].home == Home::moving_grid) {
+      const std::uint32_t k = slots_[i].pos;
+      Entry& e = moving_.entries[k];
       const AabbF b = bounds_f(m.shape);
       float d = 0;
       for (int a = 0; a < 3; ++a)
         d = std::max(d, std::max(std::fabs(b.lo[a] - e.lo[a]), std::fabs(b.hi[a] - e.hi[a])));
-      speed_[i] = d;
+      movers_[k].speed = d;
       std::copy(b.lo, b.lo + 3, e.lo);
       std::copy(b.hi, b.hi + 3, e.hi);
+      moving_.shapes[k] = m.shape;
+    } else if (slots_[i].home == Home::fixed_grid) {
+      leave_grid(i);
+      slots_[i].motion = Motion::dynamic;
+      add_loose(i, m.shape);
+    } else {
+      slots_[i].motion = Motion::dynamic;
+      loose_bounds_[slots_[i].pos] = bounds_f(m.shape);
+      loose_shapes_[slots_[i].pos] = m.shape;
     }
   }
   rebuild(fixed_dirty_);
+  if (!cache_built_) build_fixed_cache();
 }
 
 void FastGrid::maybe_rebuild() {
-  if (loose_.size() + held_.size() > std::max(kMinLoose, live_ / 8)) rebuild(fixed_dirty_);
+  if (loose_.size() + held_.size() > std::max(kMinLoose, live_ / 8)) {
+    // The pair cache waits for the next bulk update: while objects stream
+    // in, every threshold rebuild would otherwise recompute it.
+    rebuild(fixed_dirty_);
+  }
 }
 
 void FastGrid::rebuild(bool fixed_too) {
-  auto take_loose = [&](Motion m, std::vector<Entry>& items) {
+  auto take_loose = [&](Motion m, std::vector<Entry>& items, std::vector<std::uint32_t>& src) {
     for (std::size_t k = 0; k < loose_.size(); ++k) {
       const std::uint32_t s = loose_[k];
-      if (motion_[s] != m) continue;
+      if (slots_[s].motion != m) continue;
       Entry e{};
       std::copy(loose_bounds_[k].lo, loose_bounds_[k].lo + 3, e.lo);
       std::copy(loose_bounds_[k].hi, loose_bounds_[k].hi + 3, e.hi);
       e.slot = s;
+      e.gen = slots_[s].gen;
       items.push_back(e);
+      src.push_back(kFromLoose | static_cast<std::uint32_t>(k));
+    }
+  };
+  auto take_grid = [](const Grid& g, std::vector<Entry>& items, std::vector<std::uint32_t>& src) {
+    for (std::size_t k = 0; k < g.entries.size(); ++k) {
+      if (g.entries[k].dead()) continue;
+      items.push_back(g.entries[k]);
+      src.push_back(static_cast<std::uint32_t>(k));
     }
   };
   if (fixed_too) {
-    // The fixed grid is rebuilt rarely: its input is a temporary of the
-    // exact size, so the kept scratch array stays as small as the moving set.
+    // The fixed grid is rebuilt rarely: its inputs are temporaries of the
+    // exact size, so the kept scratch arrays stay as small as the moving set.
     std::vector<Entry> items;
+    std::vector<std::uint32_t> src;
     items.reserve(fixed_count_ + loose_.size());
-    for (const Entry& e : fixed_.entries)
-      if (home_[e.slot] == Home::fixed_grid) items.push_back(e);
-    take_loose(Motion::fixed, items);
-    build_grid(fixed_, items);
+    src.reserve(fixed_count_ + loose_.size());
+    take_grid(fixed_, items, src);
+    take_loose(Motion::fixed, items, src);
+    std::vector<Shape> old_shapes;
+    old_shapes.swap(fixed_.shapes);
+    build_grid(fixed_, items, src, old_shapes);
     for (std::size_t k = 0; k < fixed_.entries.size(); ++k) {
       const std::uint32_t s = fixed_.entries[k].slot;
-      home_[s] = Home::fixed_grid;
-      loose_pos_[s] = static_cast<std::uint32_t>(k);
+      slots_[s].home = Home::fixed_grid;
+      slots_[s].pos = static_cast<std::uint32_t>(k);
     }
     fixed_count_ = fixed_.entries.size();
-    build_fixed_cache();
+    fixed_pairs_.clear();
+    fixed_pairs_.shrink_to_fit();
+    cache_built_ = false;
     fixed_dirty_ = false;
     ++epoch_;  // every candidate list names entries of the old fixed grid
   }
   std::vector<Entry>& items = scratch_items_;
+  std::vector<std::uint32_t>& src = scratch_src_;
   items.clear();
-  for (const Entry& e : moving_.entries)
-    if (home_[e.slot] == Home::moving_grid) items.push_back(e);
-  take_loose(Motion::dynamic, items);
-  build_grid(moving_, items);
+  src.clear();
+  take_grid(moving_, items, src);
+  take_loose(Motion::dynamic, items, src);
+  scratch_shapes_.swap(moving_.shapes);
+  scratch_movers_.swap(movers_);
+  build_grid(moving_, items, src, scratch_shapes_);
   for (std::size_t k = 0; k < moving_.entries.size(); ++k) {
     const std::uint32_t s = moving_.entries[k].slot;
-    home_[s] = Home::moving_grid;
-    loose_pos_[s] = static_cast<std::uint32_t>(k);
+    slots_[s].home = Home::moving_grid;
+    slots_[s].pos = static_cast<std::uint32_t>(k);
   }
   moving_count_ = moving_.entries.size();
   build_candidate_lists();
   loose_.clear();
   loose_bounds_.clear();
+  loose_shapes_.clear();
   for (std::uint32_t s : held_) free_slot(s);
   held_.clear();
 }
 
-bool FastGrid::entry_before(const Entry& x, const Entry& y) {
-  return x.lo[0] < y.lo[0] || (x.lo[0] == y.lo[0] && x.slot < y.slot);
-}
-
-// Rebuilds take each grid's entries in their previous order, so a row of
-// slowly moving objects is nearly sorted: insertion sort finishes it in about
-// one pass. A row far from sorted (fresh inserts) falls back to std::sort
-// once the shifts exceed a few per entry, which bounds the cost at O(n log n).
-void FastGrid::sort_row(Entry* b, Entry* e) {
-  const auto n = static_cast<std::size_t>(e - b);
-  std::size_t budget = 4 * n + 16;
-  for (Entry* p = b + (n > 0 ? 1 : 0); p < e; ++p) {
-    if (!entry_before(*p, p[-1])) continue;
-    const Entry v = *p;
-    Entry* q = p;
-    do {
-      *q = q[-1];
-      --q;
-    } while (q != b && entry_before(v, q[-1]) && --budget > 0);
-    *q = v;
-    if (budget == 0) {
-      std::sort(b, e, entry_before);
-      return;
-    }
-  }
-}
-
-void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
+void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<std::uint32_t>& src,
+                          std::vector<Shape>& old_shapes) {
   const std::size_t n = items.size();
+  const bool moving = &g == &moving_;
   g.levels.clear();
-  g.row_start.clear();
+  g.cell_start.clear();
   // Exact capacities when a grid grows (reserve, unlike resize, does not
   // double): grids are most of the memory held per object.
   g.entries.reserve(n);
-  g.entry_row.reserve(n);
   g.shapes.reserve(n);
   g.entries.resize(n);
-  g.entry_row.resize(n);
   g.shapes.resize(n);
   if (n == 0) {
-    g.row_start.push_back(0);
+    g.cell_start.push_back(0);
+    if (moving) movers_.clear();
     return;
   }
   // The top level's reach fits the largest finite extent; each level below
@@ -310,12 +396,13 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
 
   // Pass 1: each item's level, and each level's count and lower-corner span.
   std::uint32_t count[kLevelSlots] = {};
-  float span_lo[kLevelSlots][2], span_hi[kLevelSlots][2];
+  float span_lo[kLevelSlots][3], span_hi[kLevelSlots][3];
   for (int k = 0; k < kLevelSlots; ++k) {
-    span_lo[k][0] = span_lo[k][1] = std::numeric_limits<float>::infinity();
-    span_hi[k][0] = span_hi[k][1] = -std::numeric_limits<float>::infinity();
+    std::fill(span_lo[k], span_lo[k] + 3, std::numeric_limits<float>::infinity());
+    std::fill(span_hi[k], span_hi[k] + 3, -std::numeric_limits<float>::infinity());
   }
-  std::vector<std::uint32_t>& tag = g.entry_row;  // level, then row, of each item
+  std::vector<std::uint32_t>& tag = scratch_tag_;
+  tag.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const Entry& it = items[i];
     const double e = extent_of(it.lo, it.hi);
@@ -327,12 +414,12 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
     }
     tag[i] = static_cast<std::uint32_t>(k);
     ++count[k];
-    for (int a = 0; a < 2; ++a) {
-      span_lo[k][a] = std::min(span_lo[k][a], it.lo[a + 1]);
-      span_hi[k][a] = std::max(span_hi[k][a], it.lo[a + 1]);
+    for (int a = 0; a < 3; ++a) {
+      span_lo[k][a] = std::min(span_lo[k][a], it.lo[a]);
+      span_hi[k][a] = std::max(span_hi[k][a], it.lo[a]);
     }
   }
-  // A sparse level costs every scan its row probes but saves few tests:
+  // A sparse level costs every scan its cell visits but saves few tests:
   // fold it into the level above (its objects fit there too).
   int target[kLevelSlots];
   for (int k = 0; k < kLevelSlots; ++k) target[k] = k;
@@ -340,7 +427,7 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
     if (count[k] == 0 || count[k] * kSparseLevel >= n) continue;
     count[k + 1] += count[k];
     count[k] = 0;
-    for (int a = 0; a < 2; ++a) {
+    for (int a = 0; a < 3; ++a) {
       span_lo[k + 1][a] = std::min(span_lo[k + 1][a], span_lo[k][a]);
       span_hi[k + 1][a] = std::max(span_hi[k + 1][a], span_hi[k][a]);
     }
@@ -348,223 +435,225 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items) const {
   }
   for (int k = kFiniteLevels - 2; k >= 0; --k) target[k] = target[target[k]];
   int level_index[kLevelSlots];
-  std::uint32_t rows = 0;
+  std::uint32_t cells = 0;
   for (int k = 0; k < kLevelSlots; ++k) {
     level_index[k] = -1;
     if (count[k] == 0) continue;
     Level lv;
     lv.reach = reach[k];
-    lv.first_row = rows;
-    // Rows cover the lower corners of the level's objects inside the world
-    // hint; objects beyond it fall into the border rows (the cell function
-    // clamps, which keeps every bound conservative).
-    const auto limit = static_cast<double>(
-        std::max<std::uint32_t>(1, static_cast<std::uint32_t>(std::sqrt(2.0 * count[k]))));
-    double cell = std::isfinite(reach[k]) ? reach[k] * cell_factor_ : 0;
-    std::uint32_t n_axis[2] = {1, 1};
-    double origin[2] = {0, 0};
-    for (int a = 0; a < 2; ++a) {
-      double lo = std::max<double>(span_lo[k][a], world_.lo[a + 1]);
-      double hi = std::min<double>(span_hi[k][a], world_.hi[a + 1]);
-      if (hi < lo) {
-        lo = span_lo[k][a];
-        hi = span_hi[k][a];
+    lv.first_cell = cells;
+    if (std::isfinite(reach[k])) {
+      // Cells cover the lower corners of the level's objects inside the
+      // world hint; objects beyond it fall into the border cells (the cell
+      // function clamps, which keeps every bound conservative).
+      double lo[3], span[3];
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = std::max<double>(span_lo[k][a], world_.lo[a]);
+        double hi = std::min<double>(span_hi[k][a], world_.hi[a]);
+        if (hi < lo[a]) {
+          lo[a] = span_lo[k][a];
+          hi = span_hi[k][a];
+        }
+        if (!std::isfinite(lo[a]) || !std::isfinite(hi)) lo[a] = hi = 0;
+        span[a] = hi - lo[a];
       }
-      if (cell > 0 && std::isfinite(lo) && std::isfinite(hi)) {
-        origin[a] = lo;
-        const double cells = std::floor((hi - lo) / cell) + 1;
-        n_axis[a] = static_cast<std::uint32_t>(std::min(cells, limit));
-      }
-    }
-    if (cell > 0) {
-      // Both axes share one cell size: the larger of the reach and what the
-      // row budget allows on the wider axis.
-      for (int a = 0; a < 2; ++a) {
-        const double lo = std::max<double>(span_lo[k][a], world_.lo[a + 1]);
-        const double hi = std::min<double>(span_hi[k][a], world_.hi[a + 1]);
-        if (n_axis[a] == static_cast<std::uint32_t>(limit) && hi > lo)
-          cell = std::max(cell, (hi - lo) / limit);
+      // One cell side for all axes: the reach times the factor, grown until
+      // the cells number at most kCellsPerObject per object.
+      double cell = reach[k] * cell_factor_;
+      const double budget = std::max(1.0, kCellsPerObject * count[k]);
+      auto cells_for = [&](double c) {
+        double total = 1;
+        for (int a = 0; a < 3; ++a) total *= std::floor(span[a] / c) + 1;
+        return total;
+      };
+      if (cells_for(cell) > budget) {
+        const double widest = std::max({span[0], span[1], span[2]});
+        cell = std::max(cell, widest / std::cbrt(budget));
+        while (cells_for(cell) > budget) cell *= 1.125;
       }
       lv.inv_cell = 1 / cell;
+      for (int a = 0; a < 3; ++a) {
+        lv.origin[a] = lo[a];
+        lv.n[a] = static_cast<std::uint32_t>(std::floor(span[a] / cell) + 1);
+      }
     }
-    lv.origin_y = origin[0];
-    lv.origin_z = origin[1];
-    lv.ny = n_axis[0];
-    lv.nz = n_axis[1];
-    rows += lv.ny * lv.nz;
+    cells += lv.cells();
     level_index[k] = static_cast<int>(g.levels.size());
     g.levels.push_back(lv);
   }
-  // Pass 2: rows, counting sort by row, then each row by lower x.
-  g.row_start.assign(rows + 1, 0);
+  // Pass 2: counting sort by cell, stable, so entries keep their previous
+  // order inside a cell and the result does not depend on anything else.
+  g.cell_start.assign(cells + 1, 0);
   for (std::size_t i = 0; i < n; ++i) {
     const Level& lv = g.levels[static_cast<std::size_t>(level_index[target[tag[i]]])];
-    const Entry& it = items[i];
-    const std::uint32_t row = lv.first_row + lv.cell(it.lo[1], lv.origin_y, lv.ny) * lv.nz +
-                              lv.cell(it.lo[2], lv.origin_z, lv.nz);
-    tag[i] = row;
-    ++g.row_start[row + 1];
+    tag[i] = lv.cell_of(items[i].lo);
+    ++g.cell_start[tag[i] + 1];
   }
-  for (std::uint32_t r = 0; r < rows; ++r) g.row_start[r + 1] += g.row_start[r];
-  // Scatter with row_start as the moving cursor, then shift it back.
-  for (std::size_t i = 0; i < n; ++i) g.entries[g.row_start[tag[i]]++] = items[i];
-  for (std::uint32_t r = rows; r > 0; --r) g.row_start[r] = g.row_start[r - 1];
-  g.row_start[0] = 0;
-  for (std::uint32_t r = 0; r < rows; ++r) {
-    Entry* b = g.entries.data() + g.row_start[r];
-    Entry* e = g.entries.data() + g.row_start[r + 1];
-    sort_row(b, e);
-    for (Entry* p = b; p != e; ++p) {
-      const auto k = static_cast<std::size_t>(p - g.entries.data());
-      g.entry_row[k] = r;
-      g.shapes[k] = shapes_[p->slot];
-    }
+  for (std::uint32_t c = 0; c < cells; ++c) g.cell_start[c + 1] += g.cell_start[c];
+  // Scatter with cell_start as the moving cursor, then shift it back.
+  if (moving) movers_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t k = g.cell_start[tag[i]]++;
+    g.entries[k] = items[i];
+    const std::uint32_t from = src[i];
+    const bool loose = (from & kFromLoose) != 0;
+    g.shapes[k] = loose ? loose_shapes_[from & ~kFromLoose] : old_shapes[from];
+    if (moving) movers_[k] = loose ? Mover{} : scratch_movers_[from];
   }
+  for (std::uint32_t c = cells; c > 0; --c) g.cell_start[c] = g.cell_start[c - 1];
+  g.cell_start[0] = 0;
 }
 
 void FastGrid::build_candidate_lists() {
   const std::size_t m = moving_.entries.size();
-  const unsigned t = static_cast<unsigned>(
-      std::min<std::size_t>(threads_, std::max<std::size_t>(1, m / kMinEntriesPerThread)));
-  list_pool_next_.clear();
-  if (t <= 1) {
-    build_lists(0, m, list_pool_next_);
-  } else {
-    // Each thread builds the lists of one contiguous share of the moving
-    // entries into its own pool (the lists of distinct slots share no
-    // state); the pools are then joined in order, so the lists are the same
-    // for every thread count.
-    if (list_parts_.size() < t) list_parts_.resize(t);
-    {
-      std::vector<std::jthread> workers;
-      workers.reserve(t - 1);
-      for (unsigned k = 1; k < t; ++k)
-        workers.emplace_back([this, k, m, t] {
-          list_parts_[k].clear();
-          build_lists(m * k / t, m * (k + 1) / t, list_parts_[k]);
-        });
-      build_lists(0, m / t, list_pool_next_);
-    }
-    for (unsigned k = 1; k < t; ++k) {
-      const auto offset = static_cast<std::uint32_t>(list_pool_next_.size());
-      for (std::size_t i = m * k / t; i < m * (k + 1) / t; ++i)
-        list_begin_[moving_.entries[i].slot] += offset;
-      list_pool_next_.insert(list_pool_next_.end(), list_parts_[k].begin(), list_parts_[k].end());
-    }
+  const unsigned t = shares_for(m);
+  // Each share renews the lists of a contiguous range of the moving entries
+  // into its own part (distinct entries share no state); the parts are
+  // appended to the pool in order, so the pool is the same for every
+  // thread count.
+  if (list_parts_.size() < t) {
+    list_parts_.resize(t);
+    renewed_.resize(t);
   }
-  list_pool_.swap(list_pool_next_);
+  run_shares(t, [&](unsigned k) {
+    // Share 0 appends to the pool itself (no other share reads the pool).
+    std::vector<Candidate>& part = k == 0 ? list_pool_ : list_parts_[k];
+    if (k > 0) part.clear();
+    renewed_[k].clear();
+    build_lists(m * k / t, m * (k + 1) / t, part, renewed_[k]);
+  });
+  for (unsigned k = 1; k < t; ++k) {
+    const auto offset = static_cast<std::uint32_t>(list_pool_.size());
+    for (std::uint32_t i : renewed_[k]) movers_[i].list_begin += offset;
+    list_pool_.insert(list_pool_.end(), list_parts_[k].begin(), list_parts_[k].end());
+  }
+  std::size_t live = 0;
+  for (const Mover& mv : movers_) live += mv.list_count;
+  if (list_pool_.size() > live + live / 2 + 1024) {
+    // Compact: copy the live lists in mover order (and drop the capacity a
+    // burst of renewals left behind).
+    std::vector<Candidate> pool;
+    pool.reserve(live + live / 2 + 1024);
+    for (Mover& mv : movers_) {
+      const Candidate* old = list_pool_.data() + mv.list_begin;
+      mv.list_begin = static_cast<std::uint32_t>(pool.size());
+      pool.insert(pool.end(), old, old + mv.list_count);
+    }
+    list_pool_.swap(pool);
+  }
 }
 
-void FastGrid::build_lists(std::size_t begin, std::size_t end, std::vector<std::uint32_t>& pool) {
+void FastGrid::build_lists(std::size_t begin, std::size_t end, std::vector<Candidate>& part,
+                           std::vector<std::uint32_t>& renewed) {
   const double finest_cell =
       fixed_.levels.empty() || !(fixed_.levels[0].inv_cell > 0) ? 0 : 1 / fixed_.levels[0].inv_cell;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
   for (std::size_t i = begin; i < end; ++i) {
     const Entry& e = moving_.entries[i];
-    const std::uint32_t s = e.slot;
-    const AabbF& fat = fat_[s];
-    const std::uint32_t first = static_cast<std::uint32_t>(pool.size());
-    const bool inside = list_epoch_[s] == epoch_ && fat.lo[0] <= e.lo[0] && fat.lo[1] <= e.lo[1] &&
+    Mover& mv = movers_[i];
+    const AabbF& fat = mv.fat;
+    if (e.dead()) {
+      mv.list_count = 0;
+      continue;
+    }
+    const bool inside = mv.epoch == epoch_ && fat.lo[0] <= e.lo[0] && fat.lo[1] <= e.lo[1] &&
                         fat.lo[2] <= e.lo[2] && e.hi[0] <= fat.hi[0] && e.hi[1] <= fat.hi[1] &&
                         e.hi[2] <= fat.hi[2];
-    if (inside) {
-      // The list covers the object where it is now: keep it.
-      const std::uint32_t* old = list_pool_.data() + list_begin_[s];
-      pool.insert(pool.end(), old, old + list_count_[s]);
-    } else {
-      // Grow the bounds by a margin that covers several frames of the last
-      // displacement, within the limits above.
-      const double extent = extent_of(e.lo, e.hi);
-      const double margin =
-          std::min(std::max(kMarginFrames * static_cast<double>(speed_[s]), kMinMargin * extent),
-                   kMaxMargin * std::max(extent, finest_cell));
-      AabbF g;
-      for (int a = 0; a < 3; ++a) {
-        g.lo[a] = round_down(static_cast<double>(e.lo[a]) - margin);
-        g.hi[a] = round_up(static_cast<double>(e.hi[a]) + margin);
-      }
-      fat_[s] = g;
-      list_epoch_[s] = epoch_;
-      fixed_.scan(g, 0, kNoMinX, [&](const Entry& o) {
-        pool.push_back(static_cast<std::uint32_t>(&o - fixed_.entries.data()));
-        return true;
-      });
+    if (inside) continue;  // the list covers the object where it is now
+    // Grow the bounds by a margin that covers several frames of the last
+    // displacement, within the limits above.
+    const double extent = extent_of(e.lo, e.hi);
+    const double margin =
+        std::min(std::max(kMarginFrames * static_cast<double>(mv.speed), kMinMargin * extent),
+                 kMaxMargin * std::max(extent, finest_cell));
+    AabbF g;
+    for (int a = 0; a < 3; ++a) {
+      g.lo[a] = round_down(static_cast<double>(e.lo[a]) - margin);
+      g.hi[a] = round_up(static_cast<double>(e.hi[a]) + margin);
     }
-    list_begin_[s] = first;
-    list_count_[s] = static_cast<std::uint32_t>(pool.size()) - first;
+    mv.fat = g;
+    mv.epoch = epoch_;
+    const auto first = static_cast<std::uint32_t>(part.size());
+    fixed_.scan(g, 0, kNoMinX, [&](std::uint32_t k) {
+      const Shape& s = fixed_.shapes[k];
+      part.push_back({{s.center.x, s.center.y, s.center.z},
+                      s.kind == ShapeKind::sphere ? s.half.x : nan,
+                      fixed_.entries[k].handle()});
+      return true;
+    });
+    mv.list_begin = first;
+    mv.list_count = static_cast<std::uint32_t>(part.size()) - first;
+    renewed.push_back(static_cast<std::uint32_t>(i));
   }
 }
 
 void FastGrid::build_fixed_cache() {
   fixed_pairs_.clear();
   std::uint64_t tests = 0;
-  auto emit = [this](std::uint32_t a, std::uint32_t b) {
-    fixed_pairs_.push_back({handle_of(a), handle_of(b)});
+  auto emit = [this](Handle a, Handle b) {
+    fixed_pairs_.push_back({a, b});
     return true;
   };
-  grid_pairs(fixed_, Home::fixed_grid, 0, fixed_.entries.size(), emit, tests);
+  grid_pairs(fixed_, 0, fixed_.entries.size(), emit, tests);
   fixed_pairs_.shrink_to_fit();  // the cache is kept until the fixed set changes
+  cache_built_ = true;
 }
 
 QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
   QueryCost cost;
-  auto emit_out = [&out, this](std::uint32_t a, std::uint32_t b) {
-    out.push_back({handle_of(a), handle_of(b)});
+  auto emit_out = [&out](Handle a, Handle b) {
+    out.push_back({a, b});
     return true;
   };
-  auto emit_cache = [&] {
-    if (fixed_count_ == fixed_.entries.size()) {
+  auto emit_fixed = [&] {
+    if (cache_built_ && fixed_count_ == fixed_.entries.size()) {
       // Every cached handle is still current: a fixed object can only change
       // its generation by leaving the grid.
       out.insert(out.end(), fixed_pairs_.begin(), fixed_pairs_.end());
       return;
     }
-    out.reserve(out.size() + fixed_pairs_.size());
-    for (const HandlePair& p : fixed_pairs_)
-      if (home_[p.a.index] == Home::fixed_grid && home_[p.b.index] == Home::fixed_grid)
-        out.push_back(p);
+    if (cache_built_) out.reserve(out.size() + fixed_pairs_.size());
+    fixed_pairs(emit_out, cost.tests);
   };
 
   const std::size_t m = moving_.entries.size();
-  const unsigned t = static_cast<unsigned>(
-      std::min<std::size_t>(threads_, std::max<std::size_t>(1, m / kMinEntriesPerThread)));
+  const unsigned t = shares_for(m);
   if (t <= 1) {
-    emit_cache();
-    moving_pairs(0, m, emit_out, cost.tests);
+    emit_fixed();
+    list_pairs(0, m, emit_out, cost.tests);
+    grid_pairs(moving_, 0, m, emit_out, cost.tests);
   } else {
-    // The workers start first on the later shares, each filling two
-    // buffers (pairs from candidate lists, pairs within the moving grid);
-    // the main thread meanwhile emits the cache and the first share's list
-    // pairs straight into `out`. The buffers are then appended in the order
-    // of one thread: all list pairs, then all moving-grid pairs.
+    // Share 0 (the calling thread) first emits the fixed pairs straight
+    // into `out`; every share then fills two buffers (pairs from candidate
+    // lists, pairs within the moving grid), appended afterwards in the
+    // order of one thread: all list pairs, then all moving-grid pairs.
     std::unique_lock lock(buffers_mutex_, std::try_to_lock);
     std::vector<std::vector<HandlePair>> local;
     std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
     if (buffers.size() < 2 * t) buffers.resize(2 * t);
     std::vector<std::uint64_t> tests(t, 0);
-    auto into = [this](std::vector<HandlePair>& buf) {
-      buf.clear();
-      return [&buf, this](std::uint32_t a, std::uint32_t b) {
-        buf.push_back({handle_of(a), handle_of(b)});
+    run_shares(t, [&](unsigned k) {
+      const std::size_t begin = m * k / t, end = m * (k + 1) / t;
+      std::vector<HandlePair>& lists = buffers[k];
+      std::vector<HandlePair>& grid = buffers[t + k];
+      lists.clear();
+      grid.clear();
+      auto into_lists = [&lists](Handle a, Handle b) {
+        lists.push_back({a, b});
         return true;
       };
-    };
-    {
-      std::vector<std::jthread> workers;
-      workers.reserve(t - 1);
-      for (unsigned k = 1; k < t; ++k) {
-        workers.emplace_back([&, k] {
-          const std::size_t begin = m * k / t, end = m * (k + 1) / t;
-          auto emit_list = into(buffers[k]);
-          list_pairs(begin, end, emit_list, tests[k]);
-          auto emit_grid = into(buffers[t + k]);
-          grid_pairs(moving_, Home::moving_grid, begin, end, emit_grid, tests[k]);
-        });
+      auto into_grid = [&grid](Handle a, Handle b) {
+        grid.push_back({a, b});
+        return true;
+      };
+      if (k == 0) {
+        emit_fixed();
+        list_pairs(begin, end, emit_out, tests[k]);
+      } else {
+        list_pairs(begin, end, into_lists, tests[k]);
       }
-      emit_cache();
-      list_pairs(0, m / t, emit_out, tests[0]);
-      auto emit_grid = into(buffers[t]);
-      grid_pairs(moving_, Home::moving_grid, 0, m / t, emit_grid, tests[0]);
-    }
+      grid_pairs(moving_, begin, end, into_grid, tests[k]);
+    });
     for (unsigned k = 0; k < t; ++k) cost.tests += tests[k];
     std::size_t extra = 0;
     for (unsigned k = 1; k < 2 * t; ++k) extra += buffers[k].size();
@@ -577,16 +666,17 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
 }
 
 std::size_t FastGrid::memory_bytes() const {
-  std::size_t bytes =
-      shapes_.capacity() * sizeof(Shape) + user_.capacity() * 8 + gen_.capacity() * 4 +
-      home_.capacity() + motion_.capacity() + loose_pos_.capacity() * 4 + loose_.capacity() * 4 +
-      loose_bounds_.capacity() * sizeof(AabbF) + held_.capacity() * 4 + fixed_.memory_bytes() +
-      moving_.memory_bytes() + fixed_pairs_.capacity() * sizeof(HandlePair) +
-      scratch_items_.capacity() * sizeof(Entry) + fat_.capacity() * sizeof(AabbF) +
-      (list_pool_.capacity() + list_pool_next_.capacity() + list_begin_.capacity() +
-       list_count_.capacity() + list_epoch_.capacity() + speed_.capacity()) *
-          4;
-  for (const auto& p : list_parts_) bytes += p.capacity() * 4;
+  std::size_t bytes = loose_shapes_.capacity() * sizeof(Shape) + user_.capacity() * 8 +
+                      slots_.capacity() * sizeof(Slot) + loose_.capacity() * 4 +
+                      loose_bounds_.capacity() * sizeof(AabbF) + held_.capacity() * 4 +
+                      fixed_.memory_bytes() + moving_.memory_bytes() +
+                      fixed_pairs_.capacity() * sizeof(HandlePair) +
+                      scratch_items_.capacity() * sizeof(Entry) + scratch_src_.capacity() * 4 +
+                      scratch_shapes_.capacity() * sizeof(Shape) + scratch_tag_.capacity() * 4 +
+                      (movers_.capacity() + scratch_movers_.capacity()) * sizeof(Mover) +
+                      list_pool_.capacity() * sizeof(Candidate);
+  for (const auto& p : list_parts_) bytes += p.capacity() * sizeof(Candidate);
+  for (const auto& r : renewed_) bytes += r.capacity() * 4;
   std::lock_guard lock(buffers_mutex_);
   for (const auto& b : buffers_) bytes += b.capacity() * sizeof(HandlePair);
   return bytes;
@@ -594,17 +684,15 @@ std::size_t FastGrid::memory_bytes() const {
 
 void FastGrid::validate() const {
   auto fail = [](const std::string& what) { throw std::logic_error("fast-grid: " + what); };
-  const std::size_t slots = gen_.size();
-  if (shapes_.size() != slots || user_.size() != slots || home_.size() != slots ||
-      motion_.size() != slots || loose_pos_.size() != slots)
-    fail("slot arrays differ in length");
+  const std::size_t slots = slots_.size();
+  if (user_.size() != slots) fail("slot arrays differ in length");
   std::size_t alive = 0, free = 0, held = 0;
   for (std::size_t s = 0; s < slots; ++s) {
-    const bool odd = (gen_[s] & 1u) != 0;
+    const bool odd = (slots_[s].gen & 1u) != 0;
     alive += odd;
-    if (home_[s] == Home::free) ++free;
-    if (home_[s] == Home::held) ++held;
-    if (odd != (home_[s] != Home::free && home_[s] != Home::held))
+    if (slots_[s].home == Home::free) ++free;
+    if (slots_[s].home == Home::held) ++held;
+    if (odd != (slots_[s].home != Home::free && slots_[s].home != Home::held))
       fail("slot " + std::to_string(s) + ": generation and home disagree");
   }
   if (alive != live_) fail("live count");
@@ -612,45 +700,50 @@ void FastGrid::validate() const {
   std::size_t free_list = 0;
   for (std::uint32_t s = free_head_; s != Handle::kNullIndex;
        s = static_cast<std::uint32_t>(user_[s])) {
-    if (s >= slots || home_[s] != Home::free || ++free_list > slots) fail("corrupt free list");
+    if (s >= slots || slots_[s].home != Home::free || ++free_list > slots)
+      fail("corrupt free list");
   }
   if (free_list != free) fail("free list misses free slots");
-  if (loose_.size() != loose_bounds_.size()) fail("loose arrays differ in length");
+  if (loose_.size() != loose_bounds_.size() || loose_.size() != loose_shapes_.size())
+    fail("loose arrays differ in length");
   for (std::size_t k = 0; k < loose_.size(); ++k) {
     const std::uint32_t s = loose_[k];
-    if (home_[s] != Home::loose || loose_pos_[s] != k) fail("loose list and positions disagree");
-    if (motion_[s] == Motion::fixed && !fixed_dirty_)
+    if (slots_[s].home != Home::loose || slots_[s].pos != k)
+      fail("loose list and positions disagree");
+    if (slots_[s].motion == Motion::fixed && !fixed_dirty_)
       fail("a fixed loose object without a rebuild due");
-    const AabbF b = bounds_f(shapes_[s]);
+    const AabbF b = bounds_f(loose_shapes_[k]);
     if (std::memcmp(&b, &loose_bounds_[k], sizeof b) != 0) fail("stale loose bounds");
   }
   auto check_grid = [&](const Grid& g, Home home, std::size_t expect, const char* name) {
     const std::string gname = name;
-    if (g.row_start.empty() || g.row_start.back() != g.entries.size())
-      fail(gname + ": row index does not cover the entries");
+    if (g.cell_start.empty() || g.cell_start.back() != g.entries.size() ||
+        g.shapes.size() != g.entries.size())
+      fail(gname + ": cell index does not cover the entries");
     std::size_t valid = 0;
     for (std::size_t l = 0; l < g.levels.size(); ++l) {
       const Level& lv = g.levels[l];
-      const std::uint32_t end_row = l + 1 < g.levels.size()
-                                        ? g.levels[l + 1].first_row
-                                        : static_cast<std::uint32_t>(g.row_start.size() - 1);
-      if (lv.first_row + lv.ny * lv.nz != end_row) fail(gname + ": level rows");
-      for (std::uint32_t r = lv.first_row; r < end_row; ++r) {
-        for (std::uint32_t k = g.row_start[r]; k < g.row_start[r + 1]; ++k) {
+      const std::uint32_t end_cell = l + 1 < g.levels.size()
+                                         ? g.levels[l + 1].first_cell
+                                         : static_cast<std::uint32_t>(g.cell_start.size() - 1);
+      if (lv.first_cell + lv.cells() != end_cell) fail(gname + ": level cells");
+      for (std::uint32_t c = lv.first_cell; c < end_cell; ++c) {
+        if (g.cell_start[c] > g.cell_start[c + 1]) fail(gname + ": cell index order");
+        for (std::uint32_t k = g.cell_start[c]; k < g.cell_start[c + 1]; ++k) {
           const Entry& e = g.entries[k];
-          if (g.entry_row[k] != r) fail(gname + ": entry row");
-          if (k > g.row_start[r] && g.entries[k - 1].lo[0] > e.lo[0]) fail(gname + ": row order");
+          if (e.slot >= slots) fail(gname + ": slot out of range");
+          if (e.dead()) {
+            if (slots_[e.slot].home == home && slots_[e.slot].pos == k)
+              fail(gname + ": live entry marked dead");
+            continue;
+          }
+          if (slots_[e.slot].home != home || slots_[e.slot].pos != k || slots_[e.slot].gen != e.gen)
+            fail(gname + ": entry of an object that left");
           if (!(extent_of(e.lo, e.hi) <= kFill * lv.reach))
             fail(gname + ": entry on a too small level");
-          const std::uint32_t row = lv.first_row + lv.cell(e.lo[1], lv.origin_y, lv.ny) * lv.nz +
-                                    lv.cell(e.lo[2], lv.origin_z, lv.nz);
-          if (row != r) fail(gname + ": entry in the wrong row");
-          if (e.slot >= slots) fail(gname + ": slot out of range");
-          if (home_[e.slot] != home) continue;
+          if (lv.cell_of(e.lo) != c) fail(gname + ": entry in the wrong cell");
           ++valid;
-          if (loose_pos_[e.slot] != k) fail(gname + ": slot position");
-          if (!(g.shapes[k] == shapes_[e.slot])) fail(gname + ": stale shape copy");
-          const AabbF b = bounds_f(shapes_[e.slot]);
+          const AabbF b = bounds_f(g.shapes[k]);
           if (std::memcmp(b.lo, e.lo, sizeof b.lo) != 0 ||
               std::memcmp(b.hi, e.hi, sizeof b.hi) != 0)
             fail(gname + ": stale entry bounds");
@@ -661,14 +754,34 @@ void FastGrid::validate() const {
   };
   check_grid(fixed_, Home::fixed_grid, fixed_count_, "fixed grid");
   check_grid(moving_, Home::moving_grid, moving_count_, "moving grid");
+  if (movers_.size() != moving_.entries.size()) fail("mover states and moving grid differ");
+  for (std::size_t k = 0; k < movers_.size(); ++k) {
+    const Mover& mv = movers_[k];
+    if (moving_.entries[k].dead() || mv.epoch != epoch_) continue;
+    if (static_cast<std::size_t>(mv.list_begin) + mv.list_count > list_pool_.size())
+      fail("candidate list out of the pool");
+    for (std::uint32_t j = 0; j < mv.list_count; ++j) {
+      const Candidate& c = list_pool_[mv.list_begin + j];
+      if (c.handle.index >= slots) fail("candidate names no slot");
+      if (slots_[c.handle.index].home != Home::fixed_grid) continue;
+      const std::uint32_t k = slots_[c.handle.index].pos;
+      const Entry& o = fixed_.entries[k];
+      const Shape& sh = fixed_.shapes[k];
+      if (!(c.handle == o.handle()) || sh.center.x != c.c[0] || sh.center.y != c.c[1] ||
+          sh.center.z != c.c[2] || (sh.is_sphere() ? sh.half.x != c.r : c.r == c.r))
+        fail("candidate copy differs from its fixed object");
+      if (!o.overlaps(mv.fat)) fail("candidate outside its list's box");
+    }
+  }
   if (fixed_count_ + moving_count_ + loose_.size() != live_) fail("objects lost between lists");
+  if (!cache_built_ && !fixed_pairs_.empty()) fail("a stale pair cache");
   for (const HandlePair& p : fixed_pairs_) {
     const std::uint32_t a = p.a.index, b = p.b.index;
     if (a >= slots || b >= slots || a == b) fail("bad cached pair");
-    if (home_[a] != Home::fixed_grid || home_[b] != Home::fixed_grid) continue;
-    if (gen_[a] != p.a.generation || gen_[b] != p.b.generation)
+    if (slots_[a].home != Home::fixed_grid || slots_[b].home != Home::fixed_grid) continue;
+    if (slots_[a].gen != p.a.generation || slots_[b].gen != p.b.generation)
       fail("cached pair with a stale generation");
-    if (!overlaps(shapes_[a], shapes_[b])) fail("cached pair no longer overlaps");
+    if (!overlaps(shape_of(a), shape_of(b))) fail("cached pair no longer overlaps");
   }
 }
 
