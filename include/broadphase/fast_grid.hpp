@@ -175,13 +175,17 @@ class FastGrid {
     }
   };
 
-  /// Per moving-grid entry (in the same order): where its candidate list
-  /// of fixed objects is in the pool, the box the list covers and its last
-  /// displacement.
+  /// Per moving-grid entry (in the same order): its bounds now, the "fat"
+  /// box its lists cover (which is also its grid entry's box), where its
+  /// lists are, and its last displacement. Lists stay valid while the
+  /// bounds stay inside the fat box; then the box and lists are renewed.
   struct Mover {
+    AabbF cur;
     AabbF fat;
-    std::uint32_t list_begin = 0, list_count = 0;
-    std::uint32_t epoch = 0;  // fixed-grid epoch of the list; 0: none
+    std::uint32_t list_begin = 0, list_count = 0;  // fixed candidates, in list_pool_
+    std::uint32_t near_begin = 0, near_count = 0;  // moving neighbours, in near_pool_
+    std::uint32_t epoch = 0;                       // fixed-grid epoch of the lists; 0: renewal due
+    std::uint32_t stamp = 0;                       // the rebuild that last renewed them
     float speed = 0;
   };
 
@@ -226,7 +230,9 @@ class FastGrid {
   void rebuild(bool fixed_too);
   void build_candidate_lists();
   void build_lists(std::size_t begin, std::size_t end, std::vector<Candidate>& part,
-                   std::vector<std::uint32_t>& renewed);
+                   std::vector<std::uint32_t>& near, std::vector<std::uint32_t>& renewed);
+  /// The box a mover's lists cover: its bounds grown by a margin.
+  AabbF fat_box(const AabbF& cur, float speed) const;
   /// Fills `g` from `items` (entries) whose shapes are named by `src`
   /// (an index into `old_shapes`, or kFromLoose | index into loose_shapes_).
   void build_grid(Grid& g, std::vector<Entry>& items, const std::vector<std::uint32_t>& src,
@@ -243,10 +249,10 @@ class FastGrid {
     return overlaps(a, b);
   }
 
-  /// Pairs of moving-grid entries [begin, end) with their candidate lists
-  /// of fixed entries. emit(handle, handle) returns false to stop.
+  /// Pairs of moving-grid entries [begin, end) with their fixed candidates
+  /// and their moving neighbours. emit(handle, handle) returns false to stop.
   template <class E>
-  bool list_pairs(std::size_t begin, std::size_t end, E& emit, std::uint64_t& tests) const;
+  bool mover_pairs(std::size_t begin, std::size_t end, E& emit, std::uint64_t& tests) const;
   /// Pairs among entries [begin, end) of one grid and later ones (each
   /// pair once).
   template <class E>
@@ -300,21 +306,26 @@ class FastGrid {
   std::vector<Mover> scratch_movers_;
   std::vector<std::uint32_t> scratch_tag_;  // per item: its level, then its cell
 
-  // Candidate lists of moving objects against the fixed grid. A list holds
-  // the fixed entries whose bounds overlap a "fat" box (the object's bounds
-  // grown by a margin); it stays complete while the object's bounds remain
-  // inside the fat box, so a slowly moving object is tested against its
-  // list instead of probing the fixed grid every frame. Lists live in one
-  // pool in moving-grid order, rebuilt (mostly copied) by every rebuild,
-  // and are all dropped when the fixed grid is rebuilt.
-  // A list that stays valid stays where it is; a renewed list is appended
-  // and the pool is compacted (lists copied in mover order) once it holds
-  // more than twice the live lists.
-  std::vector<Mover> movers_;                        // parallel to moving_.entries
-  std::vector<Candidate> list_pool_;                 // the lists
-  std::vector<std::vector<Candidate>> list_parts_;   // per share, its renewed lists
-  std::vector<std::vector<std::uint32_t>> renewed_;  // per share, the movers it renewed
-  std::uint32_t epoch_ = 1;                          // bumped at every fixed-grid rebuild
+  // Candidate lists of moving objects. A mover's fixed list holds the fixed
+  // objects whose bounds overlap its fat box; its near list holds the
+  // movers whose fat boxes overlapped its own when it was renewed. A pair
+  // of movers is tested from the list of the one renewed last (by the lower
+  // slot when both were renewed by the same rebuild): that list was made
+  // against the other's current fat box, so it holds the pair whenever the
+  // two objects can touch. A frame thus reads lists front to back and
+  // probes grids only for the movers that left their fat boxes. A list that
+  // stays valid stays where it is; renewed lists are appended and the pools
+  // are compacted (lists copied in mover order) once they hold more than
+  // 1.5 times the live lists. Every list is renewed when the fixed grid is
+  // rebuilt.
+  std::vector<Mover> movers_;                           // parallel to moving_.entries
+  std::vector<Candidate> list_pool_;                    // fixed candidates
+  std::vector<std::uint32_t> near_pool_;                // moving neighbours (slots)
+  std::vector<std::vector<Candidate>> list_parts_;      // per share, its renewed lists
+  std::vector<std::vector<std::uint32_t>> near_parts_;  // per share, its renewed near lists
+  std::vector<std::vector<std::uint32_t>> renewed_;     // per share, the movers it renewed
+  std::uint32_t epoch_ = 1;                             // bumped at every fixed-grid rebuild
+  std::uint32_t stamp_ = 0;                             // bumped at every rebuild
 
   /// Per-share pair buffers of find_pairs, reused between frames.
   mutable std::mutex buffers_mutex_;
@@ -406,17 +417,20 @@ bool FastGrid::grid_pairs(const Grid& g, std::size_t begin, std::size_t end, E& 
 }
 
 template <class E>
-bool FastGrid::list_pairs(std::size_t begin, std::size_t end, E& emit, std::uint64_t& tests) const {
+bool FastGrid::mover_pairs(std::size_t begin, std::size_t end, E& emit,
+                           std::uint64_t& tests) const {
   // While no fixed object has left the grid since it was built, every
-  // candidate is live and the lists are read alone.
+  // candidate is live and fixed lists are read alone.
   const bool all_live = fixed_count_ == fixed_.entries.size();
   for (std::size_t i = begin; i < end; ++i) {
     const Entry& me = moving_.entries[i];
     if (me.dead()) continue;
     const Shape& sm = moving_.shapes[i];
-    const Candidate* c = list_pool_.data() + movers_[i].list_begin;
-    const Candidate* c_end = c + movers_[i].list_count;
-    tests += static_cast<std::uint64_t>(c_end - c);
+    const Mover& mv = movers_[i];
+    const Handle hm = me.handle();
+    const Candidate* c = list_pool_.data() + mv.list_begin;
+    const Candidate* c_end = c + mv.list_count;
+    tests += mv.list_count;
     if (all_live && sm.kind == ShapeKind::sphere) {
       const Vec3 p = sm.center;
       const double r = sm.half.x;
@@ -426,15 +440,28 @@ bool FastGrid::list_pairs(std::size_t begin, std::size_t end, E& emit, std::uint
           hit = spheres_overlap(p, r, {c->c[0], c->c[1], c->c[2]}, c->r);
         else
           hit = overlaps(sm, fixed_.shapes[slots_[c->handle.index].pos]);
-        if (hit && !emit(me.handle(), c->handle)) return false;
+        if (hit && !emit(hm, c->handle)) return false;
       }
-      continue;
+    } else {
+      for (; c != c_end; ++c) {
+        // A fixed object that left has another home (its slot is held back).
+        if (slots_[c->handle.index].home != Home::fixed_grid) continue;
+        if (exact(sm, fixed_.shapes[slots_[c->handle.index].pos]) && !emit(hm, c->handle))
+          return false;
+      }
     }
-    for (; c != c_end; ++c) {
-      // A fixed object that left has another home (its slot is held back).
-      if (slots_[c->handle.index].home != Home::fixed_grid) continue;
-      if (exact(sm, fixed_.shapes[slots_[c->handle.index].pos]) && !emit(me.handle(), c->handle))
-        return false;
+    const std::uint32_t* n = near_pool_.data() + mv.near_begin;
+    const std::uint32_t* n_end = n + mv.near_count;
+    for (; n != n_end; ++n) {
+      const Slot& o = slots_[*n];
+      // A neighbour that left the moving grid is met elsewhere (loose
+      // list); one renewed later holds this pair in its own list. A slot
+      // reused by another object always carries a later stamp.
+      if (o.home != Home::moving_grid) continue;
+      const std::uint32_t os = movers_[o.pos].stamp;
+      if (os > mv.stamp || (os == mv.stamp && *n < me.slot)) continue;
+      ++tests;
+      if (exact(sm, moving_.shapes[o.pos]) && !emit(hm, Handle{*n, o.gen})) return false;
     }
   }
   return true;
@@ -475,8 +502,7 @@ bool FastGrid::loose_pairs(E& emit, std::uint64_t& tests) const {
 template <class E>
 bool FastGrid::all_pairs(E& emit, std::uint64_t& tests) const {
   const std::size_t m = moving_.entries.size();
-  return fixed_pairs(emit, tests) && list_pairs(0, m, emit, tests) &&
-         grid_pairs(moving_, 0, m, emit, tests) && loose_pairs(emit, tests);
+  return fixed_pairs(emit, tests) && mover_pairs(0, m, emit, tests) && loose_pairs(emit, tests);
 }
 
 template <class V>

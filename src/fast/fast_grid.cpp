@@ -35,7 +35,7 @@ constexpr std::size_t kMinLoose = 64;
 // larger of its extent and the fixed grid's finest cell. The cell term
 // lets tiny fast objects keep a list for several frames (cells that fine
 // hold few objects), the extent term keeps lists short in dense crowds.
-constexpr double kMarginFrames = 8;
+constexpr double kMarginFrames = 12;
 constexpr double kMinMargin = 0.02;
 constexpr double kMaxMargin = 0.5;
 // Moving entries per share below which work stays on one thread.
@@ -265,15 +265,16 @@ void FastGrid::update(std::span<const Move> moves) {
   for (const Move& m : moves) {
     const std::uint32_t i = m.handle.index;
     if (slots_[i].home == Home::moving_grid) {
+      // The grid entry keeps the fat box; the rebuild renews it if needed.
       const std::uint32_t k = slots_[i].pos;
-      Entry& e = moving_.entries[k];
+      Mover& mv = movers_[k];
       const AabbF b = bounds_f(m.shape);
       float d = 0;
       for (int a = 0; a < 3; ++a)
-        d = std::max(d, std::max(std::fabs(b.lo[a] - e.lo[a]), std::fabs(b.hi[a] - e.hi[a])));
-      movers_[k].speed = d;
-      std::copy(b.lo, b.lo + 3, e.lo);
-      std::copy(b.hi, b.hi + 3, e.hi);
+        d = std::max(
+            d, std::max(std::fabs(b.lo[a] - mv.cur.lo[a]), std::fabs(b.hi[a] - mv.cur.hi[a])));
+      mv.speed = d;
+      mv.cur = b;
       moving_.shapes[k] = m.shape;
     } else if (slots_[i].home == Home::fixed_grid) {
       leave_grid(i);
@@ -342,12 +343,36 @@ void FastGrid::rebuild(bool fixed_too) {
     fixed_dirty_ = false;
     ++epoch_;  // every candidate list names entries of the old fixed grid
   }
+  // The moving grid holds fat boxes: a mover whose bounds left its box gets
+  // a new one now (and new lists below), a new mover its first.
+  ++stamp_;
   std::vector<Entry>& items = scratch_items_;
   std::vector<std::uint32_t>& src = scratch_src_;
   items.clear();
   src.clear();
-  take_grid(moving_, items, src);
+  for (std::size_t k = 0; k < moving_.entries.size(); ++k) {
+    Entry e = moving_.entries[k];
+    if (e.dead()) continue;
+    Mover& mv = movers_[k];
+    const AabbF& c = mv.cur;
+    const AabbF& f = mv.fat;
+    if (!(f.lo[0] <= c.lo[0] && f.lo[1] <= c.lo[1] && f.lo[2] <= c.lo[2] && c.hi[0] <= f.hi[0] &&
+          c.hi[1] <= f.hi[1] && c.hi[2] <= f.hi[2])) {
+      mv.fat = fat_box(c, mv.speed);
+      mv.epoch = 0;
+      std::copy(mv.fat.lo, mv.fat.lo + 3, e.lo);
+      std::copy(mv.fat.hi, mv.fat.hi + 3, e.hi);
+    }
+    items.push_back(e);
+    src.push_back(static_cast<std::uint32_t>(k));
+  }
+  const std::size_t first_loose = items.size();
   take_loose(Motion::dynamic, items, src);
+  for (std::size_t i = first_loose; i < items.size(); ++i) {
+    const AabbF f = fat_box(items[i].box(), 0);
+    std::copy(f.lo, f.lo + 3, items[i].lo);
+    std::copy(f.hi, f.hi + 3, items[i].hi);
+  }
   scratch_shapes_.swap(moving_.shapes);
   scratch_movers_.swap(movers_);
   build_grid(moving_, items, src, scratch_shapes_);
@@ -498,91 +523,128 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
     const std::uint32_t from = src[i];
     const bool loose = (from & kFromLoose) != 0;
     g.shapes[k] = loose ? loose_shapes_[from & ~kFromLoose] : old_shapes[from];
-    if (moving) movers_[k] = loose ? Mover{} : scratch_movers_[from];
+    if (moving) {
+      if (loose) {
+        Mover& mv = movers_[k];
+        mv = Mover{};
+        mv.cur = loose_bounds_[from & ~kFromLoose];
+        mv.fat = items[i].box();
+      } else {
+        movers_[k] = scratch_movers_[from];
+      }
+    }
   }
   for (std::uint32_t c = cells; c > 0; --c) g.cell_start[c] = g.cell_start[c - 1];
   g.cell_start[0] = 0;
+}
+
+AabbF FastGrid::fat_box(const AabbF& cur, float speed) const {
+  // A margin that covers several frames of the last displacement, within
+  // the limits above.
+  const double finest_cell =
+      fixed_.levels.empty() || !(fixed_.levels[0].inv_cell > 0) ? 0 : 1 / fixed_.levels[0].inv_cell;
+  const double extent = extent_of(cur.lo, cur.hi);
+  double margin =
+      std::min(std::max(kMarginFrames * static_cast<double>(speed), kMinMargin * extent),
+               kMaxMargin * std::max(extent, finest_cell));
+  if (!(margin >= 0)) margin = 0;  // unbounded objects
+  AabbF g;
+  for (int a = 0; a < 3; ++a) {
+    g.lo[a] = round_down(static_cast<double>(cur.lo[a]) - margin);
+    g.hi[a] = round_up(static_cast<double>(cur.hi[a]) + margin);
+  }
+  return g;
 }
 
 void FastGrid::build_candidate_lists() {
   const std::size_t m = moving_.entries.size();
   const unsigned t = shares_for(m);
   // Each share renews the lists of a contiguous range of the moving entries
-  // into its own part (distinct entries share no state); the parts are
-  // appended to the pool in order, so the pool is the same for every
-  // thread count.
+  // into its own parts (distinct entries share no state; the grids are
+  // only read); the parts are appended to the pools in order, so the pools
+  // are the same for every thread count.
   if (list_parts_.size() < t) {
     list_parts_.resize(t);
+    near_parts_.resize(t);
     renewed_.resize(t);
   }
   run_shares(t, [&](unsigned k) {
-    // Share 0 appends to the pool itself (no other share reads the pool).
+    // Share 0 appends to the pools themselves (no other share reads them).
     std::vector<Candidate>& part = k == 0 ? list_pool_ : list_parts_[k];
-    if (k > 0) part.clear();
+    std::vector<std::uint32_t>& near = k == 0 ? near_pool_ : near_parts_[k];
+    if (k > 0) {
+      part.clear();
+      near.clear();
+    }
     renewed_[k].clear();
-    build_lists(m * k / t, m * (k + 1) / t, part, renewed_[k]);
+    build_lists(m * k / t, m * (k + 1) / t, part, near, renewed_[k]);
   });
   for (unsigned k = 1; k < t; ++k) {
     const auto offset = static_cast<std::uint32_t>(list_pool_.size());
-    for (std::uint32_t i : renewed_[k]) movers_[i].list_begin += offset;
+    const auto near_offset = static_cast<std::uint32_t>(near_pool_.size());
+    for (std::uint32_t i : renewed_[k]) {
+      movers_[i].list_begin += offset;
+      movers_[i].near_begin += near_offset;
+    }
     list_pool_.insert(list_pool_.end(), list_parts_[k].begin(), list_parts_[k].end());
+    near_pool_.insert(near_pool_.end(), near_parts_[k].begin(), near_parts_[k].end());
   }
-  std::size_t live = 0;
-  for (const Mover& mv : movers_) live += mv.list_count;
-  if (list_pool_.size() > live + live / 2 + 1024) {
+  std::size_t live = 0, near_live = 0;
+  for (const Mover& mv : movers_) {
+    live += mv.list_count;
+    near_live += mv.near_count;
+  }
+  if (list_pool_.size() > live + live / 2 + 1024 ||
+      near_pool_.size() > near_live + near_live / 2 + 1024) {
     // Compact: copy the live lists in mover order (and drop the capacity a
     // burst of renewals left behind).
     std::vector<Candidate> pool;
+    std::vector<std::uint32_t> near;
     pool.reserve(live + live / 2 + 1024);
+    near.reserve(near_live + near_live / 2 + 1024);
     for (Mover& mv : movers_) {
       const Candidate* old = list_pool_.data() + mv.list_begin;
       mv.list_begin = static_cast<std::uint32_t>(pool.size());
       pool.insert(pool.end(), old, old + mv.list_count);
+      const std::uint32_t* old_near = near_pool_.data() + mv.near_begin;
+      mv.near_begin = static_cast<std::uint32_t>(near.size());
+      near.insert(near.end(), old_near, old_near + mv.near_count);
     }
     list_pool_.swap(pool);
+    near_pool_.swap(near);
   }
 }
 
 void FastGrid::build_lists(std::size_t begin, std::size_t end, std::vector<Candidate>& part,
-                           std::vector<std::uint32_t>& renewed) {
-  const double finest_cell =
-      fixed_.levels.empty() || !(fixed_.levels[0].inv_cell > 0) ? 0 : 1 / fixed_.levels[0].inv_cell;
+                           std::vector<std::uint32_t>& near, std::vector<std::uint32_t>& renewed) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   for (std::size_t i = begin; i < end; ++i) {
     const Entry& e = moving_.entries[i];
     Mover& mv = movers_[i];
-    const AabbF& fat = mv.fat;
     if (e.dead()) {
-      mv.list_count = 0;
+      mv.list_count = mv.near_count = 0;
       continue;
     }
-    const bool inside = mv.epoch == epoch_ && fat.lo[0] <= e.lo[0] && fat.lo[1] <= e.lo[1] &&
-                        fat.lo[2] <= e.lo[2] && e.hi[0] <= fat.hi[0] && e.hi[1] <= fat.hi[1] &&
-                        e.hi[2] <= fat.hi[2];
-    if (inside) continue;  // the list covers the object where it is now
-    // Grow the bounds by a margin that covers several frames of the last
-    // displacement, within the limits above.
-    const double extent = extent_of(e.lo, e.hi);
-    const double margin =
-        std::min(std::max(kMarginFrames * static_cast<double>(mv.speed), kMinMargin * extent),
-                 kMaxMargin * std::max(extent, finest_cell));
-    AabbF g;
-    for (int a = 0; a < 3; ++a) {
-      g.lo[a] = round_down(static_cast<double>(e.lo[a]) - margin);
-      g.hi[a] = round_up(static_cast<double>(e.hi[a]) + margin);
-    }
-    mv.fat = g;
+    if (mv.epoch == epoch_) continue;  // the lists cover the object where it is now
     mv.epoch = epoch_;
-    const auto first = static_cast<std::uint32_t>(part.size());
-    fixed_.scan(g, 0, kNoMinX, [&](std::uint32_t k) {
+    mv.stamp = stamp_;
+    mv.list_begin = static_cast<std::uint32_t>(part.size());
+    fixed_.scan(mv.fat, 0, kNoMinX, [&](std::uint32_t k) {
       const Shape& s = fixed_.shapes[k];
       part.push_back({{s.center.x, s.center.y, s.center.z},
                       s.kind == ShapeKind::sphere ? s.half.x : nan,
                       fixed_.entries[k].handle()});
       return true;
     });
-    mv.list_begin = first;
-    mv.list_count = static_cast<std::uint32_t>(part.size()) - first;
+    mv.list_count = static_cast<std::uint32_t>(part.size()) - mv.list_begin;
+    // Moving grid entries are fat boxes: this finds every mover whose box
+    // overlaps this one's.
+    mv.near_begin = static_cast<std::uint32_t>(near.size());
+    moving_.scan(mv.fat, 0, kNoMinX, [&](std::uint32_t k) {
+      if (k != i) near.push_back(moving_.entries[k].slot);
+      return true;
+    });
+    mv.near_count = static_cast<std::uint32_t>(near.size()) - mv.near_begin;
     renewed.push_back(static_cast<std::uint32_t>(i));
   }
 }
@@ -620,46 +682,36 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
   const unsigned t = shares_for(m);
   if (t <= 1) {
     emit_fixed();
-    list_pairs(0, m, emit_out, cost.tests);
-    grid_pairs(moving_, 0, m, emit_out, cost.tests);
+    mover_pairs(0, m, emit_out, cost.tests);
   } else {
-    // Share 0 (the calling thread) first emits the fixed pairs straight
-    // into `out`; every share then fills two buffers (pairs from candidate
-    // lists, pairs within the moving grid), appended afterwards in the
-    // order of one thread: all list pairs, then all moving-grid pairs.
+    // Share 0 (the calling thread) emits the fixed pairs and its movers'
+    // pairs straight into `out`; every other share fills its own buffer,
+    // appended afterwards in share order: the order of one thread.
     std::unique_lock lock(buffers_mutex_, std::try_to_lock);
     std::vector<std::vector<HandlePair>> local;
     std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
-    if (buffers.size() < 2 * t) buffers.resize(2 * t);
+    if (buffers.size() < t) buffers.resize(t);
     std::vector<std::uint64_t> tests(t, 0);
     run_shares(t, [&](unsigned k) {
       const std::size_t begin = m * k / t, end = m * (k + 1) / t;
-      std::vector<HandlePair>& lists = buffers[k];
-      std::vector<HandlePair>& grid = buffers[t + k];
-      lists.clear();
-      grid.clear();
-      auto into_lists = [&lists](Handle a, Handle b) {
-        lists.push_back({a, b});
-        return true;
-      };
-      auto into_grid = [&grid](Handle a, Handle b) {
-        grid.push_back({a, b});
-        return true;
-      };
       if (k == 0) {
         emit_fixed();
-        list_pairs(begin, end, emit_out, tests[k]);
-      } else {
-        list_pairs(begin, end, into_lists, tests[k]);
+        mover_pairs(begin, end, emit_out, tests[k]);
+        return;
       }
-      grid_pairs(moving_, begin, end, into_grid, tests[k]);
+      std::vector<HandlePair>& buf = buffers[k];
+      buf.clear();
+      auto into = [&buf](Handle a, Handle b) {
+        buf.push_back({a, b});
+        return true;
+      };
+      mover_pairs(begin, end, into, tests[k]);
     });
     for (unsigned k = 0; k < t; ++k) cost.tests += tests[k];
     std::size_t extra = 0;
-    for (unsigned k = 1; k < 2 * t; ++k) extra += buffers[k].size();
+    for (unsigned k = 1; k < t; ++k) extra += buffers[k].size();
     out.reserve(out.size() + extra);
-    for (unsigned k = 1; k < 2 * t; ++k)
-      out.insert(out.end(), buffers[k].begin(), buffers[k].end());
+    for (unsigned k = 1; k < t; ++k) out.insert(out.end(), buffers[k].begin(), buffers[k].end());
   }
   loose_pairs(emit_out, cost.tests);
   return cost;
@@ -674,8 +726,9 @@ std::size_t FastGrid::memory_bytes() const {
                       scratch_items_.capacity() * sizeof(Entry) + scratch_src_.capacity() * 4 +
                       scratch_shapes_.capacity() * sizeof(Shape) + scratch_tag_.capacity() * 4 +
                       (movers_.capacity() + scratch_movers_.capacity()) * sizeof(Mover) +
-                      list_pool_.capacity() * sizeof(Candidate);
+                      list_pool_.capacity() * sizeof(Candidate) + near_pool_.capacity() * 4;
   for (const auto& p : list_parts_) bytes += p.capacity() * sizeof(Candidate);
+  for (const auto& p : near_parts_) bytes += p.capacity() * 4;
   for (const auto& r : renewed_) bytes += r.capacity() * 4;
   std::lock_guard lock(buffers_mutex_);
   for (const auto& b : buffers_) bytes += b.capacity() * sizeof(HandlePair);
@@ -744,9 +797,20 @@ void FastGrid::validate() const {
           if (lv.cell_of(e.lo) != c) fail(gname + ": entry in the wrong cell");
           ++valid;
           const AabbF b = bounds_f(g.shapes[k]);
-          if (std::memcmp(b.lo, e.lo, sizeof b.lo) != 0 ||
-              std::memcmp(b.hi, e.hi, sizeof b.hi) != 0)
+          if (home == Home::moving_grid) {
+            // Moving entries hold the fat box, around the bounds now.
+            const Mover& mv = movers_[k];
+            if (std::memcmp(&b, &mv.cur, sizeof b) != 0) fail(gname + ": stale mover bounds");
+            if (std::memcmp(mv.fat.lo, e.lo, sizeof b.lo) != 0 ||
+                std::memcmp(mv.fat.hi, e.hi, sizeof b.hi) != 0)
+              fail(gname + ": entry is not the mover's fat box");
+            if (!(e.lo[0] <= b.lo[0] && e.lo[1] <= b.lo[1] && e.lo[2] <= b.lo[2] &&
+                  b.hi[0] <= e.hi[0] && b.hi[1] <= e.hi[1] && b.hi[2] <= e.hi[2]))
+              fail(gname + ": bounds outside the fat box after a rebuild");
+          } else if (std::memcmp(b.lo, e.lo, sizeof b.lo) != 0 ||
+                     std::memcmp(b.hi, e.hi, sizeof b.hi) != 0) {
             fail(gname + ": stale entry bounds");
+          }
         }
       }
     }
@@ -757,7 +821,10 @@ void FastGrid::validate() const {
   if (movers_.size() != moving_.entries.size()) fail("mover states and moving grid differ");
   for (std::size_t k = 0; k < movers_.size(); ++k) {
     const Mover& mv = movers_[k];
-    if (moving_.entries[k].dead() || mv.epoch != epoch_) continue;
+    if (moving_.entries[k].dead()) continue;
+    if (mv.epoch != epoch_ || mv.stamp > stamp_) fail("a mover's lists were not renewed");
+    if (static_cast<std::size_t>(mv.near_begin) + mv.near_count > near_pool_.size())
+      fail("near list out of the pool");
     if (static_cast<std::size_t>(mv.list_begin) + mv.list_count > list_pool_.size())
       fail("candidate list out of the pool");
     for (std::uint32_t j = 0; j < mv.list_count; ++j) {
@@ -772,6 +839,27 @@ void FastGrid::validate() const {
         fail("candidate copy differs from its fixed object");
       if (!o.overlaps(mv.fat)) fail("candidate outside its list's box");
     }
+  }
+  // Every two movers whose fat boxes overlap are in the near list of the
+  // one renewed last (the lower slot on a tie): that is what makes the
+  // frames exact.
+  for (std::size_t i = 0; i < movers_.size(); ++i) {
+    const Entry& me = moving_.entries[i];
+    if (me.dead()) continue;
+    moving_.scan(movers_[i].fat, 0, kNoMinX, [&](std::uint32_t j) {
+      if (j == i) return true;
+      const Mover& a = movers_[i];
+      const Mover& b = movers_[j];
+      const std::uint32_t sa = me.slot, sb = moving_.entries[j].slot;
+      const bool a_holds = a.stamp > b.stamp || (a.stamp == b.stamp && sa < sb);
+      const Mover& holder = a_holds ? a : b;
+      const std::uint32_t other = a_holds ? sb : sa;
+      const std::uint32_t* n = near_pool_.data() + holder.near_begin;
+      if (std::find(n, n + holder.near_count, other) == n + holder.near_count)
+        fail("movers " + std::to_string(sa) + " and " + std::to_string(sb) +
+             " overlap in fat boxes but neither near list holds the pair");
+      return true;
+    });
   }
   if (fixed_count_ + moving_count_ + loose_.size() != live_) fail("objects lost between lists");
   if (!cache_built_ && !fixed_pairs_.empty()) fail("a stale pair cache");
