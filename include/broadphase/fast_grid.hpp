@@ -479,21 +479,37 @@ bool FastGrid::fixed_pairs(E& emit, std::uint64_t& tests) const {
 
 template <class E>
 bool FastGrid::loose_pairs(E& emit, std::uint64_t& tests) const {
-  for (std::size_t i = 0; i < loose_.size(); ++i) {
+  const std::size_t n = loose_.size();
+  for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t s = loose_[i];
     const Shape& sh = loose_shapes_[i];
-    const AabbF& q = loose_bounds_[i];
     for (const Grid* g : {&fixed_, &moving_}) {
-      if (!g->scan(q, 0, kNoMinX, [&](std::uint32_t k) {
+      if (!g->scan(loose_bounds_[i], 0, kNoMinX, [&](std::uint32_t k) {
             ++tests;
             return !overlaps(sh, g->shapes[k]) || emit(handle_of(s), g->entries[k].handle());
           }))
         return false;
     }
-    for (std::size_t j = i + 1; j < loose_.size(); ++j) {
+  }
+  // Loose against loose: a sweep along x (the loose list can hold an eighth
+  // of the objects, so testing every two of them would be quadratic).
+  if (n < 2) return true;
+  std::vector<std::uint32_t> order(n);
+  for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<std::uint32_t>(i);
+  std::sort(order.begin(), order.end(), [this](std::uint32_t a, std::uint32_t b) {
+    const float xa = loose_bounds_[a].lo[0], xb = loose_bounds_[b].lo[0];
+    return xa < xb || (xa == xb && a < b);
+  });
+  for (std::size_t a = 0; a < n; ++a) {
+    const std::uint32_t i = order[a];
+    const AabbF& q = loose_bounds_[i];
+    for (std::size_t b = a + 1; b < n && loose_bounds_[order[b]].lo[0] <= q.hi[0]; ++b) {
+      const std::uint32_t j = order[b];
       if (!loose_bounds_[j].overlaps(q)) continue;
       ++tests;
-      if (overlaps(sh, loose_shapes_[j]) && !emit(handle_of(s), handle_of(loose_[j]))) return false;
+      if (overlaps(loose_shapes_[i], loose_shapes_[j]) &&
+          !emit(handle_of(loose_[i]), handle_of(loose_[j])))
+        return false;
     }
   }
   return true;
