@@ -169,6 +169,9 @@ class FastGrid {
     /// of `first_min_x` along x); stops when f returns false.
     template <class F>
     bool scan(const AabbF& q, std::size_t first_level, double first_min_x, F&& f) const;
+    /// The same on level `l` alone, in cells from the one of `min_x` along x.
+    template <class F>
+    bool scan_level(const AabbF& q, std::size_t l, double min_x, F&& f) const;
     std::size_t memory_bytes() const {
       return levels.capacity() * sizeof(Level) + cell_start.capacity() * 4 +
              entries.capacity() * sizeof(Entry) + shapes.capacity() * sizeof(Shape);
@@ -187,6 +190,7 @@ class FastGrid {
     std::uint32_t epoch = 0;                       // fixed-grid epoch of the lists; 0: renewal due
     std::uint32_t stamp = 0;                       // the rebuild that last renewed them
     float speed = 0;
+    bool fast = false;  // too fast for a margin: probes the moving grid each frame
   };
 
   /// One fixed object in a candidate list: a copy of its sphere (so that a
@@ -232,7 +236,7 @@ class FastGrid {
   void build_lists(std::size_t begin, std::size_t end, std::vector<Candidate>& part,
                    std::vector<std::uint32_t>& near, std::vector<std::uint32_t>& renewed);
   /// The box a mover's lists cover: its bounds grown by a margin.
-  AabbF fat_box(const AabbF& cur, float speed) const;
+  AabbF fat_box(const AabbF& cur, float speed, bool& fast) const;
   /// Fills `g` from `items` (entries) whose shapes are named by `src`
   /// (an index into `old_shapes`, or kFromLoose | index into loose_shapes_).
   void build_grid(Grid& g, std::vector<Entry>& items, const std::vector<std::uint32_t>& src,
@@ -326,6 +330,7 @@ class FastGrid {
   std::vector<std::vector<std::uint32_t>> renewed_;     // per share, the movers it renewed
   std::uint32_t epoch_ = 1;                             // bumped at every fixed-grid rebuild
   std::uint32_t stamp_ = 0;                             // bumped at every rebuild
+  std::vector<std::uint32_t> slow_per_level_;           // per moving-grid level: movers not fast
 
   /// Per-share pair buffers of find_pairs, reused between frames.
   mutable std::mutex buffers_mutex_;
@@ -336,37 +341,41 @@ class FastGrid {
 // ---------------------------------------------------------------------------
 
 template <class F>
-bool FastGrid::Grid::scan(const AabbF& q, std::size_t first_level, double first_min_x,
-                          F&& f) const {
-  for (std::size_t l = first_level; l < levels.size(); ++l) {
-    const Level& lv = levels[l];
-    double lo_x = static_cast<double>(q.lo[0]) - lv.reach;
-    if (l == first_level) lo_x = std::max(lo_x, first_min_x);
-    const std::uint32_t x0 = lv.cell(lo_x, 0);
-    const std::uint32_t x1 = lv.cell(q.hi[0], 0);
-    const std::uint32_t y0 = lv.cell(static_cast<double>(q.lo[1]) - lv.reach, 1);
-    const std::uint32_t y1 = lv.cell(q.hi[1], 1);
-    const std::uint32_t z0 = lv.cell(static_cast<double>(q.lo[2]) - lv.reach, 2);
-    const std::uint32_t z1 = lv.cell(q.hi[2], 2);
-    const std::uint32_t level_begin = cell_start[lv.first_cell];
-    const std::uint32_t level_end = cell_start[lv.first_cell + lv.cells()];
-    if (static_cast<std::uint64_t>(y1 - y0 + 1) * (z1 - z0 + 1) * kProbeCost >
-        level_end - level_begin) {
-      // A query far larger than the level's cells: visiting its rows would
-      // cost more than testing every entry of the level.
-      for (std::uint32_t k = level_begin; k < level_end; ++k)
+bool FastGrid::Grid::scan_level(const AabbF& q, std::size_t l, double min_x, F&& f) const {
+  const Level& lv = levels[l];
+  const double lo_x = std::max(static_cast<double>(q.lo[0]) - lv.reach, min_x);
+  const std::uint32_t x0 = lv.cell(lo_x, 0);
+  const std::uint32_t x1 = lv.cell(q.hi[0], 0);
+  const std::uint32_t y0 = lv.cell(static_cast<double>(q.lo[1]) - lv.reach, 1);
+  const std::uint32_t y1 = lv.cell(q.hi[1], 1);
+  const std::uint32_t z0 = lv.cell(static_cast<double>(q.lo[2]) - lv.reach, 2);
+  const std::uint32_t z1 = lv.cell(q.hi[2], 2);
+  const std::uint32_t level_begin = cell_start[lv.first_cell];
+  const std::uint32_t level_end = cell_start[lv.first_cell + lv.cells()];
+  if (static_cast<std::uint64_t>(y1 - y0 + 1) * (z1 - z0 + 1) * kProbeCost >
+      level_end - level_begin) {
+    // A query far larger than the level's cells: visiting its rows would
+    // cost more than testing every entry of the level.
+    for (std::uint32_t k = level_begin; k < level_end; ++k)
+      if (entries[k].overlaps(q) && !f(k)) return false;
+    return true;
+  }
+  for (std::uint32_t y = y0; y <= y1; ++y) {
+    for (std::uint32_t z = z0; z <= z1; ++z) {
+      const std::uint32_t base = lv.first_cell + (y * lv.n[2] + z) * lv.n[0];
+      const std::uint32_t e = cell_start[base + x1 + 1];
+      for (std::uint32_t k = cell_start[base + x0]; k < e; ++k)
         if (entries[k].overlaps(q) && !f(k)) return false;
-      continue;
-    }
-    for (std::uint32_t y = y0; y <= y1; ++y) {
-      for (std::uint32_t z = z0; z <= z1; ++z) {
-        const std::uint32_t base = lv.first_cell + (y * lv.n[2] + z) * lv.n[0];
-        const std::uint32_t e = cell_start[base + x1 + 1];
-        for (std::uint32_t k = cell_start[base + x0]; k < e; ++k)
-          if (entries[k].overlaps(q) && !f(k)) return false;
-      }
     }
   }
+  return true;
+}
+
+template <class F>
+bool FastGrid::Grid::scan(const AabbF& q, std::size_t first_level, double first_min_x,
+                          F&& f) const {
+  for (std::size_t l = first_level; l < levels.size(); ++l)
+    if (!scan_level(q, l, l == first_level ? first_min_x : kNoMinX, f)) return false;
   return true;
 }
 
@@ -422,6 +431,7 @@ bool FastGrid::mover_pairs(std::size_t begin, std::size_t end, E& emit,
   // While no fixed object has left the grid since it was built, every
   // candidate is live and fixed lists are read alone.
   const bool all_live = fixed_count_ == fixed_.entries.size();
+  std::size_t level = 0;
   for (std::size_t i = begin; i < end; ++i) {
     const Entry& me = moving_.entries[i];
     if (me.dead()) continue;
@@ -450,6 +460,34 @@ bool FastGrid::mover_pairs(std::size_t begin, std::size_t end, E& emit,
           return false;
       }
     }
+    if (mv.fast) {
+      // Pairs with slow movers are this one's to report; of two fast ones,
+      // the one first in the order (level, lower x, entry) reports, as in
+      // grid_pairs. Levels below its own and the part of its level before
+      // it are probed only when they hold slow movers.
+      while (level + 1 < moving_.levels.size() && i >= moving_.level_end(level)) ++level;
+      const std::size_t own_end = moving_.level_end(level);
+      const float me_x = me.lo[0];
+      auto test = [&](std::uint32_t k) {
+        if (k == i) return true;
+        const Entry& o = moving_.entries[k];
+        if (movers_[k].fast &&
+            (k < own_end && (k < moving_.cell_start[moving_.levels[level].first_cell] ||
+                             o.lo[0] < me_x || (o.lo[0] == me_x && k < i))))
+          return true;
+        ++tests;
+        return !exact(sm, moving_.shapes[k]) || emit(hm, o.handle());
+      };
+      bool go = true;
+      for (std::size_t l = 0; go && l < level; ++l)
+        if (slow_per_level_[l] > 0) go = moving_.scan_level(mv.cur, l, kNoMinX, test);
+      if (go)
+        go = moving_.scan_level(mv.cur, level, slow_per_level_[level] > 0 ? kNoMinX : me_x, test);
+      for (std::size_t l = level + 1; go && l < moving_.levels.size(); ++l)
+        go = moving_.scan_level(mv.cur, l, kNoMinX, test);
+      if (!go) return false;
+      continue;
+    }
     const std::uint32_t* n = near_pool_.data() + mv.near_begin;
     const std::uint32_t* n_end = n + mv.near_count;
     for (; n != n_end; ++n) {
@@ -457,7 +495,7 @@ bool FastGrid::mover_pairs(std::size_t begin, std::size_t end, E& emit,
       // A neighbour that left the moving grid is met elsewhere (loose
       // list); one renewed later holds this pair in its own list. A slot
       // reused by another object always carries a later stamp.
-      if (o.home != Home::moving_grid) continue;
+      if (o.home != Home::moving_grid || movers_[o.pos].fast) continue;
       const std::uint32_t os = movers_[o.pos].stamp;
       if (os > mv.stamp || (os == mv.stamp && *n < me.slot)) continue;
       ++tests;
