@@ -7,6 +7,7 @@
 #include <broadphase/scene.hpp>
 #include <cmath>
 #include <limits>
+#include <random>
 #include <vector>
 
 namespace broadphase {
@@ -176,6 +177,51 @@ TEST(Geometry, RoundingOutwardsToFloat) {
   EXPECT_EQ(round_down(1e300), std::numeric_limits<float>::max());
   EXPECT_EQ(round_down(-1e-300), -std::numeric_limits<float>::denorm_min());
   EXPECT_EQ(round_up(1e-300), std::numeric_limits<float>::denorm_min());
+}
+
+TEST(Geometry, RoundingIsTightAndOutwards) {
+  // round_down(x) is the largest float not above x: at or below it, with
+  // the next float up above it; round_up likewise. Across magnitudes,
+  // signs, exact floats, zeros, subnormals and the ends of the float range.
+  constexpr double kMax = std::numeric_limits<float>::max();
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> mant(-1, 1);
+  std::uniform_int_distribution<int> expo(-160, 140);
+  std::vector<double> xs = {0.0,
+                            -0.0,
+                            1e-46,
+                            -1e-46,
+                            1e-300,
+                            -1e-300,
+                            kMax,
+                            -kMax,
+                            kMax * (1 + 0x1p-30),
+                            -kMax * (1 + 0x1p-30),
+                            1e300,
+                            -1e300};
+  for (int i = 0; i < 200000; ++i) {
+    const double x = std::ldexp(mant(rng), expo(rng));
+    xs.push_back(x);
+    xs.push_back(static_cast<double>(static_cast<float>(x)));  // exactly a float
+  }
+  for (const double x : xs) {
+    const float d = round_down(x), u = round_up(x);
+    ASSERT_LE(static_cast<double>(d), x) << x;
+    ASSERT_GE(static_cast<double>(u), x) << x;
+    if (d != kInf && x >= -kMax) {
+      ASSERT_GT(static_cast<double>(std::nextafter(d, kInf)), x) << x;
+    }
+    if (u != -kInf && x <= kMax) {
+      ASSERT_LT(static_cast<double>(std::nextafter(u, -kInf)), x) << x;
+    }
+  }
+  EXPECT_EQ(round_down(HUGE_VAL), kInf);
+  EXPECT_EQ(round_up(HUGE_VAL), kInf);
+  EXPECT_EQ(round_down(-HUGE_VAL), -kInf);
+  EXPECT_EQ(round_up(-HUGE_VAL), -kInf);
+  EXPECT_TRUE(std::isnan(round_down(std::nan(""))));
+  EXPECT_TRUE(std::isnan(round_up(std::nan(""))));
 }
 
 TEST(Geometry, NextFloatMatchesNextafter) {

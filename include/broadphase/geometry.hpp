@@ -182,21 +182,29 @@ inline float next_float_up(float f) {
   const auto bits = std::bit_cast<std::uint32_t>(f);
   return std::bit_cast<float>(f > 0 ? bits + 1 : bits - 1);
 }
-/// The largest float not above `x` (−∞ below the float range).
+/// The largest float not above `x` (−∞ below the float range). Without a
+/// branch on the rounding direction, which is a coin toss per coordinate.
 inline float round_down(double x) {
-  if (x < -static_cast<double>(std::numeric_limits<float>::max()))
-    return -std::numeric_limits<float>::infinity();
-  float f = static_cast<float>(x);
-  if (static_cast<double>(f) > x) f = next_float_down(f);
-  return f;
+  constexpr double kMax = std::numeric_limits<float>::max();
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  if (x < -kMax) return -kInf;
+  if (x > kMax) return x == static_cast<double>(kInf) ? kInf : static_cast<float>(kMax);
+  const float f = static_cast<float>(x);
+  // One step of the bit pattern towards −∞ (from either zero to −denorm).
+  const std::uint32_t bits = f == 0 ? 0x80000000u : std::bit_cast<std::uint32_t>(f);
+  const float below = std::bit_cast<float>(bits + (f > 0 ? 0xFFFFFFFFu : 1u));
+  return static_cast<double>(f) > x ? below : f;
 }
 /// The smallest float not below `x` (+∞ above the float range).
 inline float round_up(double x) {
-  if (x > static_cast<double>(std::numeric_limits<float>::max()))
-    return std::numeric_limits<float>::infinity();
-  float f = static_cast<float>(x);
-  if (static_cast<double>(f) < x) f = next_float_up(f);
-  return f;
+  constexpr double kMax = std::numeric_limits<float>::max();
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  if (x > kMax) return kInf;
+  if (x < -kMax) return x == -static_cast<double>(kInf) ? -kInf : -static_cast<float>(kMax);
+  const float f = static_cast<float>(x);
+  const std::uint32_t bits = f == 0 ? 0u : std::bit_cast<std::uint32_t>(f);
+  const float above = std::bit_cast<float>(bits + (f < 0 ? 0xFFFFFFFFu : 1u));
+  return static_cast<double>(f) < x ? above : f;
 }
 /// `bounds(s)` rounded outwards to float: as conservative as `bounds`.
 inline AabbF bounds_f(const Shape& s) {
