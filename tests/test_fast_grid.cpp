@@ -7,6 +7,7 @@
 #include <broadphase/fast_grid.hpp>
 #include <broadphase/naive.hpp>
 #include <broadphase/scene.hpp>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <set>
@@ -220,6 +221,85 @@ TEST(FastGrid, PairOrderDoesNotDependOnThreads) {
   EXPECT_FALSE(orders[0].empty());
   EXPECT_EQ(orders[0], orders[1]);
   EXPECT_EQ(orders[0], orders[2]);
+}
+
+TEST(FastGrid, ParallelBulkUpdateKeepsOrderAndChecks) {
+  // A bulk update split over two threads: a handle named twice (the later
+  // move wins), fixed objects that start moving, and moves that must be
+  // refused whole (a stale handle, a NaN) after a valid prefix.
+  const Scene start = generate(Distribution::scaled_even, 32000, 9);
+  std::vector<IdPairs> results;
+  for (const char* t : {"1", "2"}) {
+    Scene scene = start;
+    FastGrid g(with_option("threads", t));
+    std::vector<Handle> h;
+    for (std::size_t i = 0; i < scene.size(); ++i)
+      h.push_back(
+          g.insert(scene.objects[i], i, scene.is_moving(i) ? Motion::dynamic : Motion::fixed));
+    std::vector<Move> moves;
+    for (std::size_t i = 0; i < scene.size(); ++i)
+      if (scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
+    g.update(moves);
+    step(scene);
+    std::vector<Shape> now = scene.objects;
+    moves.clear();
+    constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+    std::size_t first_moving = kNone, fixed_a = kNone, fixed_b = kNone;
+    for (std::size_t i = 0; i < scene.size(); ++i) {
+      if (scene.is_moving(i)) {
+        if (moves.empty()) first_moving = i;
+        moves.push_back({h[i], scene.objects[i]});
+      } else if (fixed_a == kNone) {
+        fixed_a = i;
+      } else if (fixed_b == kNone) {
+        fixed_b = i;
+      }
+    }
+    ASSERT_NE(fixed_b, kNone);
+    // Twice the same mover: first far away, then onto a fixed object.
+    moves.insert(moves.begin() + 5, {h[first_moving], Shape::sphere({-5e3, 0, 0}, 1)});
+    now[first_moving] = Shape::sphere(scene.objects[fixed_b].center, 1);
+    moves.push_back({h[first_moving], now[first_moving]});
+    // A fixed object that moves onto another.
+    now[fixed_a] = Shape::sphere(scene.objects[fixed_b].center, 2);
+    moves.push_back({h[fixed_a], now[fixed_a]});
+    g.update(moves);
+    g.validate();
+    auto same_shapes = [&] {
+      for (std::size_t i = 0; i < now.size(); ++i) {
+        if (!g.contains(h[i])) continue;
+        const Shape& s = g.shape(h[i]);
+        if (!(s.center == now[i].center && s.half == now[i].half)) return false;
+      }
+      return true;
+    };
+    EXPECT_TRUE(same_shapes()) << "threads=" << t;
+    const IdPairs before = pairs_of(g);
+    Naive n;
+    for (std::size_t i = 0; i < now.size(); ++i) n.insert(now[i], i);
+    EXPECT_EQ(before, pairs_of(n)) << "threads=" << t;
+    auto has = [&](std::size_t a, std::size_t b) {
+      return before.count({std::min(a, b), std::max(a, b)}) == 1;
+    };
+    EXPECT_TRUE(has(first_moving, fixed_b) && has(fixed_a, fixed_b) && has(first_moving, fixed_a));
+    // Refused whole: nothing moves, not even the valid moves before the bad one.
+    std::vector<Move> bad = moves;
+    for (Move& m : bad) m.shape = Shape::sphere(m.shape.center + Vec3{50, 0, 0}, 40);
+    const Handle stale = h[fixed_b];
+    g.remove(stale);
+    bad.push_back({stale, Shape::sphere({0, 0, 0}, 1)});
+    EXPECT_THROW(g.update(bad), InvalidHandle) << "threads=" << t;
+    bad.back() = {h[first_moving], Shape::sphere({std::nan(""), 0, 0}, 1)};
+    EXPECT_THROW(g.update(bad), InvalidShape) << "threads=" << t;
+    g.validate();
+    EXPECT_TRUE(same_shapes()) << "threads=" << t;
+    IdPairs expect;
+    for (const auto& p : before)
+      if (p.first != fixed_b && p.second != fixed_b) expect.insert(p);
+    EXPECT_EQ(pairs_of(g), expect) << "threads=" << t;
+    results.push_back(before);
+  }
+  EXPECT_EQ(results[0], results[1]);
 }
 
 TEST(FastGrid, UnboundedAndHugeObjects) {

@@ -53,7 +53,14 @@ namespace broadphase {
 
 namespace detail {
 class WorkerPool;
+inline void prefetch(const void* p) {
+#if defined(__GNUC__) || defined(__clang__)
+  __builtin_prefetch(p);
+#else
+  (void)p;
+#endif
 }
+}  // namespace detail
 
 /// Hierarchical cell grid with a fixed/moving split and cached fixed pairs.
 /// insert, remove, update: amortised O(log n) (O(1) unless a rebuild is
@@ -230,6 +237,10 @@ class FastGrid {
   void add_loose(std::uint32_t s, const Shape& shape);
   void drop_loose(std::uint32_t s);
   void leave_grid(std::uint32_t s);
+  /// Bulk-update steps: a mover (moving-grid entry k) to its new shape; any
+  /// other object (slot i), which becomes loose and moving.
+  void move_mover(std::uint32_t k, const Shape& shape);
+  void move_other(std::uint32_t i, const Shape& shape);
   void maybe_rebuild();
   void rebuild(bool fixed_too);
   void build_candidate_lists();
@@ -245,6 +256,10 @@ class FastGrid {
   /// Runs job(k) for k in [0, shares), share 0 on the calling thread.
   void run_shares(unsigned shares, const std::function<void(unsigned)>& job) const;
   unsigned shares_for(std::size_t entries) const;
+  /// Runs job(share, chunk) for every chunk in [0, chunks) on `shares`
+  /// threads, each taking the next chunk when free.
+  void run_chunks(unsigned shares, unsigned chunks,
+                  const std::function<void(unsigned, unsigned)>& job) const;
 
   /// Exact test of two shapes, with the sphere–sphere case inline.
   static bool exact(const Shape& a, const Shape& b) {
@@ -437,6 +452,31 @@ bool FastGrid::mover_pairs(std::size_t begin, std::size_t end, E& emit,
     if (me.dead()) continue;
     const Shape& sm = moving_.shapes[i];
     const Mover& mv = movers_[i];
+    // Prefetch ahead: the lists of the movers a few entries on (lists
+    // renewed since the last compaction lie elsewhere in the pool), then
+    // the slots their near lists name, then those neighbours' records.
+    if (i + 8 < end) {
+      const Mover& ahead = movers_[i + 8];
+      detail::prefetch(list_pool_.data() + ahead.list_begin);
+      detail::prefetch(near_pool_.data() + ahead.near_begin);
+    }
+    if (i + 4 < end) {
+      const Mover& ahead = movers_[i + 4];
+      const std::uint32_t* n = near_pool_.data() + ahead.near_begin;
+      for (std::uint32_t k = 0; k < ahead.near_count; ++k) detail::prefetch(&slots_[n[k]]);
+      detail::prefetch(reinterpret_cast<const char*>(list_pool_.data() + ahead.list_begin) + 64);
+    }
+    if (i + 2 < end) {
+      const Mover& ahead = movers_[i + 2];
+      const std::uint32_t* n = near_pool_.data() + ahead.near_begin;
+      for (std::uint32_t k = 0; k < ahead.near_count; ++k) {
+        const std::uint32_t p = slots_[n[k]].pos;
+        if (p < movers_.size()) {
+          detail::prefetch(&movers_[p]);
+          detail::prefetch(&moving_.shapes[p]);
+        }
+      }
+    }
     const Handle hm = me.handle();
     const Candidate* c = list_pool_.data() + mv.list_begin;
     const Candidate* c_end = c + mv.list_count;

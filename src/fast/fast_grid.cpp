@@ -1,3 +1,4 @@
+#include <atomic>
 #include <broadphase/fast_grid.hpp>
 #include <cmath>
 #include <condition_variable>
@@ -48,6 +49,9 @@ constexpr double kMaxMargin = 0.5;
 constexpr double kMinFrames = 2;
 // Moving entries per share below which work stays on one thread.
 constexpr std::size_t kMinEntriesPerThread = 2048;
+// Work split over threads comes in this many chunks per thread, taken by
+// whichever thread is free (renewals and list lengths are uneven).
+constexpr unsigned kChunksPerShare = 8;
 
 double extent_of(const float lo[3], const float hi[3]) {
   double e = 0;
@@ -163,6 +167,17 @@ void FastGrid::run_shares(unsigned shares, const std::function<void(unsigned)>& 
   pool_->run(shares, job);
 }
 
+void FastGrid::run_chunks(unsigned shares, unsigned chunks,
+                          const std::function<void(unsigned, unsigned)>& job) const {
+  // Chunks are taken in order by whichever share is free: the work of a
+  // chunk depends on the chunk alone, so results merged in chunk order do
+  // not depend on the thread count or on timing.
+  std::atomic<unsigned> next{0};
+  run_shares(shares, [&](unsigned k) {
+    for (unsigned c; (c = next.fetch_add(1, std::memory_order_relaxed)) < chunks;) job(k, c);
+  });
+}
+
 std::uint32_t FastGrid::allocate_slot() {
   std::uint32_t s;
   if (free_head_ != Handle::kNullIndex) {
@@ -265,35 +280,88 @@ void FastGrid::update(Handle h, const Shape& s) {
   maybe_rebuild();
 }
 
-void FastGrid::update(std::span<const Move> moves) {
-  for (const Move& m : moves) {
-    index_of(m.handle);
-    require_valid(m.shape);
+void FastGrid::move_mover(std::uint32_t k, const Shape& shape) {
+  // The grid entry keeps the fat box; the rebuild renews it if needed.
+  Mover& mv = movers_[k];
+  const AabbF b = bounds_f(shape);
+  float d = 0;
+  for (int a = 0; a < 3; ++a)
+    d = std::max(d, std::max(std::fabs(b.lo[a] - mv.cur.lo[a]), std::fabs(b.hi[a] - mv.cur.hi[a])));
+  mv.speed = d;
+  mv.cur = b;
+  moving_.shapes[k] = shape;
+}
+
+void FastGrid::move_other(std::uint32_t i, const Shape& shape) {
+  if (slots_[i].home == Home::fixed_grid) {
+    leave_grid(i);
+    slots_[i].motion = Motion::dynamic;
+    add_loose(i, shape);
+  } else {
+    slots_[i].motion = Motion::dynamic;
+    loose_bounds_[slots_[i].pos] = bounds_f(shape);
+    loose_shapes_[slots_[i].pos] = shape;
   }
-  for (const Move& m : moves) {
-    const std::uint32_t i = m.handle.index;
-    if (slots_[i].home == Home::moving_grid) {
-      // The grid entry keeps the fat box; the rebuild renews it if needed.
-      const std::uint32_t k = slots_[i].pos;
-      Mover& mv = movers_[k];
-      const AabbF b = bounds_f(m.shape);
-      float d = 0;
-      for (int a = 0; a < 3; ++a)
-        d = std::max(
-            d, std::max(std::fabs(b.lo[a] - mv.cur.lo[a]), std::fabs(b.hi[a] - mv.cur.hi[a])));
-      mv.speed = d;
-      mv.cur = b;
-      moving_.shapes[k] = m.shape;
-    } else if (slots_[i].home == Home::fixed_grid) {
-      leave_grid(i);
-      slots_[i].motion = Motion::dynamic;
-      add_loose(i, m.shape);
-    } else {
-      slots_[i].motion = Motion::dynamic;
-      loose_bounds_[slots_[i].pos] = bounds_f(m.shape);
-      loose_shapes_[slots_[i].pos] = m.shape;
+}
+
+void FastGrid::update(std::span<const Move> moves) {
+  // Two passes over the moves, split over the threads: the first checks
+  // every move (nothing changes if one is bad: the checks are then repeated
+  // on one thread, for the error) and notes each one's mover; the second
+  // moves the movers, each share those in its range of the moving grid
+  // (movers stay movers here; a handle named twice goes to one share, in
+  // order). The other objects, which change home, move afterwards, in
+  // order. Both passes prefetch ahead: the moves come in the caller's
+  // order, the slots and movers they name are scattered.
+  constexpr std::uint32_t kOther = 0xFFFFFFFFu;
+  constexpr std::size_t kAhead = 16;
+  const std::size_t m = moving_.entries.size();
+  const std::size_t n = moves.size();
+  const unsigned t = shares_for(std::min(n, m));
+  std::vector<std::uint32_t>& target = scratch_tag_;
+  target.resize(n);
+  std::atomic<bool> bad{false};
+  run_shares(t, [&](unsigned k) {
+    const std::size_t end = n * (k + 1) / t;
+    for (std::size_t j = n * k / t; j < end; ++j) {
+      if (j + kAhead < end && moves[j + kAhead].handle.index < slots_.size())
+        detail::prefetch(&slots_[moves[j + kAhead].handle.index]);
+      const Handle h = moves[j].handle;
+      if (!contains(h) || !is_valid(moves[j].shape)) {
+        bad = true;
+        return;
+      }
+      const Slot& sl = slots_[h.index];
+      target[j] = sl.home == Home::moving_grid ? sl.pos : kOther;
+    }
+  });
+  if (bad) {
+    for (const Move& mv : moves) {
+      index_of(mv.handle);
+      require_valid(mv.shape);
     }
   }
+  bool others = false;
+  run_shares(t, [&](unsigned k) {
+    const std::size_t lo = m * k / t, hi = m * (k + 1) / t;
+    bool mine_others = false;
+    for (std::size_t j = 0; j < n; ++j) {
+      if (j + kAhead < n) {
+        const std::uint32_t a = target[j + kAhead];
+        if (a >= lo && a < hi) {
+          detail::prefetch(&movers_[a]);
+          detail::prefetch(&moving_.shapes[a]);
+        }
+      }
+      const std::uint32_t p = target[j];
+      if (p >= lo && p < hi) move_mover(p, moves[j].shape);
+      mine_others |= p == kOther;
+    }
+    if (k == 0) others = mine_others;
+  });
+  if (others)
+    for (std::size_t j = 0; j < n; ++j)
+      if (target[j] == kOther) move_other(moves[j].handle.index, moves[j].shape);
   rebuild(fixed_dirty_);
   if (!cache_built_) build_fixed_cache();
 }
@@ -358,20 +426,27 @@ void FastGrid::rebuild(bool fixed_too) {
   std::vector<std::uint32_t>& src = scratch_src_;
   items.clear();
   src.clear();
-  for (std::size_t k = 0; k < moving_.entries.size(); ++k) {
-    Entry e = moving_.entries[k];
-    if (e.dead()) continue;
-    Mover& mv = movers_[k];
-    const AabbF& c = mv.cur;
-    const AabbF& f = mv.fat;
-    if (!(f.lo[0] <= c.lo[0] && f.lo[1] <= c.lo[1] && f.lo[2] <= c.lo[2] && c.hi[0] <= f.hi[0] &&
-          c.hi[1] <= f.hi[1] && c.hi[2] <= f.hi[2])) {
-      mv.fat = fat_box(c, mv.speed, mv.fast);
-      mv.epoch = 0;
-      std::copy(mv.fat.lo, mv.fat.lo + 3, e.lo);
-      std::copy(mv.fat.hi, mv.fat.hi + 3, e.hi);
+  const std::size_t m = moving_.entries.size();
+  const unsigned t = shares_for(m);
+  run_shares(t, [&](unsigned share) {
+    for (std::size_t k = m * share / t, end = m * (share + 1) / t; k < end; ++k) {
+      Entry& e = moving_.entries[k];
+      if (e.dead()) continue;
+      Mover& mv = movers_[k];
+      const AabbF& c = mv.cur;
+      const AabbF& f = mv.fat;
+      if (!(f.lo[0] <= c.lo[0] && f.lo[1] <= c.lo[1] && f.lo[2] <= c.lo[2] && c.hi[0] <= f.hi[0] &&
+            c.hi[1] <= f.hi[1] && c.hi[2] <= f.hi[2])) {
+        mv.fat = fat_box(c, mv.speed, mv.fast);
+        mv.epoch = 0;
+        std::copy(mv.fat.lo, mv.fat.lo + 3, e.lo);
+        std::copy(mv.fat.hi, mv.fat.hi + 3, e.hi);
+      }
     }
-    items.push_back(e);
+  });
+  for (std::size_t k = 0; k < m; ++k) {
+    if (moving_.entries[k].dead()) continue;
+    items.push_back(moving_.entries[k]);
     src.push_back(static_cast<std::uint32_t>(k));
   }
   const std::size_t first_loose = items.size();
@@ -582,27 +657,28 @@ AabbF FastGrid::fat_box(const AabbF& cur, float speed, bool& fast) const {
 void FastGrid::build_candidate_lists() {
   const std::size_t m = moving_.entries.size();
   const unsigned t = shares_for(m);
-  // Each share renews the lists of a contiguous range of the moving entries
+  const unsigned chunks = t <= 1 ? 1 : t * kChunksPerShare;
+  // Each chunk renews the lists of a contiguous range of the moving entries
   // into its own parts (distinct entries share no state; the grids are
   // only read); the parts are appended to the pools in order, so the pools
   // are the same for every thread count.
-  if (list_parts_.size() < t) {
-    list_parts_.resize(t);
-    near_parts_.resize(t);
-    renewed_.resize(t);
+  if (list_parts_.size() < chunks) {
+    list_parts_.resize(chunks);
+    near_parts_.resize(chunks);
+    renewed_.resize(chunks);
   }
-  run_shares(t, [&](unsigned k) {
-    // Share 0 appends to the pools themselves (no other share reads them).
-    std::vector<Candidate>& part = k == 0 ? list_pool_ : list_parts_[k];
-    std::vector<std::uint32_t>& near = k == 0 ? near_pool_ : near_parts_[k];
-    if (k > 0) {
+  run_chunks(t, chunks, [&](unsigned, unsigned c) {
+    // Chunk 0 appends to the pools themselves (no other chunk reads them).
+    std::vector<Candidate>& part = c == 0 ? list_pool_ : list_parts_[c];
+    std::vector<std::uint32_t>& near = c == 0 ? near_pool_ : near_parts_[c];
+    if (c > 0) {
       part.clear();
       near.clear();
     }
-    renewed_[k].clear();
-    build_lists(m * k / t, m * (k + 1) / t, part, near, renewed_[k]);
+    renewed_[c].clear();
+    build_lists(m * c / chunks, m * (c + 1) / chunks, part, near, renewed_[c]);
   });
-  for (unsigned k = 1; k < t; ++k) {
+  for (unsigned k = 1; k < chunks; ++k) {
     const auto offset = static_cast<std::uint32_t>(list_pool_.size());
     const auto near_offset = static_cast<std::uint32_t>(near_pool_.size());
     for (std::uint32_t i : renewed_[k]) {
@@ -708,34 +784,36 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
     emit_fixed();
     mover_pairs(0, m, emit_out, cost.tests);
   } else {
-    // Share 0 (the calling thread) emits the fixed pairs and its movers'
-    // pairs straight into `out`; every other share fills its own buffer,
-    // appended afterwards in share order: the order of one thread.
+    // Share 0 (the calling thread) emits the fixed pairs straight into
+    // `out`; the movers' pairs are found by chunks, each into its own
+    // buffer, appended afterwards in chunk order: the order of one thread.
+    const unsigned chunks = t * kChunksPerShare;
     std::unique_lock lock(buffers_mutex_, std::try_to_lock);
     std::vector<std::vector<HandlePair>> local;
     std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
-    if (buffers.size() < t) buffers.resize(t);
-    std::vector<std::uint64_t> tests(t, 0);
+    if (buffers.size() < chunks) buffers.resize(chunks);
+    std::vector<std::uint64_t> tests(chunks, 0);
+    std::atomic<unsigned> next{0};
     run_shares(t, [&](unsigned k) {
-      const std::size_t begin = m * k / t, end = m * (k + 1) / t;
-      if (k == 0) {
-        emit_fixed();
-        mover_pairs(begin, end, emit_out, tests[k]);
-        return;
+      if (k == 0) emit_fixed();
+      for (unsigned c; (c = next.fetch_add(1, std::memory_order_relaxed)) < chunks;) {
+        std::vector<HandlePair>& buf = buffers[c];
+        buf.clear();
+        auto into = [&buf](Handle a, Handle b) {
+          buf.push_back({a, b});
+          return true;
+        };
+        mover_pairs(m * c / chunks, m * (c + 1) / chunks, into, tests[c]);
       }
-      std::vector<HandlePair>& buf = buffers[k];
-      buf.clear();
-      auto into = [&buf](Handle a, Handle b) {
-        buf.push_back({a, b});
-        return true;
-      };
-      mover_pairs(begin, end, into, tests[k]);
     });
-    for (unsigned k = 0; k < t; ++k) cost.tests += tests[k];
     std::size_t extra = 0;
-    for (unsigned k = 1; k < t; ++k) extra += buffers[k].size();
+    for (unsigned c = 0; c < chunks; ++c) {
+      cost.tests += tests[c];
+      extra += buffers[c].size();
+    }
     out.reserve(out.size() + extra);
-    for (unsigned k = 1; k < t; ++k) out.insert(out.end(), buffers[k].begin(), buffers[k].end());
+    for (unsigned c = 0; c < chunks; ++c)
+      out.insert(out.end(), buffers[c].begin(), buffers[c].end());
   }
   loose_pairs(emit_out, cost.tests);
   return cost;
