@@ -40,6 +40,7 @@ std::string fmt(double v, int digits = 3) {
 struct Row {
   std::string workload;
   StructureTiming ours;
+  StructureTiming ours2;  // on two threads (empty spec: not run)
   std::vector<StructureTiming> peers;
   bool agree = true;
 };
@@ -70,7 +71,10 @@ std::string lab_performance(const LabContext& ctx) {
   // Peers are slow to build at 100 000 objects and more (Bullet's sweep
   // takes minutes): they run there only with a generous budget.
   const bool big_peers = ctx.budget_seconds >= 600;
-  const std::size_t runs = workloads.size() * (1 + peers.size()) + 2;
+  // Our structure runs on one thread and, where there are two cores, on two.
+  const bool two_cores = std::thread::hardware_concurrency() >= 2;
+  const std::string ours2_spec = std::string(kOurs) + ":threads=2";
+  const std::size_t runs = workloads.size() * (1 + (two_cores ? 1 : 0) + peers.size()) + 2;
   const double per_run = std::max(0.2, 0.6 * ctx.budget_seconds / static_cast<double>(runs));
   std::size_t done = 0;
   auto progress = [&](const std::string& what) {
@@ -102,6 +106,12 @@ std::string lab_performance(const LabContext& ctx) {
     row.workload = w.label + " " + std::to_string(n);
     row.ours = time_structure(reg, kOurs, scene, lim);
     ++done;
+    if (two_cores) {
+      TimingLimits lim2 = lim;
+      lim2.micro = false;
+      row.ours2 = time_structure(reg, ours2_spec, scene, lim2);
+      ++done;
+    }
     if (n <= 20000 || big_peers) {
       for (const std::string& p : peers) {
         progress(w.label + " " + p);
@@ -110,9 +120,13 @@ std::string lab_performance(const LabContext& ctx) {
       }
     }
     row.agree = row.ours.error.empty();
+    if (!row.ours2.spec.empty() && row.ours2.error.empty() &&
+        first_disagreement(row.ours2, row.ours) >= 0)
+      row.agree = false;
     for (const StructureTiming& p : row.peers)
       if (p.error.empty() && first_disagreement(p, row.ours) >= 0) row.agree = false;
     write_csv(row.workload, n, row.ours, row.agree);
+    if (!row.ours2.spec.empty()) write_csv(row.workload, n, row.ours2, row.agree);
     for (const StructureTiming& p : row.peers)
       write_csv(row.workload, n, p, p.error.empty() && first_disagreement(p, row.ours) < 0);
     if (lim.micro) n_micro = rows.size();
@@ -151,24 +165,44 @@ std::string lab_performance(const LabContext& ctx) {
         "left out; at least six frames); hardware threads here: "
      << std::thread::hardware_concurrency() << (ctx.quick ? "; **quick run: small sizes**" : "")
      << ". CSV: `performance.csv`.\n\n";
-  md << "| workload | " << kOurs << " ms | fastest peer | peer ms | speed-up | goal | met |\n";
-  md << "|---|---:|---|---:|---:|---:|:-:|\n";
+  md << "The speed-up and the goal are judged on one thread, as the peers run; the two-thread "
+        "figures (`"
+     << ours2_spec
+     << "`, the same pairs in the same order) are shown beside them, and a goal met only "
+        "with both cores is marked so.\n\n";
+  md << "| workload | " << kOurs << " ms | 2 threads ms | fastest peer | peer ms | speed-up | "
+     << "speed-up, 2 threads | goal | met |\n";
+  md << "|---|---:|---:|---|---:|---:|---:|---:|:-:|\n";
   for (std::size_t r = 0; r < rows.size(); ++r) {
     const Row& row = rows[r];
     const Workload& w = workloads[r];
     const double ours = row.ours.median_frame_ms();
+    const double ours2 =
+        !row.ours2.spec.empty() && row.ours2.error.empty() && !row.ours2.frame_ms.empty()
+            ? row.ours2.median_frame_ms()
+            : nan;
     const StructureTiming* best = nullptr;
     for (const StructureTiming& p : row.peers)
       if (p.error.empty() && !p.frame_ms.empty() &&
           (best == nullptr || p.median_frame_ms() < best->median_frame_ms()))
         best = &p;
     md << "| " << row.workload << (row.agree ? "" : " **pairs differ**") << " | "
-       << (row.ours.error.empty() ? fmt(ours) : "failed: " + row.ours.error) << " | ";
+       << (row.ours.error.empty() ? fmt(ours) : "failed: " + row.ours.error) << " | " << fmt(ours2)
+       << " | ";
     if (w.goal_ratio == 0) {
       // The million-object row has absolute goals.
-      const double bpo = static_cast<double>(row.ours.memory_bytes) / static_cast<double>(w.n);
-      md << "– | – | – | ≤ 60 ms, ≤ 64 B/object (" << fmt(bpo, 0) << " B) | "
-         << (ours <= 60 && bpo <= 64 && row.agree ? "✓" : "✗") << " |\n";
+      const double n = static_cast<double>(w.n);
+      const double bpo = static_cast<double>(row.ours.memory_bytes) / n;
+      const double bpo2 =
+          std::isfinite(ours2) ? static_cast<double>(row.ours2.memory_bytes) / n : nan;
+      const bool met1 = ours <= 60 && bpo <= 64 && row.agree;
+      const bool met2 = ours2 <= 60 && bpo2 <= 64 && row.agree;
+      md << "– | – | – | – | ≤ 60 ms, ≤ 64 B/object (" << fmt(bpo, 0) << " B; 2 threads "
+         << fmt(bpo2, 0) << " B) | "
+         << (met1   ? "✓"
+             : met2 ? "✓ (2 threads)"
+                    : "✗")
+         << " |\n";
       continue;
     }
     double peer_ms = nan;
@@ -181,10 +215,15 @@ std::string lab_performance(const LabContext& ctx) {
       peer_name = "*(issue)*";
     }
     const double ratio = peer_ms / ours;
-    md << (peer_name.empty() ? "–" : peer_name) << " | " << fmt(peer_ms) << " | "
-       << (std::isfinite(ratio) ? fmt(ratio, 2) + "×" : "–") << " | ≥ " << fmt(w.goal_ratio, 0)
-       << "× | " << (std::isfinite(ratio) ? (ratio >= w.goal_ratio && row.agree ? "✓" : "✗") : "–")
-       << " |\n";
+    const double ratio2 = peer_ms / ours2;
+    auto times = [](double v) { return std::isfinite(v) ? fmt(v, 2) + "×" : std::string("–"); };
+    const char* met = !std::isfinite(ratio)                             ? "–"
+                      : !row.agree                                      ? "✗"
+                      : ratio >= w.goal_ratio                           ? "✓"
+                      : std::isfinite(ratio2) && ratio2 >= w.goal_ratio ? "✓ (2 threads)"
+                                                                        : "✗";
+    md << (peer_name.empty() ? "–" : peer_name) << " | " << fmt(peer_ms) << " | " << times(ratio)
+       << " | " << times(ratio2) << " | ≥ " << fmt(w.goal_ratio, 0) << "× | " << met << " |\n";
   }
   const double speedup = one.median_frame_ms() / two.median_frame_ms();
   md << "\n**Threads** (scaled-even " << n_threads << "): 1 thread " << fmt(one.median_frame_ms())
