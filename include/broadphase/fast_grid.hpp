@@ -28,11 +28,21 @@
 /// builds; until then pair finding scans the fixed grid): amortised
 /// O(log n) per insert, and no work is ever left for the next query.
 ///
+/// Frames. Each moving object keeps a list of the fixed objects near a
+/// "fat" box around it (its bounds grown by about 12 frames of its last
+/// displacement), with copies of their spheres, and a list of the moving
+/// objects whose fat boxes meet its own. While its bounds stay inside the
+/// fat box a frame tests these two lists and nothing else; the bulk update
+/// renews the lists of the objects that left theirs. An object too fast
+/// for a useful margin keeps no moving list and probes the moving grid
+/// every frame instead.
+///
 /// Threads. `find_pairs` and the bulk update split the moving objects over
 /// `threads` threads (option `threads=N`, default 1, 0 = hardware
-/// concurrency) of a pool kept by the structure; each share writes its own
-/// buffers and the buffers are joined in order, so the pair order and hash
-/// never depend on the thread count.
+/// concurrency) of a pool kept by the structure, in chunks taken by
+/// whichever thread is free; each chunk writes its own buffers and the
+/// buffers are joined in chunk order, so the results, the pair order and
+/// the hash never depend on the thread count.
 #pragma once
 
 #include <algorithm>
@@ -70,7 +80,9 @@ inline void prefetch(const void* p) {
 /// need exclusive access.
 class FastGrid {
  public:
-  /// Options: `threads=N` (0..64; 0 = hardware concurrency; default 1);
+  /// Options: `threads=N` (0..64; 0 = hardware concurrency; default 1:
+  /// the bulk update and find_pairs split their work over N threads, with
+  /// the same results and pair order for every N);
   /// `cell=F` (0.5..64, default 1): a cell's side over its level's reach
   /// (larger: fewer cells to visit, more entries per cell).
   explicit FastGrid(const Config& c = {});
@@ -111,7 +123,7 @@ class FastGrid {
   const Shape& shape(Handle h) const { return shape_of(index_of(h)); }
   /// The user data given at insertion. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return user_[index_of(h)]; }
-  /// The number of threads find_pairs uses.
+  /// The number of threads find_pairs and the bulk update use.
   unsigned threads() const { return threads_; }
   /// Checks slots, lists, grid order and the pair cache; throws std::logic_error.
   void validate() const;
