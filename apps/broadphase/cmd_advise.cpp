@@ -74,7 +74,7 @@ void advise(const AdviseOptions& o) {
   }
   TimingLimits limits;
   limits.max_frames = o.frames;
-  limits.min_frames = std::min(3, o.frames);
+  limits.min_frames = std::min(8, o.frames);  // two warm-up frames, then at least six
   // Building and the micro-timings take time too: frames get about half.
   limits.budget_seconds = 0.5 * o.seconds / static_cast<double>(specs.size());
 

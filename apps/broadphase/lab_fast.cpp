@@ -104,10 +104,15 @@ std::string lab_performance(const LabContext& ctx) {
     lim.micro = w.dist == Distribution::uneven;
     Row row;
     row.workload = w.label + " " + std::to_string(n);
-    row.ours = time_structure(reg, kOurs, scene, lim);
+    // Our structure gets its six measured frames even where its warm-up
+    // (the first bulk update builds the fixed pair cache: seconds at a
+    // million objects) is longer than a peer's share of the budget.
+    TimingLimits ours_lim = lim;
+    ours_lim.warmup_seconds = 120;
+    row.ours = time_structure(reg, kOurs, scene, ours_lim);
     ++done;
     if (two_cores) {
-      TimingLimits lim2 = lim;
+      TimingLimits lim2 = ours_lim;
       lim2.micro = false;
       row.ours2 = time_structure(reg, ours2_spec, scene, lim2);
       ++done;
@@ -139,7 +144,8 @@ std::string lab_performance(const LabContext& ctx) {
   const Scene scaled = generate(Distribution::scaled_even, n_threads, ctx.seed);
   TimingLimits lim;
   lim.max_frames = ctx.quick ? 10 : 40;
-  lim.min_frames = 8;
+  lim.min_frames = 12;
+  lim.warmup_seconds = 120;
   lim.budget_seconds = per_run;
   lim.micro = false;
   const StructureTiming one = time_structure(reg, std::string(kOurs) + ":threads=1", scaled, lim);
