@@ -209,7 +209,8 @@ class FastGrid {
     std::uint32_t epoch = 0;                       // fixed-grid epoch of the lists; 0: renewal due
     std::uint32_t stamp = 0;                       // the rebuild that last renewed them
     float speed = 0;
-    bool fast = false;  // too fast for a margin: probes the moving grid each frame
+    bool fast = false;    // too fast for a margin: probes the moving grid each frame
+    bool guessed = true;  // the fat box was made before the speed was known
   };
 
   /// One fixed object in a candidate list: a copy of its sphere (so that a
@@ -253,6 +254,8 @@ class FastGrid {
   /// other object (slot i), which becomes loose and moving.
   void move_mover(std::uint32_t k, const Shape& shape);
   void move_other(std::uint32_t i, const Shape& shape);
+  /// A loose object (at `p` in the loose list) to its new shape.
+  void move_loose(std::uint32_t p, const Shape& shape);
   void maybe_rebuild();
   void rebuild(bool fixed_too);
   void build_candidate_lists();
@@ -317,6 +320,7 @@ class FastGrid {
   std::vector<std::uint32_t> loose_;  // loose slots
   std::vector<AabbF> loose_bounds_;   // parallel to loose_
   std::vector<Shape> loose_shapes_;   // parallel to loose_
+  std::vector<float> loose_speed_;    // parallel to loose_: last displacement, 0 if unknown
   std::vector<std::uint32_t> held_;   // removed grid objects whose slots wait for a rebuild
   bool fixed_dirty_ = false;          // the fixed set changed since the fixed grid was built
   bool cache_built_ = true;           // fixed_pairs_ holds the pairs of the fixed grid

@@ -200,12 +200,31 @@ void FastGrid::free_slot(std::uint32_t s) {
   free_head_ = s;
 }
 
+namespace {
+// The largest move of a bound along any axis: the displacement that sets
+// a mover's margin.
+float displacement(const AabbF& from, const AabbF& to) {
+  float d = 0;
+  for (int a = 0; a < 3; ++a)
+    d = std::max(d, std::max(std::fabs(to.lo[a] - from.lo[a]), std::fabs(to.hi[a] - from.hi[a])));
+  return d;
+}
+}  // namespace
+
+void FastGrid::move_loose(std::uint32_t p, const Shape& shape) {
+  const AabbF b = bounds_f(shape);
+  loose_speed_[p] = displacement(loose_bounds_[p], b);
+  loose_bounds_[p] = b;
+  loose_shapes_[p] = shape;
+}
+
 void FastGrid::add_loose(std::uint32_t s, const Shape& shape) {
   slots_[s].home = Home::loose;
   slots_[s].pos = static_cast<std::uint32_t>(loose_.size());
   loose_.push_back(s);
   loose_bounds_.push_back(bounds_f(shape));
   loose_shapes_.push_back(shape);
+  loose_speed_.push_back(0);  // unknown until it moves again
 }
 
 void FastGrid::drop_loose(std::uint32_t s) {
@@ -214,10 +233,12 @@ void FastGrid::drop_loose(std::uint32_t s) {
   loose_[p] = last;
   loose_bounds_[p] = loose_bounds_.back();
   loose_shapes_[p] = loose_shapes_.back();
+  loose_speed_[p] = loose_speed_.back();
   slots_[last].pos = p;
   loose_.pop_back();
   loose_bounds_.pop_back();
   loose_shapes_.pop_back();
+  loose_speed_.pop_back();
 }
 
 void FastGrid::leave_grid(std::uint32_t s) {
@@ -271,8 +292,7 @@ void FastGrid::update(Handle h, const Shape& s) {
   require_valid(s);
   slots_[i].motion = Motion::dynamic;  // a fixed object that moves is moving from now on
   if (slots_[i].home == Home::loose) {
-    loose_bounds_[slots_[i].pos] = bounds_f(s);
-    loose_shapes_[slots_[i].pos] = s;
+    move_loose(slots_[i].pos, s);
     return;
   }
   leave_grid(i);
@@ -284,10 +304,7 @@ void FastGrid::move_mover(std::uint32_t k, const Shape& shape) {
   // The grid entry keeps the fat box; the rebuild renews it if needed.
   Mover& mv = movers_[k];
   const AabbF b = bounds_f(shape);
-  float d = 0;
-  for (int a = 0; a < 3; ++a)
-    d = std::max(d, std::max(std::fabs(b.lo[a] - mv.cur.lo[a]), std::fabs(b.hi[a] - mv.cur.hi[a])));
-  mv.speed = d;
+  mv.speed = displacement(mv.cur, b);
   mv.cur = b;
   moving_.shapes[k] = shape;
 }
@@ -299,8 +316,7 @@ void FastGrid::move_other(std::uint32_t i, const Shape& shape) {
     add_loose(i, shape);
   } else {
     slots_[i].motion = Motion::dynamic;
-    loose_bounds_[slots_[i].pos] = bounds_f(shape);
-    loose_shapes_[slots_[i].pos] = shape;
+    move_loose(slots_[i].pos, shape);
   }
 }
 
@@ -435,9 +451,14 @@ void FastGrid::rebuild(bool fixed_too) {
       Mover& mv = movers_[k];
       const AabbF& c = mv.cur;
       const AabbF& f = mv.fat;
-      if (!(f.lo[0] <= c.lo[0] && f.lo[1] <= c.lo[1] && f.lo[2] <= c.lo[2] && c.hi[0] <= f.hi[0] &&
+      // A box made before the speed was known is renewed as soon as it is
+      // known (in the first bulk update after the inserts, rather than in
+      // a wave over the next frames).
+      if ((mv.guessed && mv.speed > 0) ||
+          !(f.lo[0] <= c.lo[0] && f.lo[1] <= c.lo[1] && f.lo[2] <= c.lo[2] && c.hi[0] <= f.hi[0] &&
             c.hi[1] <= f.hi[1] && c.hi[2] <= f.hi[2])) {
         mv.fat = fat_box(c, mv.speed, mv.fast);
+        mv.guessed = !(mv.speed > 0);
         mv.epoch = 0;
         std::copy(mv.fat.lo, mv.fat.lo + 3, e.lo);
         std::copy(mv.fat.hi, mv.fat.hi + 3, e.hi);
@@ -452,8 +473,9 @@ void FastGrid::rebuild(bool fixed_too) {
   const std::size_t first_loose = items.size();
   take_loose(Motion::dynamic, items, src);
   for (std::size_t i = first_loose; i < items.size(); ++i) {
+    // A loose object that moved since it was inserted has a known speed.
     bool fast;
-    const AabbF f = fat_box(items[i].box(), 0, fast);
+    const AabbF f = fat_box(items[i].box(), loose_speed_[src[i] & ~kFromLoose], fast);
     std::copy(f.lo, f.lo + 3, items[i].lo);
     std::copy(f.hi, f.hi + 3, items[i].hi);
   }
@@ -474,6 +496,7 @@ void FastGrid::rebuild(bool fixed_too) {
   loose_.clear();
   loose_bounds_.clear();
   loose_shapes_.clear();
+  loose_speed_.clear();
   for (std::uint32_t s : held_) free_slot(s);
   held_.clear();
 }
@@ -617,6 +640,8 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
         Mover& mv = movers_[k];
         mv = Mover{};
         mv.cur = loose_bounds_[from & ~kFromLoose];
+        mv.speed = loose_speed_[from & ~kFromLoose];
+        mv.guessed = !(mv.speed > 0);
         mv.fat = items[i].box();
       } else {
         movers_[k] = scratch_movers_[from];
@@ -822,8 +847,8 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
 std::size_t FastGrid::memory_bytes() const {
   std::size_t bytes = loose_shapes_.capacity() * sizeof(Shape) + user_.capacity() * 8 +
                       slots_.capacity() * sizeof(Slot) + loose_.capacity() * 4 +
-                      loose_bounds_.capacity() * sizeof(AabbF) + held_.capacity() * 4 +
-                      fixed_.memory_bytes() + moving_.memory_bytes() +
+                      loose_bounds_.capacity() * sizeof(AabbF) + loose_speed_.capacity() * 4 +
+                      held_.capacity() * 4 + fixed_.memory_bytes() + moving_.memory_bytes() +
                       fixed_pairs_.capacity() * sizeof(HandlePair) +
                       scratch_items_.capacity() * sizeof(Entry) + scratch_src_.capacity() * 4 +
                       scratch_shapes_.capacity() * sizeof(Shape) + scratch_tag_.capacity() * 4 +
@@ -860,7 +885,8 @@ void FastGrid::validate() const {
       fail("corrupt free list");
   }
   if (free_list != free) fail("free list misses free slots");
-  if (loose_.size() != loose_bounds_.size() || loose_.size() != loose_shapes_.size())
+  if (loose_.size() != loose_bounds_.size() || loose_.size() != loose_shapes_.size() ||
+      loose_.size() != loose_speed_.size())
     fail("loose arrays differ in length");
   for (std::size_t k = 0; k < loose_.size(); ++k) {
     const std::uint32_t s = loose_[k];
