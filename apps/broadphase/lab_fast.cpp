@@ -168,7 +168,8 @@ std::string lab_performance(const LabContext& ctx) {
     md << "every peer adapter of this build, measured in the same run.";
   md << " Frame = the structure's bulk update of the moving objects plus finding all pairs; "
         "medians of wall time over the frames run (frames 0 and 1, the warm-up after the inserts, "
-        "left out; at least six frames); hardware threads here: "
+        "left out; six frames or more where the budget allows, the count is in the CSV); hardware "
+        "threads here: "
      << std::thread::hardware_concurrency() << (ctx.quick ? "; **quick run: small sizes**" : "")
      << ". CSV: `performance.csv`.\n\n";
   md << "The speed-up and the goal are judged on one thread, as the peers run; the two-thread "
