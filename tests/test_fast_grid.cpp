@@ -30,6 +30,16 @@ IdPairs pairs_of(const S& s) {
   return out;
 }
 
+/// Inserts every object of `scene` (user data: its index), fixed or moving
+/// as the scene says.
+std::vector<Handle> insert_scene(FastGrid& g, const Scene& scene) {
+  std::vector<Handle> h;
+  for (std::size_t i = 0; i < scene.size(); ++i)
+    h.push_back(
+        g.insert(scene.objects[i], i, scene.is_moving(i) ? Motion::dynamic : Motion::fixed));
+  return h;
+}
+
 Config with_option(const char* key, const char* value) {
   Config c;
   c.options[key] = value;
@@ -116,10 +126,7 @@ TEST(FastGrid, ManyInsertsStayExactAcrossRebuilds) {
 TEST(FastGrid, CandidateListsStayCompleteForFastAndSlowMovers) {
   Scene scene = generate(Distribution::even, 1500, 3);
   FastGrid g;
-  std::vector<Handle> h;
-  for (std::size_t i = 0; i < scene.size(); ++i)
-    h.push_back(
-        g.insert(scene.objects[i], i, scene.is_moving(i) ? Motion::dynamic : Motion::fixed));
+  const std::vector<Handle> h = insert_scene(g, scene);
   std::vector<Move> moves;
   for (int f = 0; f < 12; ++f) {
     // Every third frame the movers jump far: their lists must be rebuilt.
@@ -188,10 +195,7 @@ TEST(FastGrid, PairOrderDoesNotDependOnThreads) {
   for (const char* t : {"1", "2", "3"}) {
     Scene scene = start;
     FastGrid g(with_option("threads", t));
-    std::vector<Handle> h;
-    for (std::size_t i = 0; i < scene.size(); ++i)
-      h.push_back(
-          g.insert(scene.objects[i], i, scene.is_moving(i) ? Motion::dynamic : Motion::fixed));
+    const std::vector<Handle> h = insert_scene(g, scene);
     std::vector<std::pair<std::uint64_t, std::uint64_t>> ids;
     std::vector<Move> moves;
     for (int f = 0; f < 3; ++f) {
@@ -232,10 +236,7 @@ TEST(FastGrid, ParallelBulkUpdateKeepsOrderAndChecks) {
   for (const char* t : {"1", "2"}) {
     Scene scene = start;
     FastGrid g(with_option("threads", t));
-    std::vector<Handle> h;
-    for (std::size_t i = 0; i < scene.size(); ++i)
-      h.push_back(
-          g.insert(scene.objects[i], i, scene.is_moving(i) ? Motion::dynamic : Motion::fixed));
+    const std::vector<Handle> h = insert_scene(g, scene);
     std::vector<Move> moves;
     for (std::size_t i = 0; i < scene.size(); ++i)
       if (scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});

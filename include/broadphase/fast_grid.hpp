@@ -250,12 +250,11 @@ class FastGrid {
   void add_loose(std::uint32_t s, const Shape& shape);
   void drop_loose(std::uint32_t s);
   void leave_grid(std::uint32_t s);
-  /// Bulk-update steps: a mover (moving-grid entry k) to its new shape; any
-  /// other object (slot i), which becomes loose and moving.
+  /// A mover (moving-grid entry k) to its new shape, in a bulk update.
   void move_mover(std::uint32_t k, const Shape& shape);
-  void move_other(std::uint32_t i, const Shape& shape);
-  /// A loose object (at `p` in the loose list) to its new shape.
-  void move_loose(std::uint32_t p, const Shape& shape);
+  /// Any object (slot i) to its new shape by the loose list: a grid object
+  /// leaves its grid; the object is moving from now on.
+  void move_via_loose(std::uint32_t i, const Shape& shape);
   void maybe_rebuild();
   void rebuild(bool fixed_too);
   void build_candidate_lists();

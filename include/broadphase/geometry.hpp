@@ -62,6 +62,11 @@ struct AabbF {
     return lo[0] <= o.hi[0] && o.lo[0] <= hi[0] && lo[1] <= o.hi[1] && o.lo[1] <= hi[1] &&
            lo[2] <= o.hi[2] && o.lo[2] <= hi[2];
   }
+  /// True when `o` lies inside this box (faces may touch).
+  bool contains(const AabbF& o) const {
+    return lo[0] <= o.lo[0] && lo[1] <= o.lo[1] && lo[2] <= o.lo[2] && o.hi[0] <= hi[0] &&
+           o.hi[1] <= hi[1] && o.hi[2] <= hi[2];
+  }
 };
 
 /// The two kinds of object bounds the contract knows.
@@ -167,21 +172,6 @@ inline Aabb bounds(const Shape& s) {
   return b;
 }
 
-/// The next float towards −∞, by its bit pattern (as std::nextafter, which
-/// is a library call, and bounds are rounded on every move). NaN stays NaN.
-inline float next_float_down(float f) {
-  if (f == 0) return -std::numeric_limits<float>::denorm_min();
-  if (f == -std::numeric_limits<float>::infinity() || f != f) return f;
-  const auto bits = std::bit_cast<std::uint32_t>(f);
-  return std::bit_cast<float>(f > 0 ? bits - 1 : bits + 1);
-}
-/// The next float towards +∞.
-inline float next_float_up(float f) {
-  if (f == 0) return std::numeric_limits<float>::denorm_min();
-  if (f == std::numeric_limits<float>::infinity() || f != f) return f;
-  const auto bits = std::bit_cast<std::uint32_t>(f);
-  return std::bit_cast<float>(f > 0 ? bits + 1 : bits - 1);
-}
 /// The largest float not above `x` (−∞ below the float range). Without a
 /// branch on the rounding direction, which is a coin toss per coordinate.
 inline float round_down(double x) {

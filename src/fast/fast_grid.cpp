@@ -211,13 +211,6 @@ float displacement(const AabbF& from, const AabbF& to) {
 }
 }  // namespace
 
-void FastGrid::move_loose(std::uint32_t p, const Shape& shape) {
-  const AabbF b = bounds_f(shape);
-  loose_speed_[p] = displacement(loose_bounds_[p], b);
-  loose_bounds_[p] = b;
-  loose_shapes_[p] = shape;
-}
-
 void FastGrid::add_loose(std::uint32_t s, const Shape& shape) {
   slots_[s].home = Home::loose;
   slots_[s].pos = static_cast<std::uint32_t>(loose_.size());
@@ -290,14 +283,9 @@ void FastGrid::remove(Handle h) {
 void FastGrid::update(Handle h, const Shape& s) {
   const std::uint32_t i = index_of(h);
   require_valid(s);
-  slots_[i].motion = Motion::dynamic;  // a fixed object that moves is moving from now on
-  if (slots_[i].home == Home::loose) {
-    move_loose(slots_[i].pos, s);
-    return;
-  }
-  leave_grid(i);
-  add_loose(i, s);
-  maybe_rebuild();
+  const bool was_loose = slots_[i].home == Home::loose;
+  move_via_loose(i, s);
+  if (!was_loose) maybe_rebuild();
 }
 
 void FastGrid::move_mover(std::uint32_t k, const Shape& shape) {
@@ -309,15 +297,18 @@ void FastGrid::move_mover(std::uint32_t k, const Shape& shape) {
   moving_.shapes[k] = shape;
 }
 
-void FastGrid::move_other(std::uint32_t i, const Shape& shape) {
-  if (slots_[i].home == Home::fixed_grid) {
+void FastGrid::move_via_loose(std::uint32_t i, const Shape& shape) {
+  slots_[i].motion = Motion::dynamic;  // a fixed object that moves is moving from now on
+  if (slots_[i].home != Home::loose) {
     leave_grid(i);
-    slots_[i].motion = Motion::dynamic;
     add_loose(i, shape);
-  } else {
-    slots_[i].motion = Motion::dynamic;
-    move_loose(slots_[i].pos, shape);
+    return;
   }
+  const std::uint32_t p = slots_[i].pos;
+  const AabbF b = bounds_f(shape);
+  loose_speed_[p] = displacement(loose_bounds_[p], b);
+  loose_bounds_[p] = b;
+  loose_shapes_[p] = shape;
 }
 
 void FastGrid::update(std::span<const Move> moves) {
@@ -336,9 +327,10 @@ void FastGrid::update(std::span<const Move> moves) {
   const unsigned t = shares_for(std::min(n, m));
   std::vector<std::uint32_t>& target = scratch_tag_;
   target.resize(n);
-  std::atomic<bool> bad{false};
+  std::atomic<bool> bad{false}, others{false};
   run_shares(t, [&](unsigned k) {
     const std::size_t end = n * (k + 1) / t;
+    bool any_other = false;
     for (std::size_t j = n * k / t; j < end; ++j) {
       if (j + kAhead < end && moves[j + kAhead].handle.index < slots_.size())
         detail::prefetch(&slots_[moves[j + kAhead].handle.index]);
@@ -349,7 +341,9 @@ void FastGrid::update(std::span<const Move> moves) {
       }
       const Slot& sl = slots_[h.index];
       target[j] = sl.home == Home::moving_grid ? sl.pos : kOther;
+      any_other |= target[j] == kOther;
     }
+    if (any_other) others = true;
   });
   if (bad) {
     for (const Move& mv : moves) {
@@ -357,10 +351,8 @@ void FastGrid::update(std::span<const Move> moves) {
       require_valid(mv.shape);
     }
   }
-  bool others = false;
   run_shares(t, [&](unsigned k) {
     const std::size_t lo = m * k / t, hi = m * (k + 1) / t;
-    bool mine_others = false;
     for (std::size_t j = 0; j < n; ++j) {
       if (j + kAhead < n) {
         const std::uint32_t a = target[j + kAhead];
@@ -371,13 +363,11 @@ void FastGrid::update(std::span<const Move> moves) {
       }
       const std::uint32_t p = target[j];
       if (p >= lo && p < hi) move_mover(p, moves[j].shape);
-      mine_others |= p == kOther;
     }
-    if (k == 0) others = mine_others;
   });
   if (others)
     for (std::size_t j = 0; j < n; ++j)
-      if (target[j] == kOther) move_other(moves[j].handle.index, moves[j].shape);
+      if (target[j] == kOther) move_via_loose(moves[j].handle.index, moves[j].shape);
   rebuild(fixed_dirty_);
   if (!cache_built_) build_fixed_cache();
 }
@@ -449,15 +439,11 @@ void FastGrid::rebuild(bool fixed_too) {
       Entry& e = moving_.entries[k];
       if (e.dead()) continue;
       Mover& mv = movers_[k];
-      const AabbF& c = mv.cur;
-      const AabbF& f = mv.fat;
       // A box made before the speed was known is renewed as soon as it is
       // known (in the first bulk update after the inserts, rather than in
       // a wave over the next frames).
-      if ((mv.guessed && mv.speed > 0) ||
-          !(f.lo[0] <= c.lo[0] && f.lo[1] <= c.lo[1] && f.lo[2] <= c.lo[2] && c.hi[0] <= f.hi[0] &&
-            c.hi[1] <= f.hi[1] && c.hi[2] <= f.hi[2])) {
-        mv.fat = fat_box(c, mv.speed, mv.fast);
+      if ((mv.guessed && mv.speed > 0) || !mv.fat.contains(mv.cur)) {
+        mv.fat = fat_box(mv.cur, mv.speed, mv.fast);
         mv.guessed = !(mv.speed > 0);
         mv.epoch = 0;
         std::copy(mv.fat.lo, mv.fat.lo + 3, e.lo);
@@ -465,11 +451,7 @@ void FastGrid::rebuild(bool fixed_too) {
       }
     }
   });
-  for (std::size_t k = 0; k < m; ++k) {
-    if (moving_.entries[k].dead()) continue;
-    items.push_back(moving_.entries[k]);
-    src.push_back(static_cast<std::uint32_t>(k));
-  }
+  take_grid(moving_, items, src);
   const std::size_t first_loose = items.size();
   take_loose(Motion::dynamic, items, src);
   for (std::size_t i = first_loose; i < items.size(); ++i) {
@@ -809,27 +791,28 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
     emit_fixed();
     mover_pairs(0, m, emit_out, cost.tests);
   } else {
-    // Share 0 (the calling thread) emits the fixed pairs straight into
-    // `out`; the movers' pairs are found by chunks, each into its own
-    // buffer, appended afterwards in chunk order: the order of one thread.
+    // Chunk 0 emits the fixed pairs straight into `out`; the movers' pairs
+    // are found by the other chunks, each into its own buffer, appended
+    // afterwards in chunk order: the order of one thread.
     const unsigned chunks = t * kChunksPerShare;
     std::unique_lock lock(buffers_mutex_, std::try_to_lock);
     std::vector<std::vector<HandlePair>> local;
     std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
     if (buffers.size() < chunks) buffers.resize(chunks);
     std::vector<std::uint64_t> tests(chunks, 0);
-    std::atomic<unsigned> next{0};
-    run_shares(t, [&](unsigned k) {
-      if (k == 0) emit_fixed();
-      for (unsigned c; (c = next.fetch_add(1, std::memory_order_relaxed)) < chunks;) {
-        std::vector<HandlePair>& buf = buffers[c];
-        buf.clear();
-        auto into = [&buf](Handle a, Handle b) {
-          buf.push_back({a, b});
-          return true;
-        };
-        mover_pairs(m * c / chunks, m * (c + 1) / chunks, into, tests[c]);
+    run_chunks(t, chunks + 1, [&](unsigned, unsigned job) {
+      if (job == 0) {
+        emit_fixed();
+        return;
       }
+      const unsigned c = job - 1;
+      std::vector<HandlePair>& buf = buffers[c];
+      buf.clear();
+      auto into = [&buf](Handle a, Handle b) {
+        buf.push_back({a, b});
+        return true;
+      };
+      mover_pairs(m * c / chunks, m * (c + 1) / chunks, into, tests[c]);
     });
     std::size_t extra = 0;
     for (unsigned c = 0; c < chunks; ++c) {
@@ -933,9 +916,7 @@ void FastGrid::validate() const {
             if (std::memcmp(mv.fat.lo, e.lo, sizeof b.lo) != 0 ||
                 std::memcmp(mv.fat.hi, e.hi, sizeof b.hi) != 0)
               fail(gname + ": entry is not the mover's fat box");
-            if (!(e.lo[0] <= b.lo[0] && e.lo[1] <= b.lo[1] && e.lo[2] <= b.lo[2] &&
-                  b.hi[0] <= e.hi[0] && b.hi[1] <= e.hi[1] && b.hi[2] <= e.hi[2]))
-              fail(gname + ": bounds outside the fat box after a rebuild");
+            if (!mv.fat.contains(b)) fail(gname + ": bounds outside the fat box after a rebuild");
           } else if (std::memcmp(b.lo, e.lo, sizeof b.lo) != 0 ||
                      std::memcmp(b.hi, e.hi, sizeof b.hi) != 0) {
             fail(gname + ": stale entry bounds");
