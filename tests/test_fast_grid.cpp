@@ -187,6 +187,39 @@ TEST(FastGrid, NearListsStayExactWhileMoversComeAndGo) {
   EXPECT_GT(seen, 100u) << "the scene should have pairs to find";
 }
 
+TEST(FastGrid, ListPoolsAreReusedInPlace) {
+  // Over many frames every mover renews its lists again and again; renewed
+  // lists are appended to the pools, and the lists that stay are moved to
+  // the front when the pools are full. The pairs must stay exact across
+  // those moves and the memory must stop growing.
+  Scene scene = generate(Distribution::even, 2000, 17);
+  scene.world *= 0.3;
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    scene.objects[i].center = scene.objects[i].center * 0.3;
+    scene.velocity[i] = scene.velocity[i] * 3.0;
+  }
+  FastGrid g;
+  const std::vector<Handle> h = insert_scene(g, scene);
+  std::vector<Move> moves;
+  std::size_t memory_at_20 = 0;
+  for (int f = 0; f < 120; ++f) {
+    step(scene);
+    moves.clear();
+    for (std::size_t i = 0; i < scene.size(); ++i)
+      if (scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
+    g.update(moves);
+    if (f % 6 == 0) {
+      g.validate();
+      Naive n;
+      for (std::size_t i = 0; i < scene.size(); ++i) n.insert(scene.objects[i], i);
+      ASSERT_EQ(pairs_of(g), pairs_of(n)) << "frame " << f;
+    }
+    if (f == 20) memory_at_20 = g.memory_bytes();
+  }
+  EXPECT_LE(g.memory_bytes(), memory_at_20 + memory_at_20 / 2)
+      << "the candidate pools kept growing";
+}
+
 TEST(FastGrid, PairOrderDoesNotDependOnThreads) {
   // 32 000 objects give 6400 moving ones: enough for three threads to split
   // both the candidate lists and the pair finding.

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <type_traits>
 
 namespace broadphase {
 
@@ -52,6 +53,16 @@ constexpr std::size_t kMinEntriesPerThread = 2048;
 // Work split over threads comes in this many chunks per thread, taken by
 // whichever thread is free (renewals and list lengths are uneven).
 constexpr unsigned kChunksPerShare = 8;
+
+// Scratch that holds more than twice what it last held plus this many
+// bytes is released after use.
+constexpr std::size_t kKeepScratchBytes = 64 * 1024;
+
+template <class T>
+void release_if_oversized(std::vector<T>& v) {
+  if (v.capacity() * sizeof(T) > 2 * v.size() * sizeof(T) + kKeepScratchBytes)
+    std::vector<T>().swap(v);
+}
 
 double extent_of(const float lo[3], const float hi[3]) {
   double e = 0;
@@ -661,6 +672,50 @@ AabbF FastGrid::fat_box(const AabbF& cur, float speed, bool& fast) const {
   return g;
 }
 
+void FastGrid::make_room_for_renewals() {
+  // Renewed lists are appended to the pools. When the lists about to be
+  // renewed (estimated by their present lengths) would not fit, the lists
+  // that stay are moved to the front of each pool, in pool order, in place:
+  // the pools keep their memory, so a frame never allocates (nor touches
+  // fresh pages) once they have grown to the scene's needs.
+  std::size_t kept = 0, renewing = 0, near_kept = 0, near_renewing = 0;
+  for (std::size_t k = 0; k < movers_.size(); ++k) {
+    const Mover& mv = movers_[k];
+    const bool keep = mv.epoch == epoch_ && !moving_.entries[k].dead();
+    (keep ? kept : renewing) += mv.list_count;
+    (keep ? near_kept : near_renewing) += mv.near_count;
+  }
+  auto compact = [&](auto& pool, std::uint32_t Mover::*begin, std::uint32_t Mover::*count,
+                     std::size_t keep_size, std::size_t add) {
+    if (pool.size() + add <= pool.capacity()) return;
+    std::vector<std::uint32_t> order;
+    for (std::size_t k = 0; k < movers_.size(); ++k) {
+      Mover& mv = movers_[k];
+      if (mv.epoch == epoch_ && !moving_.entries[k].dead() && mv.*count > 0)
+        order.push_back(static_cast<std::uint32_t>(k));
+      else
+        mv.*begin = mv.*count = 0;  // empty, renewed below, or dead
+    }
+    std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+      return movers_[a].*begin < movers_[b].*begin;
+    });
+    std::uint32_t w = 0;
+    for (std::uint32_t k : order) {
+      Mover& mv = movers_[k];
+      std::copy(pool.begin() + mv.*begin, pool.begin() + mv.*begin + mv.*count, pool.begin() + w);
+      mv.*begin = w;
+      w += mv.*count;
+    }
+    pool.resize(w);
+    // Growth (more or longer lists than before): one allocation with room
+    // for renewals of half as much again, rather than doubling.
+    if (keep_size + add > pool.capacity())
+      pool.reserve(keep_size + add + (keep_size + add) / 2 + 1024);
+  };
+  compact(list_pool_, &Mover::list_begin, &Mover::list_count, kept, renewing);
+  compact(near_pool_, &Mover::near_begin, &Mover::near_count, near_kept, near_renewing);
+}
+
 void FastGrid::build_candidate_lists() {
   const std::size_t m = moving_.entries.size();
   const unsigned t = shares_for(m);
@@ -669,6 +724,9 @@ void FastGrid::build_candidate_lists() {
   // into its own parts (distinct entries share no state; the grids are
   // only read); the parts are appended to the pools in order, so the pools
   // are the same for every thread count.
+  make_room_for_renewals();
+  const std::size_t list_capacity = list_pool_.capacity();
+  const std::size_t near_capacity = near_pool_.capacity();
   if (list_parts_.size() < chunks) {
     list_parts_.resize(chunks);
     near_parts_.resize(chunks);
@@ -694,31 +752,27 @@ void FastGrid::build_candidate_lists() {
     }
     list_pool_.insert(list_pool_.end(), list_parts_[k].begin(), list_parts_[k].end());
     near_pool_.insert(near_pool_.end(), near_parts_[k].begin(), near_parts_[k].end());
+    // A wave of renewals (every list after a fixed-grid rebuild) leaves
+    // parts far larger than a frame's renewals need: let them go, so that
+    // they do not double the lists' memory; the next frames regrow them to
+    // their steady size once.
+    release_if_oversized(list_parts_[k]);
+    release_if_oversized(near_parts_[k]);
+    release_if_oversized(renewed_[k]);
   }
-  std::size_t live = 0, near_live = 0;
-  for (const Mover& mv : movers_) {
-    live += mv.list_count;
-    near_live += mv.near_count;
-  }
-  if (list_pool_.size() > live + live / 2 + 1024 ||
-      near_pool_.size() > near_live + near_live / 2 + 1024) {
-    // Compact: copy the live lists in mover order (and drop the capacity a
-    // burst of renewals left behind).
-    std::vector<Candidate> pool;
-    std::vector<std::uint32_t> near;
-    pool.reserve(live + live / 2 + 1024);
-    near.reserve(near_live + near_live / 2 + 1024);
-    for (Mover& mv : movers_) {
-      const Candidate* old = list_pool_.data() + mv.list_begin;
-      mv.list_begin = static_cast<std::uint32_t>(pool.size());
-      pool.insert(pool.end(), old, old + mv.list_count);
-      const std::uint32_t* old_near = near_pool_.data() + mv.near_begin;
-      mv.near_begin = static_cast<std::uint32_t>(near.size());
-      near.insert(near.end(), old_near, old_near + mv.near_count);
-    }
-    list_pool_.swap(pool);
-    near_pool_.swap(near);
-  }
+  // A pool that had to grow while lists were appended (the first lists, or
+  // all of them after a fixed-grid rebuild) keeps room for renewals of half
+  // its lists, not what doubling left.
+  auto trim = [](auto& pool, std::size_t capacity_before) {
+    const std::size_t room = pool.size() + pool.size() / 2 + 1024;
+    if (pool.capacity() == capacity_before || pool.capacity() <= room) return;
+    std::remove_reference_t<decltype(pool)> copy;
+    copy.reserve(room);
+    copy.assign(pool.begin(), pool.end());
+    pool.swap(copy);
+  };
+  trim(list_pool_, list_capacity);
+  trim(near_pool_, near_capacity);
 }
 
 void FastGrid::build_lists(std::size_t begin, std::size_t end, std::vector<Candidate>& part,
