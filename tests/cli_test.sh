@@ -73,5 +73,19 @@ check "gen output replays" test "$("$cli" run --scene "$tmp/a.scene" --frames 3 
 "$cli" run --scene "$tmp/a.scene" --frames 2 --json >"$tmp/j" 
 check "json has the fields" python3 -c "import json,sys; j=json.load(open('$tmp/j')); sys.exit(0 if all(k in j for k in ['algo','n','frames','pairs_total','hash_total','tests_total','median_frame_ms','total_ms','memory_bytes']) and len(j['hash_total'])==16 else 1)"
 
+# advise: times the structures named, checks their pairs against each other
+# and recommends one of those that agree.
+"$cli" advise --scene "$tmp/a.scene" --algos naive,grid-hashed,fast-grid --frames 6 --seconds 3 \
+  --json >"$tmp/adv" 2>/dev/null
+check "advise recommends an agreeing structure" python3 -c "
+import json, sys
+j = json.load(open('$tmp/adv'))
+s = {x['structure']: x for x in j['structures']}
+ok = sorted(s) == ['fast-grid', 'grid-hashed', 'naive'] and all(x['pairs_agree'] for x in s.values())
+ok = ok and j['recommended'] in s and all(x['frames'] >= 1 and x['mean_frame_ms'] > 0 for x in s.values())
+sys.exit(0 if ok else 1)"
+expect_error "advise: unknown algorithm" "nope" advise --scene "$tmp/a.scene" --algos naive,nope
+expect_error "advise: missing scene" "cannot open" advise --scene "$tmp/none.scene"
+
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]

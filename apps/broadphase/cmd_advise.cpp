@@ -86,8 +86,8 @@ void advise(const AdviseOptions& o) {
     if (!t.error.empty())
       std::fprintf(stderr, "advise: %s failed: %s\n", specs[k].c_str(), t.error.c_str());
     else
-      std::fprintf(stderr, "advise: %s: %zu frames, median %.3f ms\n", specs[k].c_str(),
-                   t.frame_ms.size(), t.median_frame_ms());
+      std::fprintf(stderr, "advise: %s: %zu frames, median %.3f ms, mean %.3f ms\n",
+                   specs[k].c_str(), t.frame_ms.size(), t.median_frame_ms(), t.mean_frame_ms());
   }
 
   // The reference is the structure that ran the most frames; every other
@@ -127,6 +127,7 @@ void advise(const AdviseOptions& o) {
       s["structure"] = t.spec;
       s["frames"] = t.frame_ms.size();
       s["median_frame_ms"] = t.median_frame_ms();
+      s["mean_frame_ms"] = t.mean_frame_ms();
       s["build_ms"] = t.build_ms;
       s["query_us"] = t.query_us;
       s["insert_us"] = t.insert_us;
@@ -140,17 +141,17 @@ void advise(const AdviseOptions& o) {
     return;
   }
   std::printf("scene %s: %zu objects\n\n", o.scene.c_str(), scene.size());
-  std::printf("%-24s %7s %11s %10s %9s %9s %9s %8s %s\n", "structure", "frames", "frame ms",
-              "build ms", "query us", "insert us", "remove us", "B/object", "pairs");
+  std::printf("%-24s %7s %11s %10s %10s %9s %9s %9s %8s %s\n", "structure", "frames", "frame ms",
+              "mean ms", "build ms", "query us", "insert us", "remove us", "B/object", "pairs");
   for (std::size_t k = 0; k < results.size(); ++k) {
     const StructureTiming& t = results[k];
     if (!t.error.empty()) {
       std::printf("%-24s failed: %s\n", t.spec.c_str(), t.error.c_str());
       continue;
     }
-    std::printf("%-24s %7zu %11.3f %10.1f %9.3f %9.3f %9.3f %8.0f %s%s\n", t.spec.c_str(),
-                t.frame_ms.size(), t.median_frame_ms(), t.build_ms, t.query_us, t.insert_us,
-                t.remove_us, n > 0 ? static_cast<double>(t.memory_bytes) / n : 0.0,
+    std::printf("%-24s %7zu %11.3f %10.3f %10.1f %9.3f %9.3f %9.3f %8.0f %s%s\n", t.spec.c_str(),
+                t.frame_ms.size(), t.median_frame_ms(), t.mean_frame_ms(), t.build_ms, t.query_us,
+                t.insert_us, t.remove_us, n > 0 ? static_cast<double>(t.memory_bytes) / n : 0.0,
                 agrees[k] ? "agree" : "DIFFER", k == best ? "  <- recommended" : "");
   }
   if (best < results.size())

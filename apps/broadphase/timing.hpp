@@ -30,6 +30,14 @@ struct StructureTiming {
   std::string error;                 ///< non-empty when the structure failed
 
   double median_frame_ms() const { return median(frame_ms); }
+  /// The mean: what a run of these frames costs per frame, including the
+  /// occasional frame that renews or rebuilds much more than the median one.
+  double mean_frame_ms() const {
+    if (frame_ms.empty()) return 0;
+    double sum = 0;
+    for (double v : frame_ms) sum += v;
+    return sum / static_cast<double>(frame_ms.size());
+  }
   static double median(std::vector<double> v) {
     if (v.empty()) return 0;
     std::sort(v.begin(), v.end());
