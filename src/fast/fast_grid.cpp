@@ -64,6 +64,10 @@ void release_if_oversized(std::vector<T>& v) {
     std::vector<T>().swap(v);
 }
 
+// A candidate or near pool's capacity for n live entries: room for
+// renewals of half as many again.
+std::size_t with_room(std::size_t n) { return n + n / 2 + 1024; }
+
 double extent_of(const float lo[3], const float hi[3]) {
   double e = 0;
   for (int a = 0; a < 3; ++a)
@@ -678,10 +682,13 @@ void FastGrid::make_room_for_renewals() {
   // that stay are moved to the front of each pool, in pool order, in place:
   // the pools keep their memory, so a frame never allocates (nor touches
   // fresh pages) once they have grown to the scene's needs.
+  auto stays = [&](std::size_t k) {
+    return movers_[k].epoch == epoch_ && !moving_.entries[k].dead();
+  };
   std::size_t kept = 0, renewing = 0, near_kept = 0, near_renewing = 0;
   for (std::size_t k = 0; k < movers_.size(); ++k) {
     const Mover& mv = movers_[k];
-    const bool keep = mv.epoch == epoch_ && !moving_.entries[k].dead();
+    const bool keep = stays(k);
     (keep ? kept : renewing) += mv.list_count;
     (keep ? near_kept : near_renewing) += mv.near_count;
   }
@@ -691,7 +698,7 @@ void FastGrid::make_room_for_renewals() {
     std::vector<std::uint32_t> order;
     for (std::size_t k = 0; k < movers_.size(); ++k) {
       Mover& mv = movers_[k];
-      if (mv.epoch == epoch_ && !moving_.entries[k].dead() && mv.*count > 0)
+      if (stays(k) && mv.*count > 0)
         order.push_back(static_cast<std::uint32_t>(k));
       else
         mv.*begin = mv.*count = 0;  // empty, renewed below, or dead
@@ -707,10 +714,9 @@ void FastGrid::make_room_for_renewals() {
       w += mv.*count;
     }
     pool.resize(w);
-    // Growth (more or longer lists than before): one allocation with room
-    // for renewals of half as much again, rather than doubling.
-    if (keep_size + add > pool.capacity())
-      pool.reserve(keep_size + add + (keep_size + add) / 2 + 1024);
+    // Growth (more or longer lists than before): one allocation with room,
+    // rather than doubling.
+    if (keep_size + add > pool.capacity()) pool.reserve(with_room(keep_size + add));
   };
   compact(list_pool_, &Mover::list_begin, &Mover::list_count, kept, renewing);
   compact(near_pool_, &Mover::near_begin, &Mover::near_count, near_kept, near_renewing);
@@ -764,7 +770,7 @@ void FastGrid::build_candidate_lists() {
   // all of them after a fixed-grid rebuild) keeps room for renewals of half
   // its lists, not what doubling left.
   auto trim = [](auto& pool, std::size_t capacity_before) {
-    const std::size_t room = pool.size() + pool.size() / 2 + 1024;
+    const std::size_t room = with_room(pool.size());
     if (pool.capacity() == capacity_before || pool.capacity() <= room) return;
     std::remove_reference_t<decltype(pool)> copy;
     copy.reserve(room);
