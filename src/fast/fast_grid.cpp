@@ -740,14 +740,22 @@ void FastGrid::build_candidate_lists() {
   }
   run_chunks(t, chunks, [&](unsigned, unsigned c) {
     // Chunk 0 appends to the pools themselves (no other chunk reads them).
-    std::vector<Candidate>& part = c == 0 ? list_pool_ : list_parts_[c];
-    std::vector<std::uint32_t>& near = c == 0 ? near_pool_ : near_parts_[c];
+    // Each chunk works on vectors on its own stack, moved in and out (as in
+    // find_pairs: the vector records lie side by side).
+    std::vector<Candidate>& part_home = c == 0 ? list_pool_ : list_parts_[c];
+    std::vector<std::uint32_t>& near_home = c == 0 ? near_pool_ : near_parts_[c];
+    std::vector<Candidate> part = std::move(part_home);
+    std::vector<std::uint32_t> near = std::move(near_home);
+    std::vector<std::uint32_t> renewed = std::move(renewed_[c]);
     if (c > 0) {
       part.clear();
       near.clear();
     }
-    renewed_[c].clear();
-    build_lists(m * c / chunks, m * (c + 1) / chunks, part, near, renewed_[c]);
+    renewed.clear();
+    build_lists(m * c / chunks, m * (c + 1) / chunks, part, near, renewed);
+    part_home = std::move(part);
+    near_home = std::move(near);
+    renewed_[c] = std::move(renewed);
   });
   for (unsigned k = 1; k < chunks; ++k) {
     const auto offset = static_cast<std::uint32_t>(list_pool_.size());
@@ -865,14 +873,21 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
         emit_fixed();
         return;
       }
+      // A chunk works on a vector and a count on its own stack, moved in
+      // and out: the chunks' vector records and counts lie side by side,
+      // and writing them on every pair would bounce their cache lines
+      // between the cores.
       const unsigned c = job - 1;
-      std::vector<HandlePair>& buf = buffers[c];
+      std::vector<HandlePair> buf = std::move(buffers[c]);
       buf.clear();
       auto into = [&buf](Handle a, Handle b) {
         buf.push_back({a, b});
         return true;
       };
-      mover_pairs(m * c / chunks, m * (c + 1) / chunks, into, tests[c]);
+      std::uint64_t n_tests = 0;
+      mover_pairs(m * c / chunks, m * (c + 1) / chunks, into, n_tests);
+      tests[c] = n_tests;
+      buffers[c] = std::move(buf);
     });
     std::size_t extra = 0;
     for (unsigned c = 0; c < chunks; ++c) {
