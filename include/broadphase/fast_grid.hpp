@@ -396,15 +396,30 @@ bool FastGrid::Grid::scan_level(const AabbF& q, std::size_t l, double min_x, F&&
       if (entries[k].overlaps(q) && !f(k)) return false;
     return true;
   }
+  // Rows are taken in batches: first every row's range (the loads do not
+  // wait on each other) and a prefetch of its first entries, then the
+  // scans, so that the rows' cache misses overlap instead of following one
+  // another.
+  constexpr unsigned kBatch = 16;
+  std::uint32_t row_begin[kBatch], row_end[kBatch];
+  unsigned rows = 0;
+  auto scan_rows = [&] {
+    for (unsigned r = 0; r < rows; ++r)
+      for (std::uint32_t k = row_begin[r]; k < row_end[r]; ++k)
+        if (entries[k].overlaps(q) && !f(k)) return false;
+    rows = 0;
+    return true;
+  };
   for (std::uint32_t y = y0; y <= y1; ++y) {
     for (std::uint32_t z = z0; z <= z1; ++z) {
       const std::uint32_t base = lv.first_cell + (y * lv.n[2] + z) * lv.n[0];
-      const std::uint32_t e = cell_start[base + x1 + 1];
-      for (std::uint32_t k = cell_start[base + x0]; k < e; ++k)
-        if (entries[k].overlaps(q) && !f(k)) return false;
+      row_begin[rows] = cell_start[base + x0];
+      row_end[rows] = cell_start[base + x1 + 1];
+      detail::prefetch(entries.data() + row_begin[rows]);
+      if (++rows == kBatch && !scan_rows()) return false;
     }
   }
-  return true;
+  return scan_rows();
 }
 
 template <class F>
@@ -477,15 +492,19 @@ bool FastGrid::mover_pairs(std::size_t begin, std::size_t end, E& emit,
     // renewed since the last compaction lie elsewhere in the pool), then
     // the slots their near lists name, then those neighbours' records.
     if (i + 8 < end) {
+      // The whole list, line by line: it is read in one go, and its lines
+      // arrive together rather than one miss after another.
       const Mover& ahead = movers_[i + 8];
-      detail::prefetch(list_pool_.data() + ahead.list_begin);
+      const char* l = reinterpret_cast<const char*>(list_pool_.data() + ahead.list_begin);
+      const char* l_end = reinterpret_cast<const char*>(
+          list_pool_.data() + ahead.list_begin + std::min<std::uint32_t>(ahead.list_count, 48));
+      for (; l < l_end; l += 64) detail::prefetch(l);
       detail::prefetch(near_pool_.data() + ahead.near_begin);
     }
     if (i + 4 < end) {
       const Mover& ahead = movers_[i + 4];
       const std::uint32_t* n = near_pool_.data() + ahead.near_begin;
       for (std::uint32_t k = 0; k < ahead.near_count; ++k) detail::prefetch(&slots_[n[k]]);
-      detail::prefetch(reinterpret_cast<const char*>(list_pool_.data() + ahead.list_begin) + 64);
     }
     if (i + 2 < end) {
       const Mover& ahead = movers_[i + 2];
@@ -493,8 +512,11 @@ bool FastGrid::mover_pairs(std::size_t begin, std::size_t end, E& emit,
       for (std::uint32_t k = 0; k < ahead.near_count; ++k) {
         const std::uint32_t p = slots_[n[k]].pos;
         if (p < movers_.size()) {
-          detail::prefetch(&movers_[p]);
-          detail::prefetch(&moving_.shapes[p]);
+          // The fields read, and the shape from both ends: records of 80
+          // and 56 bytes often span two cache lines.
+          detail::prefetch(&movers_[p].stamp);
+          detail::prefetch(&moving_.shapes[p].center);
+          detail::prefetch(&moving_.shapes[p].kind);
         }
       }
     }
