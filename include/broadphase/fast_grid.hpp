@@ -228,6 +228,11 @@ class FastGrid {
   // A cell probe (two index loads) costs about as much as testing this many
   // entries.
   static constexpr std::uint64_t kProbeCost = 2;
+  // Candidate pools larger than this are taken to be out of cache (a
+  // typical second-level cache), and so many candidates of a list at most
+  // are prefetched ahead of the pair pass.
+  static constexpr std::size_t kCachedListBytes = std::size_t{2} << 20;
+  static constexpr std::uint32_t kPrefetchCandidates = 48;
   static constexpr double kNoMinX = -std::numeric_limits<double>::infinity();
   static constexpr std::uint32_t kFromLoose = 0x80000000u;
 
@@ -482,6 +487,7 @@ bool FastGrid::mover_pairs(std::size_t begin, std::size_t end, E& emit,
   // While no fixed object has left the grid since it was built, every
   // candidate is live and fixed lists are read alone.
   const bool all_live = fixed_count_ == fixed_.entries.size();
+  const bool far = list_pool_.size() * sizeof(Candidate) > kCachedListBytes;
   std::size_t level = 0;
   for (std::size_t i = begin; i < end; ++i) {
     const Entry& me = moving_.entries[i];
@@ -492,13 +498,16 @@ bool FastGrid::mover_pairs(std::size_t begin, std::size_t end, E& emit,
     // renewed since the last compaction lie elsewhere in the pool), then
     // the slots their near lists name, then those neighbours' records.
     if (i + 8 < end) {
-      // The whole list, line by line: it is read in one go, and its lines
-      // arrive together rather than one miss after another.
+      // Lists far out of cache are prefetched whole, line by line: a list
+      // is read in one go, and its lines then arrive together rather than
+      // one miss after another. Lists that fit in cache only get their
+      // first lines (prefetching every line costs more than it saves).
       const Mover& ahead = movers_[i + 8];
+      const std::uint32_t count =
+          far ? std::min<std::uint32_t>(ahead.list_count, kPrefetchCandidates) : 2;
       const char* l = reinterpret_cast<const char*>(list_pool_.data() + ahead.list_begin);
-      const char* l_end = reinterpret_cast<const char*>(
-          list_pool_.data() + ahead.list_begin + std::min<std::uint32_t>(ahead.list_count, 48));
-      for (; l < l_end; l += 64) detail::prefetch(l);
+      for (const char* l_end = l + count * sizeof(Candidate); l < l_end; l += 64)
+        detail::prefetch(l);
       detail::prefetch(near_pool_.data() + ahead.near_begin);
     }
     if (i + 4 < end) {
@@ -512,11 +521,11 @@ bool FastGrid::mover_pairs(std::size_t begin, std::size_t end, E& emit,
       for (std::uint32_t k = 0; k < ahead.near_count; ++k) {
         const std::uint32_t p = slots_[n[k]].pos;
         if (p < movers_.size()) {
-          // The fields read, and the shape from both ends: records of 80
-          // and 56 bytes often span two cache lines.
+          // The fields read (an 80-byte record often spans two lines;
+          // prefetching the shape's second line too cost more than it
+          // saved), and the shape.
           detail::prefetch(&movers_[p].stamp);
           detail::prefetch(&moving_.shapes[p].center);
-          detail::prefetch(&moving_.shapes[p].kind);
         }
       }
     }
