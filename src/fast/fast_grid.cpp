@@ -443,7 +443,7 @@ void FastGrid::rebuild(bool fixed_too) {
     src.reserve(fixed_count_ + loose_.size());
     take_grid(fixed_, items, src);
     take_loose(Motion::fixed, items, src);
-    std::vector<Shape> old_shapes;
+    std::vector<LineShape> old_shapes;
     old_shapes.swap(fixed_.shapes);
     build_grid(fixed_, items, src, old_shapes);
     for (std::size_t k = 0; k < fixed_.entries.size(); ++k) {
@@ -517,7 +517,7 @@ void FastGrid::rebuild(bool fixed_too) {
 }
 
 void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<std::uint32_t>& src,
-                          std::vector<Shape>& old_shapes) {
+                          std::vector<LineShape>& old_shapes) {
   const std::size_t n = items.size();
   const bool moving = &g == &moving_;
   g.levels.clear();
@@ -927,7 +927,7 @@ std::size_t FastGrid::memory_bytes() const {
                       held_.capacity() * 4 + fixed_.memory_bytes() + moving_.memory_bytes() +
                       fixed_pairs_.capacity() * sizeof(HandlePair) +
                       scratch_items_.capacity() * sizeof(Entry) + scratch_src_.capacity() * 4 +
-                      scratch_shapes_.capacity() * sizeof(Shape) + scratch_tag_.capacity() * 4 +
+                      scratch_shapes_.capacity() * sizeof(LineShape) + scratch_tag_.capacity() * 4 +
                       (movers_.capacity() + scratch_movers_.capacity()) * sizeof(Mover) +
                       list_pool_.capacity() * sizeof(Candidate) + near_pool_.capacity() * 4 +
                       slow_per_level_.capacity() * 4;
