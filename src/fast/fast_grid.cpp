@@ -390,7 +390,8 @@ void FastGrid::update(std::span<const Move> moves) {
       if (j + kAhead < n) {
         const std::uint32_t a = target[j + kAhead];
         if (a >= lo && a < hi) {
-          detail::prefetch(&movers_[a]);
+          detail::prefetch(&movers_[a].cur);
+          detail::prefetch(&movers_[a].speed);  // often on the record's second line
           detail::prefetch(&moving_.shapes[a]);
         }
       }
