@@ -284,6 +284,12 @@ class FastGrid {
   /// (an index into `old_shapes`, or kFromLoose | index into loose_shapes_).
   void build_grid(Grid& g, std::vector<Entry>& items, const std::vector<std::uint32_t>& src,
                   std::vector<LineShape>& old_shapes);
+  /// Points the slots of a grid's entries at them.
+  void point_slots(const Grid& g, Home home);
+  /// Puts item i of a grid build at entry k (with its shape and, in the
+  /// moving grid, its mover record).
+  void place(Grid& g, const std::vector<Entry>& items, const std::vector<std::uint32_t>& src,
+             const std::vector<LineShape>& old_shapes, std::size_t i, std::uint32_t k);
   void build_fixed_cache();
   /// Runs job(k) for k in [0, shares), share 0 on the calling thread.
   void run_shares(unsigned shares, const std::function<void(unsigned)>& job) const;
@@ -357,6 +363,8 @@ class FastGrid {
   std::vector<LineShape> scratch_shapes_;
   std::vector<Mover> scratch_movers_;
   std::vector<std::uint32_t> scratch_tag_;  // per item: its level, then its cell
+  struct ShareStats;                        // one share's totals in a grid build
+  std::vector<ShareStats> share_stats_;
 
   // Candidate lists of moving objects. A mover's fixed list holds the fixed
   // objects whose bounds overlap its fat box; its near list holds the

@@ -1,5 +1,6 @@
 #include <atomic>
 #include <broadphase/fast_grid.hpp>
+#include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <cstring>
@@ -101,6 +102,13 @@ namespace detail {
 /// job(0) on the caller and job(1..shares-1) on the workers, and returns
 /// when all are done. One run at a time; a caller that finds the pool busy
 /// (another thread's const call) runs every share itself.
+///
+/// A frame makes about a dozen runs a fraction of a millisecond apart, and
+/// waking a sleeping thread costs about 70 µs here (a round trip through a
+/// condition variable). So a worker that finished a job, and a caller that
+/// waits for the workers, first poll for a while (kSpin) and only then
+/// sleep: runs within a frame find the workers awake, and an idle structure
+/// costs nothing once its workers have gone to sleep.
 class WorkerPool {
  public:
   explicit WorkerPool(unsigned workers) {
@@ -110,7 +118,8 @@ class WorkerPool {
   ~WorkerPool() {
     {
       std::lock_guard lock(m_);
-      stopping_ = true;
+      stopping_.store(true, std::memory_order_relaxed);
+      round_.fetch_add(1, std::memory_order_release);
     }
     wake_.notify_all();
     threads_.clear();  // joins
@@ -124,36 +133,59 @@ class WorkerPool {
     }
     shares = std::min<unsigned>(shares, static_cast<unsigned>(threads_.size()) + 1);
     {
+      // The job and its share count are published by the round's release;
+      // they change only here, once the previous run's workers are done.
       std::lock_guard lock(m_);
       job_ = &job;
       shares_ = shares;
-      pending_ = shares - 1;
-      ++round_;
+      pending_.store(shares - 1, std::memory_order_relaxed);
+      round_.fetch_add(1, std::memory_order_release);
     }
     wake_.notify_all();
     job(0);
-    std::unique_lock lock(m_);
-    done_.wait(lock, [&] { return pending_ == 0; });
-    job_ = nullptr;
+    auto done = [&] { return pending_.load(std::memory_order_acquire) == 0; };
+    if (!spin_until(done)) {
+      std::unique_lock lock(m_);
+      done_.wait(lock, done);
+    }
   }
   unsigned capacity() const { return static_cast<unsigned>(threads_.size()) + 1; }
 
  private:
+  static constexpr std::chrono::microseconds kSpin{500};
+
+  /// Polls `ready` until it holds (true) or kSpin has passed (false).
+  template <class F>
+  static bool spin_until(F ready) {
+    const auto until = std::chrono::steady_clock::now() + kSpin;
+    for (unsigned k = 1;; ++k) {
+      if (ready()) return true;
+      if (k % 64 == 0 && std::chrono::steady_clock::now() > until) return false;
+#if defined(__x86_64__) || defined(__i386__)
+      __builtin_ia32_pause();
+#else
+      std::this_thread::yield();
+#endif
+    }
+  }
+
   void loop(std::stop_token, unsigned share) {
     std::uint64_t seen = 0;
     for (;;) {
-      const std::function<void(unsigned)>* job;
-      {
+      auto fresh = [&] { return round_.load(std::memory_order_acquire) != seen; };
+      if (!spin_until(fresh)) {
         std::unique_lock lock(m_);
-        wake_.wait(lock, [&] { return stopping_ || round_ != seen; });
-        if (stopping_) return;
-        seen = round_;
-        if (share >= shares_) continue;
-        job = job_;
+        wake_.wait(lock, fresh);
       }
-      (*job)(share);
-      std::lock_guard lock(m_);
-      if (--pending_ == 0) done_.notify_one();
+      seen = round_.load(std::memory_order_acquire);
+      if (stopping_.load(std::memory_order_relaxed)) return;
+      if (share >= shares_) continue;
+      (*job_)(share);
+      if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) {
+        // The caller may be asleep: notify under the lock it checks under.
+        std::lock_guard lock(m_);
+        done_.notify_one();
+      }
     }
   }
 
@@ -161,9 +193,10 @@ class WorkerPool {
   std::mutex m_;
   std::condition_variable wake_, done_;
   const std::function<void(unsigned)>* job_ = nullptr;
-  unsigned shares_ = 0, pending_ = 0;
-  std::uint64_t round_ = 0;
-  bool stopping_ = false;
+  unsigned shares_ = 0;
+  std::atomic<unsigned> pending_{0};
+  std::atomic<std::uint64_t> round_{0};
+  std::atomic<bool> stopping_{false};
   std::vector<std::jthread> threads_;
 };
 
@@ -447,11 +480,7 @@ void FastGrid::rebuild(bool fixed_too) {
     std::vector<LineShape> old_shapes;
     old_shapes.swap(fixed_.shapes);
     build_grid(fixed_, items, src, old_shapes);
-    for (std::size_t k = 0; k < fixed_.entries.size(); ++k) {
-      const std::uint32_t s = fixed_.entries[k].slot;
-      slots_[s].home = Home::fixed_grid;
-      slots_[s].pos = static_cast<std::uint32_t>(k);
-    }
+    point_slots(fixed_, Home::fixed_grid);
     fixed_count_ = fixed_.entries.size();
     fixed_pairs_.clear();
     fixed_pairs_.shrink_to_fit();
@@ -498,11 +527,7 @@ void FastGrid::rebuild(bool fixed_too) {
   scratch_shapes_.swap(moving_.shapes);
   scratch_movers_.swap(movers_);
   build_grid(moving_, items, src, scratch_shapes_);
-  for (std::size_t k = 0; k < moving_.entries.size(); ++k) {
-    const std::uint32_t s = moving_.entries[k].slot;
-    slots_[s].home = Home::moving_grid;
-    slots_[s].pos = static_cast<std::uint32_t>(k);
-  }
+  point_slots(moving_, Home::moving_grid);
   moving_count_ = moving_.entries.size();
   slow_per_level_.assign(moving_.levels.size(), 0);
   for (std::size_t l = 0, k = 0; l < moving_.levels.size(); ++l)
@@ -516,6 +541,26 @@ void FastGrid::rebuild(bool fixed_too) {
   for (std::uint32_t s : held_) free_slot(s);
   held_.clear();
 }
+
+void FastGrid::point_slots(const Grid& g, Home home) {
+  // Every slot is named by one entry: the shares write distinct records.
+  const std::size_t n = g.entries.size();
+  const unsigned t = shares_for(n);
+  run_shares(t, [&](unsigned share) {
+    for (std::size_t k = n * share / t, end = n * (share + 1) / t; k < end; ++k) {
+      Slot& sl = slots_[g.entries[k].slot];
+      sl.home = home;
+      sl.pos = static_cast<std::uint32_t>(k);
+    }
+  });
+}
+
+struct FastGrid::ShareStats {
+  double max_e = 0;
+  std::uint32_t count[kLevelSlots] = {};
+  float span_lo[kLevelSlots][3] = {}, span_hi[kLevelSlots][3] = {};
+  std::uint32_t first_cell = 0;  // of the cells the share fills in the scatter
+};
 
 void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<std::uint32_t>& src,
                           std::vector<LineShape>& old_shapes) {
@@ -536,39 +581,65 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
   }
   // The top level's reach fits the largest finite extent; each level below
   // halves it.
+  // The passes over the items are split over the threads, each share
+  // taking a contiguous range and keeping its own totals, merged in share
+  // order (sums, minima and maxima: the same for any split).
+  const unsigned t = shares_for(n);
+  share_stats_.resize(t);
+  auto range = [n, t](unsigned k) { return std::pair{n * k / t, n * (k + 1) / t}; };
+  run_shares(t, [&](unsigned k) {
+    double m = 0;
+    for (auto [i, end] = range(k); i < end; ++i) {
+      const double e = extent_of(items[i].lo, items[i].hi);
+      if (std::isfinite(e)) m = std::max(m, e);
+    }
+    share_stats_[k].max_e = m;
+  });
   double max_e = 0;
-  for (const Entry& it : items) {
-    const double e = extent_of(it.lo, it.hi);
-    if (std::isfinite(e)) max_e = std::max(max_e, e);
-  }
+  for (const ShareStats& st : share_stats_) max_e = std::max(max_e, st.max_e);
   const double top = max_e > 0 ? max_e / (kFill * kFill) : 1;
   double reach[kLevelSlots];
   for (int k = 0; k < kFiniteLevels; ++k) reach[k] = std::ldexp(top, k - (kFiniteLevels - 1));
   reach[kFiniteLevels] = std::numeric_limits<double>::infinity();
 
   // Pass 1: each item's level, and each level's count and lower-corner span.
+  std::vector<std::uint32_t>& tag = scratch_tag_;
+  tag.resize(n);
+  run_shares(t, [&](unsigned share) {
+    ShareStats& st = share_stats_[share];
+    for (int k = 0; k < kLevelSlots; ++k) {
+      st.count[k] = 0;
+      std::fill(st.span_lo[k], st.span_lo[k] + 3, std::numeric_limits<float>::infinity());
+      std::fill(st.span_hi[k], st.span_hi[k] + 3, -std::numeric_limits<float>::infinity());
+    }
+    for (auto [i, end] = range(share); i < end; ++i) {
+      const Entry& it = items[i];
+      const double e = extent_of(it.lo, it.hi);
+      int k = kFiniteLevels;
+      if (std::isfinite(e)) {
+        // Start one below the level log2 suggests, then step up to the fit.
+        k = e > 0 ? std::clamp(kFiniteLevels - 2 - std::ilogb(top / e), 0, kFiniteLevels - 1) : 0;
+        while (k < kFiniteLevels - 1 && e > kFill * reach[k]) ++k;
+      }
+      tag[i] = static_cast<std::uint32_t>(k);
+      ++st.count[k];
+      for (int a = 0; a < 3; ++a) {
+        st.span_lo[k][a] = std::min(st.span_lo[k][a], it.lo[a]);
+        st.span_hi[k][a] = std::max(st.span_hi[k][a], it.lo[a]);
+      }
+    }
+  });
   std::uint32_t count[kLevelSlots] = {};
   float span_lo[kLevelSlots][3], span_hi[kLevelSlots][3];
   for (int k = 0; k < kLevelSlots; ++k) {
     std::fill(span_lo[k], span_lo[k] + 3, std::numeric_limits<float>::infinity());
     std::fill(span_hi[k], span_hi[k] + 3, -std::numeric_limits<float>::infinity());
-  }
-  std::vector<std::uint32_t>& tag = scratch_tag_;
-  tag.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Entry& it = items[i];
-    const double e = extent_of(it.lo, it.hi);
-    int k = kFiniteLevels;
-    if (std::isfinite(e)) {
-      // Start one below the level log2 suggests, then step up to the fit.
-      k = e > 0 ? std::clamp(kFiniteLevels - 2 - std::ilogb(top / e), 0, kFiniteLevels - 1) : 0;
-      while (k < kFiniteLevels - 1 && e > kFill * reach[k]) ++k;
-    }
-    tag[i] = static_cast<std::uint32_t>(k);
-    ++count[k];
-    for (int a = 0; a < 3; ++a) {
-      span_lo[k][a] = std::min(span_lo[k][a], it.lo[a]);
-      span_hi[k][a] = std::max(span_hi[k][a], it.lo[a]);
+    for (const ShareStats& st : share_stats_) {
+      count[k] += st.count[k];
+      for (int a = 0; a < 3; ++a) {
+        span_lo[k][a] = std::min(span_lo[k][a], st.span_lo[k][a]);
+        span_hi[k][a] = std::max(span_hi[k][a], st.span_hi[k][a]);
+      }
     }
   }
   // A sparse level costs every scan its cell visits but saves few tests:
@@ -636,36 +707,58 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
   }
   // Pass 2: counting sort by cell, stable, so entries keep their previous
   // order inside a cell and the result does not depend on anything else.
-  g.cell_start.assign(cells + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Level& lv = g.levels[static_cast<std::size_t>(level_index[target[tag[i]]])];
-    tag[i] = lv.cell_of(items[i].lo);
-    ++g.cell_start[tag[i] + 1];
-  }
-  for (std::uint32_t c = 0; c < cells; ++c) g.cell_start[c + 1] += g.cell_start[c];
-  // Scatter with cell_start as the moving cursor, then shift it back.
-  if (moving) movers_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t k = g.cell_start[tag[i]]++;
-    g.entries[k] = items[i];
-    const std::uint32_t from = src[i];
-    const bool loose = (from & kFromLoose) != 0;
-    g.shapes[k] = loose ? loose_shapes_[from & ~kFromLoose] : old_shapes[from];
-    if (moving) {
-      if (loose) {
-        Mover& mv = movers_[k];
-        mv = Mover{};
-        mv.cur = loose_bounds_[from & ~kFromLoose];
-        mv.speed = loose_speed_[from & ~kFromLoose];
-        mv.guessed = !(mv.speed > 0);
-        mv.fat = items[i].box();
-      } else {
-        movers_[k] = scratch_movers_[from];
-      }
+  // The cells are counted one place up (cell_start[c + 2]), so that after
+  // the prefix sum cell_start[c + 1] is the start of cell c: the scatter
+  // uses it as the cell's cursor, which leaves it at the start of c + 1.
+  run_shares(t, [&](unsigned share) {
+    for (auto [i, end] = range(share); i < end; ++i) {
+      const Level& lv = g.levels[static_cast<std::size_t>(level_index[target[tag[i]]])];
+      tag[i] = lv.cell_of(items[i].lo);
     }
+  });
+  g.cell_start.assign(cells + 2, 0);
+  for (std::size_t i = 0; i < n; ++i) ++g.cell_start[tag[i] + 2];
+  for (std::uint32_t c = 0; c <= cells; ++c) g.cell_start[c + 1] += g.cell_start[c];
+  // The scatter is split by destination: each share takes the cells of
+  // about n/t entries and places, in item order, the items bound for them.
+  // Share k takes the cells from its first_cell to the next share's, found
+  // before any share moves a cursor.
+  const auto starts = g.cell_start.begin() + 1;  // starts[c]: the start of cell c
+  for (unsigned k = 0; k < t; ++k)
+    share_stats_[k].first_cell = static_cast<std::uint32_t>(
+        std::lower_bound(starts, g.cell_start.end(), range(k).first) - starts);
+  share_stats_[0].first_cell = 0;
+  if (moving) movers_.resize(n);
+  run_shares(t, [&](unsigned share) {
+    const std::uint32_t c_lo = share_stats_[share].first_cell;
+    const std::uint32_t c_hi = share + 1 < t ? share_stats_[share + 1].first_cell : cells;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (tag[i] < c_lo || tag[i] >= c_hi) continue;
+      place(g, items, src, old_shapes, i, g.cell_start[tag[i] + 1]++);
+    }
+  });
+  g.cell_start.pop_back();
+}
+
+void FastGrid::place(Grid& g, const std::vector<Entry>& items,
+                     const std::vector<std::uint32_t>& src,
+                     const std::vector<LineShape>& old_shapes, std::size_t i, std::uint32_t k) {
+  g.entries[k] = items[i];
+  const std::uint32_t from = src[i];
+  const bool loose = (from & kFromLoose) != 0;
+  g.shapes[k] =
+      loose ? loose_shapes_[from & ~kFromLoose] : static_cast<const Shape&>(old_shapes[from]);
+  if (&g != &moving_) return;
+  if (loose) {
+    Mover& mv = movers_[k];
+    mv = Mover{};
+    mv.cur = loose_bounds_[from & ~kFromLoose];
+    mv.speed = loose_speed_[from & ~kFromLoose];
+    mv.guessed = !(mv.speed > 0);
+    mv.fat = items[i].box();
+  } else {
+    movers_[k] = scratch_movers_[from];
   }
-  for (std::uint32_t c = cells; c > 0; --c) g.cell_start[c] = g.cell_start[c - 1];
-  g.cell_start[0] = 0;
 }
 
 AabbF FastGrid::fat_box(const AabbF& cur, float speed, bool& fast) const {
