@@ -240,7 +240,7 @@ class FastGrid {
   // typical second-level cache), and so many candidates of a list at most
   // are prefetched ahead of the pair pass.
   static constexpr std::size_t kCachedListBytes = std::size_t{2} << 20;
-  static constexpr std::uint32_t kPrefetchCandidates = 48;
+  static constexpr std::uint32_t kPrefetchCandidates = 128;
   static constexpr double kNoMinX = -std::numeric_limits<double>::infinity();
   static constexpr std::uint32_t kFromLoose = 0x80000000u;
 
