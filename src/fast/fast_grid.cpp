@@ -555,6 +555,28 @@ void FastGrid::point_slots(const Grid& g, Home home) {
   });
 }
 
+inline void FastGrid::place(Grid& g, const std::vector<Entry>& items,
+                            const std::vector<std::uint32_t>& src,
+                            const std::vector<LineShape>& old_shapes, std::size_t i,
+                            std::uint32_t k) {
+  g.entries[k] = items[i];
+  const std::uint32_t from = src[i];
+  const bool loose = (from & kFromLoose) != 0;
+  g.shapes[k] =
+      loose ? loose_shapes_[from & ~kFromLoose] : static_cast<const Shape&>(old_shapes[from]);
+  if (&g != &moving_) return;
+  if (loose) {
+    Mover& mv = movers_[k];
+    mv = Mover{};
+    mv.cur = loose_bounds_[from & ~kFromLoose];
+    mv.speed = loose_speed_[from & ~kFromLoose];
+    mv.guessed = !(mv.speed > 0);
+    mv.fat = items[i].box();
+  } else {
+    movers_[k] = scratch_movers_[from];
+  }
+}
+
 struct FastGrid::ShareStats {
   double max_e = 0;
   std::uint32_t count[kLevelSlots] = {};
@@ -738,27 +760,6 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
     }
   });
   g.cell_start.pop_back();
-}
-
-void FastGrid::place(Grid& g, const std::vector<Entry>& items,
-                     const std::vector<std::uint32_t>& src,
-                     const std::vector<LineShape>& old_shapes, std::size_t i, std::uint32_t k) {
-  g.entries[k] = items[i];
-  const std::uint32_t from = src[i];
-  const bool loose = (from & kFromLoose) != 0;
-  g.shapes[k] =
-      loose ? loose_shapes_[from & ~kFromLoose] : static_cast<const Shape&>(old_shapes[from]);
-  if (&g != &moving_) return;
-  if (loose) {
-    Mover& mv = movers_[k];
-    mv = Mover{};
-    mv.cur = loose_bounds_[from & ~kFromLoose];
-    mv.speed = loose_speed_[from & ~kFromLoose];
-    mv.guessed = !(mv.speed > 0);
-    mv.fat = items[i].box();
-  } else {
-    movers_[k] = scratch_movers_[from];
-  }
 }
 
 AabbF FastGrid::fat_box(const AabbF& cur, float speed, bool& fast) const {
