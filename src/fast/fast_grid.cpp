@@ -577,7 +577,7 @@ inline void FastGrid::place(Grid& g, const std::vector<Entry>& items,
   }
 }
 
-struct FastGrid::ShareStats {
+struct alignas(64) FastGrid::ShareStats {  // on lines of its own: each share writes its own
   double max_e = 0;
   std::uint32_t count[kLevelSlots] = {};
   float span_lo[kLevelSlots][3] = {}, span_hi[kLevelSlots][3] = {};
@@ -601,8 +601,6 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
     if (moving) movers_.clear();
     return;
   }
-  // The top level's reach fits the largest finite extent; each level below
-  // halves it.
   // The passes over the items are split over the threads, each share
   // taking a contiguous range and keeping its own totals, merged in share
   // order (sums, minima and maxima: the same for any split).
@@ -619,6 +617,8 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
   });
   double max_e = 0;
   for (const ShareStats& st : share_stats_) max_e = std::max(max_e, st.max_e);
+  // The top level's reach fits the largest finite extent; each level below
+  // halves it.
   const double top = max_e > 0 ? max_e / (kFill * kFill) : 1;
   double reach[kLevelSlots];
   for (int k = 0; k < kFiniteLevels; ++k) reach[k] = std::ldexp(top, k - (kFiniteLevels - 1));
