@@ -42,7 +42,10 @@
 /// concurrency) of a pool kept by the structure, in chunks taken by
 /// whichever thread is free; each chunk writes its own buffers and the
 /// buffers are joined in chunk order, so the results, the pair order and
-/// the hash never depend on the thread count.
+/// the hash never depend on the thread count. Between the parts of a call
+/// the workers poll for up to 0.5 ms before they sleep (waking a sleeping
+/// thread costs more than that part of a frame), so after each call the
+/// workers keep their cores busy for up to that long.
 #pragma once
 
 #include <algorithm>
