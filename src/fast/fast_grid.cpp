@@ -65,6 +65,15 @@ void release_if_oversized(std::vector<T>& v) {
     std::vector<T>().swap(v);
 }
 
+// Part k of [0, n) cut into `parts` contiguous ranges of about equal size:
+// how every pass split over threads or chunks divides its work.
+struct Slice {
+  std::size_t begin, end;
+};
+Slice slice(std::size_t n, unsigned k, unsigned parts) {
+  return {n * k / parts, n * (k + 1) / parts};
+}
+
 // A candidate or near pool's capacity for n live entries: room for
 // renewals of half as many again.
 std::size_t with_room(std::size_t n) { return n + n / 2 + 1024; }
@@ -395,9 +404,9 @@ void FastGrid::update(std::span<const Move> moves) {
   target.resize(n);
   std::atomic<bool> bad{false}, others{false};
   run_shares(t, [&](unsigned k) {
-    const std::size_t end = n * (k + 1) / t;
+    const auto [begin, end] = slice(n, k, t);
     bool any_other = false;
-    for (std::size_t j = n * k / t; j < end; ++j) {
+    for (std::size_t j = begin; j < end; ++j) {
       if (j + kAhead < end && moves[j + kAhead].handle.index < slots_.size())
         detail::prefetch(&slots_[moves[j + kAhead].handle.index]);
       const Handle h = moves[j].handle;
@@ -418,7 +427,7 @@ void FastGrid::update(std::span<const Move> moves) {
     }
   }
   run_shares(t, [&](unsigned k) {
-    const std::size_t lo = m * k / t, hi = m * (k + 1) / t;
+    const auto [lo, hi] = slice(m, k, t);
     for (std::size_t j = 0; j < n; ++j) {
       if (j + kAhead < n) {
         const std::uint32_t a = target[j + kAhead];
@@ -498,7 +507,7 @@ void FastGrid::rebuild(bool fixed_too) {
   const std::size_t m = moving_.entries.size();
   const unsigned t = shares_for(m);
   run_shares(t, [&](unsigned share) {
-    for (std::size_t k = m * share / t, end = m * (share + 1) / t; k < end; ++k) {
+    for (auto [k, end] = slice(m, share, t); k < end; ++k) {
       Entry& e = moving_.entries[k];
       if (e.dead()) continue;
       Mover& mv = movers_[k];
@@ -547,7 +556,7 @@ void FastGrid::point_slots(const Grid& g, Home home) {
   const std::size_t n = g.entries.size();
   const unsigned t = shares_for(n);
   run_shares(t, [&](unsigned share) {
-    for (std::size_t k = n * share / t, end = n * (share + 1) / t; k < end; ++k) {
+    for (auto [k, end] = slice(n, share, t); k < end; ++k) {
       Slot& sl = slots_[g.entries[k].slot];
       sl.home = home;
       sl.pos = static_cast<std::uint32_t>(k);
@@ -606,10 +615,9 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
   // order (sums, minima and maxima: the same for any split).
   const unsigned t = shares_for(n);
   share_stats_.resize(t);
-  auto range = [n, t](unsigned k) { return std::pair{n * k / t, n * (k + 1) / t}; };
   run_shares(t, [&](unsigned k) {
     double m = 0;
-    for (auto [i, end] = range(k); i < end; ++i) {
+    for (auto [i, end] = slice(n, k, t); i < end; ++i) {
       const double e = extent_of(items[i].lo, items[i].hi);
       if (std::isfinite(e)) m = std::max(m, e);
     }
@@ -634,7 +642,7 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
       std::fill(st.span_lo[k], st.span_lo[k] + 3, std::numeric_limits<float>::infinity());
       std::fill(st.span_hi[k], st.span_hi[k] + 3, -std::numeric_limits<float>::infinity());
     }
-    for (auto [i, end] = range(share); i < end; ++i) {
+    for (auto [i, end] = slice(n, share, t); i < end; ++i) {
       const Entry& it = items[i];
       const double e = extent_of(it.lo, it.hi);
       int k = kFiniteLevels;
@@ -733,7 +741,7 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
   // the prefix sum cell_start[c + 1] is the start of cell c: the scatter
   // uses it as the cell's cursor, which leaves it at the start of c + 1.
   run_shares(t, [&](unsigned share) {
-    for (auto [i, end] = range(share); i < end; ++i) {
+    for (auto [i, end] = slice(n, share, t); i < end; ++i) {
       const Level& lv = g.levels[static_cast<std::size_t>(level_index[target[tag[i]]])];
       tag[i] = lv.cell_of(items[i].lo);
     }
@@ -748,7 +756,7 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
   const auto starts = g.cell_start.begin() + 1;  // starts[c]: the start of cell c
   for (unsigned k = 0; k < t; ++k)
     share_stats_[k].first_cell = static_cast<std::uint32_t>(
-        std::lower_bound(starts, g.cell_start.end(), range(k).first) - starts);
+        std::lower_bound(starts, g.cell_start.end(), slice(n, k, t).begin) - starts);
   share_stats_[0].first_cell = 0;
   if (moving) movers_.resize(n);
   run_shares(t, [&](unsigned share) {
@@ -865,7 +873,8 @@ void FastGrid::build_candidate_lists() {
       near.clear();
     }
     renewed.clear();
-    build_lists(m * c / chunks, m * (c + 1) / chunks, part, near, renewed);
+    const auto [begin, end] = slice(m, c, chunks);
+    build_lists(begin, end, part, near, renewed);
     part_home = std::move(part);
     near_home = std::move(near);
     renewed_[c] = std::move(renewed);
@@ -998,7 +1007,8 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
         return true;
       };
       std::uint64_t n_tests = 0;
-      mover_pairs(m * c / chunks, m * (c + 1) / chunks, into, n_tests);
+      const auto [begin, end] = slice(m, c, chunks);
+      mover_pairs(begin, end, into, n_tests);
       tests[c] = n_tests;
       buffers[c] = std::move(buf);
     });
