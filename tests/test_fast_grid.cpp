@@ -404,6 +404,62 @@ TEST(FastGrid, ParallelBulkUpdateKeepsOrderAndChecks) {
   EXPECT_EQ(results[0], results[1]);
 }
 
+TEST(FastGrid, BulkUpdateNamingEveryMoverTwiceKeepsTheLaterMoves) {
+  // Every mover named twice, first with a decoy far away, then with its
+  // place, in several layouts: all decoys first; blocks of decoys and
+  // places taking turns (blocks about as long as a thread's piece of the
+  // moves, so that a decoy and its place would be moved at the same time);
+  // each mover's two moves at random places. Split over two threads by the
+  // moves, decoys and places would race: every later move must still win,
+  // with the same pairs as on one thread.
+  const Scene start = generate(Distribution::scaled_even, 32000, 4);
+  std::vector<IdPairs> results;
+  for (const char* t : {"1", "2"}) {
+    Scene scene = start;
+    FastGrid g(with_option("threads", t));
+    const std::vector<Handle> h = insert_scene(g, scene);
+    std::vector<std::size_t> movers;
+    for (std::size_t i = 0; i < scene.size(); ++i)
+      if (scene.is_moving(i)) movers.push_back(i);
+    const std::size_t m = movers.size();
+    Rng rng(17);
+    for (std::size_t block : {m, m / 8, m / 16, m / 5, std::size_t{0}}) {
+      step(scene);
+      // Where each mover's two moves go: tokens, a mover's first one its decoy.
+      std::vector<std::size_t> tokens;
+      if (block > 0) {
+        for (std::size_t b = 0; b < m; b += block)
+          for (int pass = 0; pass < 2; ++pass)
+            for (std::size_t k = b; k < std::min(m, b + block); ++k) tokens.push_back(k);
+      } else {
+        for (std::size_t k = 0; k < 2 * m; ++k) tokens.push_back(k / 2);
+        for (std::size_t k = tokens.size(); k > 1; --k)
+          std::swap(tokens[k - 1], tokens[rng.below(k)]);
+      }
+      std::vector<bool> seen(m, false);
+      std::vector<Move> moves;
+      for (std::size_t k : tokens) {
+        const std::size_t i = movers[k];
+        if (seen[k])
+          moves.push_back({h[i], scene.objects[i]});
+        else
+          moves.push_back({h[i], Shape::sphere(scene.objects[i].center + Vec3{0, 9e3, 0}, 1)});
+        seen[k] = true;
+      }
+      g.update(moves);
+      g.validate();
+      for (std::size_t i = 0; i < scene.size(); ++i)
+        ASSERT_EQ(g.shape(h[i]).center, scene.objects[i].center)
+            << "object " << i << ", blocks of " << block << ", threads=" << t;
+    }
+    Naive n;
+    for (std::size_t i = 0; i < scene.size(); ++i) n.insert(scene.objects[i], i);
+    results.push_back(pairs_of(g));
+    EXPECT_EQ(results.back(), pairs_of(n)) << "threads=" << t;
+  }
+  EXPECT_EQ(results[0], results[1]);
+}
+
 TEST(FastGrid, UnboundedAndHugeObjects) {
   FastGrid g;
   const double big = 1e300;

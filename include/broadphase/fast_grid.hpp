@@ -275,10 +275,15 @@ class FastGrid {
   void move_via_loose(std::uint32_t i, const Shape& shape);
   void maybe_rebuild();
   void rebuild(bool fixed_too);
-  void build_candidate_lists();
+  /// List lengths of the movers whose lists stay and of those whose lists
+  /// are renewed (by their present lengths), fixed and near.
+  struct ListTotals {
+    std::size_t kept = 0, renewing = 0, near_kept = 0, near_renewing = 0;
+  };
+  void build_candidate_lists(const ListTotals& totals);
   /// Before renewals: when the lists about to be renewed would not fit in
   /// a pool, moves the lists that stay to its front, in place.
-  void make_room_for_renewals();
+  void make_room_for_renewals(const ListTotals& totals);
   void build_lists(std::size_t begin, std::size_t end, std::vector<Candidate>& part,
                    std::vector<std::uint32_t>& near, std::vector<std::uint32_t>& renewed);
   /// The box a mover's lists cover: its bounds grown by a margin.
@@ -287,6 +292,8 @@ class FastGrid {
   /// (an index into `old_shapes`, or kFromLoose | index into loose_shapes_).
   void build_grid(Grid& g, std::vector<Entry>& items, const std::vector<std::uint32_t>& src,
                   std::vector<LineShape>& old_shapes);
+  /// Counts, per level of the moving grid, the movers that are not fast.
+  void count_slow_movers();
   /// Points the slots of a grid's entries at them.
   void point_slots(const Grid& g, Home home);
   /// Puts item i of a grid build at entry k (with its shape and, in the
@@ -366,7 +373,11 @@ class FastGrid {
   std::vector<LineShape> scratch_shapes_;
   std::vector<Mover> scratch_movers_;
   std::vector<std::uint32_t> scratch_tag_;  // per item: its level, then its cell
-  struct ShareStats;                        // one share's totals in a grid build
+  // A bulk update on threads: per moving entry, the mark (update and chunk)
+  // of the last chunk of moves that named it, to find a handle named twice.
+  std::vector<std::uint32_t> mark_;
+  std::uint32_t mark_round_ = 0;
+  struct ShareStats;  // one share's totals in a grid build
   std::vector<ShareStats> share_stats_;
 
   // Candidate lists of moving objects. A mover's fixed list holds the fixed

@@ -108,21 +108,25 @@ double extent_of(const float lo[3], const float hi[3]) {
 namespace detail {
 
 /// Worker threads kept for the structure's lifetime: run(shares, job) runs
-/// job(0) on the caller and job(1..shares-1) on the workers, and returns
-/// when all are done. One run at a time; a caller that finds the pool busy
-/// (another thread's const call) runs every share itself.
+/// job(k) once for every k in [0, shares), each share taken by whichever of
+/// the caller and the workers is free, and returns when all are done. One
+/// run at a time; a caller that finds the pool busy (another thread's const
+/// call) runs every share itself.
 ///
 /// A frame makes about a dozen runs a fraction of a millisecond apart, and
 /// waking a sleeping thread costs about 70 µs here (a round trip through a
 /// condition variable). So a worker that finished a job, and a caller that
 /// waits for the workers, first poll for a while (kSpin) and only then
 /// sleep: runs within a frame find the workers awake, and an idle structure
-/// costs nothing once its workers have gone to sleep.
+/// costs nothing once its workers have gone to sleep. The first run after
+/// a pause does not wait for them either: the caller takes shares until
+/// none is left and then closes the run, so a worker still waking up finds
+/// it closed (or joins in time to take shares) instead of holding it up.
 class WorkerPool {
  public:
   explicit WorkerPool(unsigned workers) {
     for (unsigned w = 0; w < workers; ++w)
-      threads_.emplace_back([this, w](std::stop_token st) { loop(st, w + 1); });
+      threads_.emplace_back([this](std::stop_token st) { loop(st); });
   }
   ~WorkerPool() {
     {
@@ -140,19 +144,23 @@ class WorkerPool {
       for (unsigned k = 0; k < shares; ++k) job(k);
       return;
     }
-    shares = std::min<unsigned>(shares, static_cast<unsigned>(threads_.size()) + 1);
     {
-      // The job and its share count are published by the round's release;
-      // they change only here, once the previous run's workers are done.
+      // The job and its share count are published by opening the run; they
+      // change only here, while no worker is in a run.
       std::lock_guard lock(m_);
       job_ = &job;
       shares_ = shares;
-      pending_.store(shares - 1, std::memory_order_relaxed);
+      next_.store(0, std::memory_order_relaxed);
+      open_.store(true, std::memory_order_seq_cst);
       round_.fetch_add(1, std::memory_order_release);
     }
     wake_.notify_all();
-    job(0);
-    auto done = [&] { return pending_.load(std::memory_order_acquire) == 0; };
+    for (unsigned k; (k = next_.fetch_add(1, std::memory_order_relaxed)) < shares;) job(k);
+    // Closing and entering are ordered (sequentially consistent): a worker
+    // that enters after the close sees it and leaves without touching the
+    // job; one that entered before is counted, and waited for.
+    open_.store(false, std::memory_order_seq_cst);
+    auto done = [&] { return inside_.load(std::memory_order_seq_cst) == 0; };
     if (!spin_until(done)) {
       std::unique_lock lock(m_);
       done_.wait(lock, done);
@@ -178,7 +186,7 @@ class WorkerPool {
     }
   }
 
-  void loop(std::stop_token, unsigned share) {
+  void loop(std::stop_token) {
     std::uint64_t seen = 0;
     for (;;) {
       auto fresh = [&] { return round_.load(std::memory_order_acquire) != seen; };
@@ -188,9 +196,12 @@ class WorkerPool {
       }
       seen = round_.load(std::memory_order_acquire);
       if (stopping_.load(std::memory_order_relaxed)) return;
-      if (share >= shares_) continue;
-      (*job_)(share);
-      if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) {
+      inside_.fetch_add(1, std::memory_order_seq_cst);
+      if (open_.load(std::memory_order_seq_cst)) {
+        const unsigned shares = shares_;
+        for (unsigned k; (k = next_.fetch_add(1, std::memory_order_relaxed)) < shares;) (*job_)(k);
+      }
+      if (inside_.fetch_sub(1, std::memory_order_seq_cst) == 1) {
         // The caller may be asleep: notify under the lock it checks under.
         std::lock_guard lock(m_);
         done_.notify_one();
@@ -203,13 +214,23 @@ class WorkerPool {
   std::condition_variable wake_, done_;
   const std::function<void(unsigned)>* job_ = nullptr;
   unsigned shares_ = 0;
-  std::atomic<unsigned> pending_{0};
+  std::atomic<unsigned> next_{0};    // the next share to take
+  std::atomic<unsigned> inside_{0};  // workers in the run
+  std::atomic<bool> open_{false};    // shares may still be taken
   std::atomic<std::uint64_t> round_{0};
   std::atomic<bool> stopping_{false};
   std::vector<std::jthread> threads_;
 };
 
 }  // namespace detail
+
+struct alignas(64) FastGrid::ShareStats {  // on lines of its own: each share writes its own
+  double max_e = 0;
+  std::uint32_t count[kLevelSlots] = {};
+  float span_lo[kLevelSlots][3] = {}, span_hi[kLevelSlots][3] = {};
+  std::uint32_t first_cell = 0;  // of the cells the share fills in the scatter
+  ListTotals lists;              // the share's list lengths, before renewals
+};
 
 FastGrid::FastGrid(const Config& c) : world_(c.world) {
   OptionReader opt(c, "fast-grid");
@@ -387,26 +408,43 @@ void FastGrid::move_via_loose(std::uint32_t i, const Shape& shape) {
 }
 
 void FastGrid::update(std::span<const Move> moves) {
-  // Two passes over the moves, split over the threads: the first checks
-  // every move (nothing changes if one is bad: the checks are then repeated
-  // on one thread, for the error) and notes each one's mover; the second
-  // moves the movers, each share those in its range of the moving grid
-  // (movers stay movers here; a handle named twice goes to one share, in
-  // order). The other objects, which change home, move afterwards, in
-  // order. Both passes prefetch ahead: the moves come in the caller's
-  // order, the slots and movers they name are scattered.
+  // Passes over the moves, in chunks taken by whichever thread is free: the
+  // first checks every move (nothing changes if one is bad: the checks are
+  // then repeated on one thread, for the error) and notes each one's mover;
+  // the last moves the movers, each chunk those of its moves, which it
+  // reads front to back. A handle named twice must be moved by one thread,
+  // in order: on several threads the first pass also marks each mover with
+  // its chunk, a second pass finds any mark overwritten (by another chunk)
+  // or met again (in a chunk), and then each share takes instead every move
+  // into its range of movers. Movers stay movers here; the other objects,
+  // which change home, move afterwards, in order. The passes prefetch
+  // ahead: the moves come in the caller's order, the slots and movers they
+  // name are scattered.
   constexpr std::uint32_t kOther = 0xFFFFFFFFu;
   constexpr std::size_t kAhead = 16;
   const std::size_t m = moving_.entries.size();
   const std::size_t n = moves.size();
   const unsigned t = shares_for(std::min(n, m));
+  const unsigned chunks = t <= 1 ? 1 : t * kChunksPerShare;
   std::vector<std::uint32_t>& target = scratch_tag_;
   target.resize(n);
-  std::atomic<bool> bad{false}, others{false};
-  run_shares(t, [&](unsigned k) {
-    const auto [begin, end] = slice(n, k, t);
-    bool any_other = false;
-    for (std::size_t j = begin; j < end; ++j) {
+  // A chunk's mark: this update's round and the chunk. Marks are written
+  // and read through relaxed atomics: two chunks may write one mover's.
+  static_assert(64 * kChunksPerShare <= 1024, "a mark holds the chunk in 10 bits");
+  const bool marks = t > 1;
+  if (marks) {
+    mark_.resize(m);
+    if (++mark_round_ >= (1u << 22)) {  // wrapped: no entry may hold a current mark
+      std::fill(mark_.begin(), mark_.end(), 0);
+      mark_round_ = 1;
+    }
+  }
+  auto mark = [&](std::uint32_t p) { return std::atomic_ref<std::uint32_t>(mark_[p]); };
+  const std::uint32_t round = mark_round_ << 10;
+  std::atomic<bool> bad{false}, others{false}, twice{false};
+  run_chunks(t, chunks, [&](unsigned, unsigned c) {
+    bool any_other = false, any_twice = false;
+    for (auto [j, end] = slice(n, c, chunks); j < end; ++j) {
       if (j + kAhead < end && moves[j + kAhead].handle.index < slots_.size())
         detail::prefetch(&slots_[moves[j + kAhead].handle.index]);
       const Handle h = moves[j].handle;
@@ -416,9 +454,15 @@ void FastGrid::update(std::span<const Move> moves) {
       }
       const Slot& sl = slots_[h.index];
       target[j] = sl.home == Home::moving_grid ? sl.pos : kOther;
-      any_other |= target[j] == kOther;
+      if (target[j] == kOther) {
+        any_other = true;
+      } else if (marks) {
+        any_twice |= mark(target[j]).load(std::memory_order_relaxed) == (round | c);
+        mark(target[j]).store(round | c, std::memory_order_relaxed);
+      }
     }
     if (any_other) others = true;
+    if (any_twice) twice = true;
   });
   if (bad) {
     for (const Move& mv : moves) {
@@ -426,10 +470,20 @@ void FastGrid::update(std::span<const Move> moves) {
       require_valid(mv.shape);
     }
   }
-  run_shares(t, [&](unsigned k) {
-    const auto [lo, hi] = slice(m, k, t);
-    for (std::size_t j = 0; j < n; ++j) {
-      if (j + kAhead < n) {
+  if (marks && !twice)
+    run_chunks(t, chunks, [&](unsigned, unsigned c) {
+      bool any_twice = false;
+      for (auto [j, end] = slice(n, c, chunks); j < end; ++j)
+        any_twice |=
+            target[j] != kOther && mark(target[j]).load(std::memory_order_relaxed) != (round | c);
+      if (any_twice) twice = true;
+    });
+  // Moves [first, last) to movers in [lo, hi).
+  auto move_range = [&](Slice of_moves, Slice of_movers) {
+    const auto [first, last] = of_moves;
+    const auto [lo, hi] = of_movers;
+    for (std::size_t j = first; j < last; ++j) {
+      if (j + kAhead < last) {
         const std::uint32_t a = target[j + kAhead];
         if (a >= lo && a < hi) {
           detail::prefetch(&movers_[a].cur);
@@ -440,7 +494,11 @@ void FastGrid::update(std::span<const Move> moves) {
       const std::uint32_t p = target[j];
       if (p >= lo && p < hi) move_mover(p, moves[j].shape);
     }
-  });
+  };
+  if (twice)
+    run_shares(t, [&](unsigned k) { move_range({0, n}, slice(m, k, t)); });
+  else
+    run_chunks(t, chunks, [&](unsigned, unsigned c) { move_range(slice(n, c, chunks), {0, m}); });
   if (others)
     for (std::size_t j = 0; j < n; ++j)
       if (target[j] == kOther) move_via_loose(moves[j].handle.index, moves[j].shape);
@@ -504,9 +562,13 @@ void FastGrid::rebuild(bool fixed_too) {
   std::vector<std::uint32_t>& src = scratch_src_;
   items.clear();
   src.clear();
+  // The same pass sums the lengths of the lists that stay and of those to
+  // be renewed (movers from the loose list have none), for the pools.
   const std::size_t m = moving_.entries.size();
   const unsigned t = shares_for(m);
+  share_stats_.resize(std::max(1u, t));
   run_shares(t, [&](unsigned share) {
+    ListTotals sum;
     for (auto [k, end] = slice(m, share, t); k < end; ++k) {
       Entry& e = moving_.entries[k];
       if (e.dead()) continue;
@@ -521,8 +583,20 @@ void FastGrid::rebuild(bool fixed_too) {
         std::copy(mv.fat.lo, mv.fat.lo + 3, e.lo);
         std::copy(mv.fat.hi, mv.fat.hi + 3, e.hi);
       }
+      const bool keep = mv.epoch == epoch_;
+      (keep ? sum.kept : sum.renewing) += mv.list_count;
+      (keep ? sum.near_kept : sum.near_renewing) += mv.near_count;
     }
+    share_stats_[share].lists = sum;
   });
+  ListTotals totals;
+  for (unsigned k = 0; k < t; ++k) {
+    const ListTotals& sum = share_stats_[k].lists;
+    totals.kept += sum.kept;
+    totals.renewing += sum.renewing;
+    totals.near_kept += sum.near_kept;
+    totals.near_renewing += sum.near_renewing;
+  }
   take_grid(moving_, items, src);
   const std::size_t first_loose = items.size();
   take_loose(Motion::dynamic, items, src);
@@ -538,17 +612,32 @@ void FastGrid::rebuild(bool fixed_too) {
   build_grid(moving_, items, src, scratch_shapes_);
   point_slots(moving_, Home::moving_grid);
   moving_count_ = moving_.entries.size();
-  slow_per_level_.assign(moving_.levels.size(), 0);
-  for (std::size_t l = 0, k = 0; l < moving_.levels.size(); ++l)
-    for (const std::size_t e = moving_.level_end(l); k < e; ++k)
-      slow_per_level_[l] += movers_[k].fast ? 0 : 1;
-  build_candidate_lists();
+  count_slow_movers();
+  build_candidate_lists(totals);
   loose_.clear();
   loose_bounds_.clear();
   loose_shapes_.clear();
   loose_speed_.clear();
   for (std::uint32_t s : held_) free_slot(s);
   held_.clear();
+}
+
+void FastGrid::count_slow_movers() {
+  const std::size_t m = moving_.entries.size();
+  const std::size_t levels = moving_.levels.size();
+  const unsigned t = shares_for(m);
+  share_stats_.resize(std::max(1u, t));
+  run_shares(t, [&](unsigned share) {
+    std::uint32_t* count = share_stats_[share].count;
+    std::fill(count, count + levels, 0);
+    auto [k, end] = slice(m, share, t);
+    for (std::size_t l = 0; l < levels && k < end; ++l)
+      for (const std::size_t e = std::min(end, moving_.level_end(l)); k < e; ++k)
+        count[l] += movers_[k].fast ? 0 : 1;
+  });
+  slow_per_level_.assign(levels, 0);
+  for (unsigned k = 0; k < t; ++k)
+    for (std::size_t l = 0; l < levels; ++l) slow_per_level_[l] += share_stats_[k].count[l];
 }
 
 void FastGrid::point_slots(const Grid& g, Home home) {
@@ -585,13 +674,6 @@ inline void FastGrid::place(Grid& g, const std::vector<Entry>& items,
     movers_[k] = scratch_movers_[from];
   }
 }
-
-struct alignas(64) FastGrid::ShareStats {  // on lines of its own: each share writes its own
-  double max_e = 0;
-  std::uint32_t count[kLevelSlots] = {};
-  float span_lo[kLevelSlots][3] = {}, span_hi[kLevelSlots][3] = {};
-  std::uint32_t first_cell = 0;  // of the cells the share fills in the scatter
-};
 
 void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<std::uint32_t>& src,
                           std::vector<LineShape>& old_shapes) {
@@ -797,7 +879,7 @@ AabbF FastGrid::fat_box(const AabbF& cur, float speed, bool& fast) const {
   return g;
 }
 
-void FastGrid::make_room_for_renewals() {
+void FastGrid::make_room_for_renewals(const ListTotals& totals) {
   // Renewed lists are appended to the pools. When the lists about to be
   // renewed (estimated by their present lengths) would not fit, the lists
   // that stay are moved to the front of each pool, in pool order, in place:
@@ -806,13 +888,6 @@ void FastGrid::make_room_for_renewals() {
   auto stays = [&](std::size_t k) {
     return movers_[k].epoch == epoch_ && !moving_.entries[k].dead();
   };
-  std::size_t kept = 0, renewing = 0, near_kept = 0, near_renewing = 0;
-  for (std::size_t k = 0; k < movers_.size(); ++k) {
-    const Mover& mv = movers_[k];
-    const bool keep = stays(k);
-    (keep ? kept : renewing) += mv.list_count;
-    (keep ? near_kept : near_renewing) += mv.near_count;
-  }
   auto compact = [&](auto& pool, std::uint32_t Mover::*begin, std::uint32_t Mover::*count,
                      std::size_t keep_size, std::size_t add) {
     if (pool.size() + add <= pool.capacity()) return;
@@ -839,11 +914,12 @@ void FastGrid::make_room_for_renewals() {
     // rather than doubling.
     if (keep_size + add > pool.capacity()) pool.reserve(with_room(keep_size + add));
   };
-  compact(list_pool_, &Mover::list_begin, &Mover::list_count, kept, renewing);
-  compact(near_pool_, &Mover::near_begin, &Mover::near_count, near_kept, near_renewing);
+  compact(list_pool_, &Mover::list_begin, &Mover::list_count, totals.kept, totals.renewing);
+  compact(near_pool_, &Mover::near_begin, &Mover::near_count, totals.near_kept,
+          totals.near_renewing);
 }
 
-void FastGrid::build_candidate_lists() {
+void FastGrid::build_candidate_lists(const ListTotals& totals) {
   const std::size_t m = moving_.entries.size();
   const unsigned t = shares_for(m);
   const unsigned chunks = t <= 1 ? 1 : t * kChunksPerShare;
@@ -851,7 +927,7 @@ void FastGrid::build_candidate_lists() {
   // into its own parts (distinct entries share no state; the grids are
   // only read); the parts are appended to the pools in order, so the pools
   // are the same for every thread count.
-  make_room_for_renewals();
+  make_room_for_renewals(totals);
   const std::size_t list_capacity = list_pool_.capacity();
   const std::size_t near_capacity = near_pool_.capacity();
   if (list_parts_.size() < chunks) {
@@ -1035,7 +1111,7 @@ std::size_t FastGrid::memory_bytes() const {
                       scratch_shapes_.capacity() * sizeof(LineShape) + scratch_tag_.capacity() * 4 +
                       (movers_.capacity() + scratch_movers_.capacity()) * sizeof(Mover) +
                       list_pool_.capacity() * sizeof(Candidate) + near_pool_.capacity() * 4 +
-                      slow_per_level_.capacity() * 4;
+                      slow_per_level_.capacity() * 4 + mark_.capacity() * 4;
   for (const auto& p : list_parts_) bytes += p.capacity() * sizeof(Candidate);
   for (const auto& p : near_parts_) bytes += p.capacity() * 4;
   for (const auto& r : renewed_) bytes += r.capacity() * 4;
