@@ -45,7 +45,8 @@
 /// the hash never depend on the thread count. Between the parts of a call
 /// the workers poll for up to 0.5 ms before they sleep (waking a sleeping
 /// thread costs more than that part of a frame), so after each call the
-/// workers keep their cores busy for up to that long.
+/// workers keep their cores busy for up to that long; a call never waits
+/// for a worker that is still waking up (the caller takes its work).
 #pragma once
 
 #include <algorithm>
