@@ -47,6 +47,29 @@ Config with_option(const char* key, const char* value) {
   return c;
 }
 
+/// The oracle's pairs of `shapes` (user data: the index).
+IdPairs naive_pairs(const std::vector<Shape>& shapes) {
+  Naive n;
+  for (std::size_t i = 0; i < shapes.size(); ++i) n.insert(shapes[i], i);
+  return pairs_of(n);
+}
+
+/// Runs body(grid, scene, handles, threads, pairs) on a copy of `start`
+/// inserted into a grid with threads=1, then threads=2, and expects the
+/// pairs the two runs leave in `pairs` to be equal.
+template <class F>
+void on_one_and_two_threads(const Scene& start, F body) {
+  std::vector<IdPairs> results;
+  for (const char* t : {"1", "2"}) {
+    Scene scene = start;
+    FastGrid g(with_option("threads", t));
+    const std::vector<Handle> h = insert_scene(g, scene);
+    results.emplace_back();
+    body(g, scene, h, t, results.back());
+  }
+  EXPECT_EQ(results[0], results[1]);
+}
+
 TEST(FastGrid, RejectsUnknownAndBadOptions) {
   EXPECT_THROW(FastGrid(with_option("cells", "2")), UnknownStructure);
   EXPECT_THROW(FastGrid(with_option("threads", "1.5")), UnknownStructure);
@@ -139,9 +162,7 @@ TEST(FastGrid, CandidateListsStayCompleteForFastAndSlowMovers) {
       if (scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
     g.update(moves);
     g.validate();
-    Naive n;
-    for (std::size_t i = 0; i < scene.size(); ++i) n.insert(scene.objects[i], i);
-    ASSERT_EQ(pairs_of(g), pairs_of(n)) << "frame " << f;
+    ASSERT_EQ(pairs_of(g), naive_pairs(scene.objects)) << "frame " << f;
   }
 }
 
@@ -211,9 +232,7 @@ TEST(FastGrid, ListPoolsAreReusedInPlace) {
     g.update(moves);
     if (f % 6 == 0) {
       g.validate();
-      Naive n;
-      for (std::size_t i = 0; i < scene.size(); ++i) n.insert(scene.objects[i], i);
-      ASSERT_EQ(pairs_of(g), pairs_of(n)) << "frame " << f;
+      ASSERT_EQ(pairs_of(g), naive_pairs(scene.objects)) << "frame " << f;
     }
     if (f == 20) memory_at_20 = g.memory_bytes();
   }
@@ -332,76 +351,70 @@ TEST(FastGrid, ParallelBulkUpdateKeepsOrderAndChecks) {
   // A bulk update split over two threads: a handle named twice (the later
   // move wins), fixed objects that start moving, and moves that must be
   // refused whole (a stale handle, a NaN) after a valid prefix.
-  const Scene start = generate(Distribution::scaled_even, 32000, 9);
-  std::vector<IdPairs> results;
-  for (const char* t : {"1", "2"}) {
-    Scene scene = start;
-    FastGrid g(with_option("threads", t));
-    const std::vector<Handle> h = insert_scene(g, scene);
-    std::vector<Move> moves;
-    for (std::size_t i = 0; i < scene.size(); ++i)
-      if (scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
-    g.update(moves);
-    step(scene);
-    std::vector<Shape> now = scene.objects;
-    moves.clear();
-    constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
-    std::size_t first_moving = kNone, fixed_a = kNone, fixed_b = kNone;
-    for (std::size_t i = 0; i < scene.size(); ++i) {
-      if (scene.is_moving(i)) {
-        if (moves.empty()) first_moving = i;
-        moves.push_back({h[i], scene.objects[i]});
-      } else if (fixed_a == kNone) {
-        fixed_a = i;
-      } else if (fixed_b == kNone) {
-        fixed_b = i;
-      }
-    }
-    ASSERT_NE(fixed_b, kNone);
-    // Twice the same mover: first far away, then onto a fixed object.
-    moves.insert(moves.begin() + 5, {h[first_moving], Shape::sphere({-5e3, 0, 0}, 1)});
-    now[first_moving] = Shape::sphere(scene.objects[fixed_b].center, 1);
-    moves.push_back({h[first_moving], now[first_moving]});
-    // A fixed object that moves onto another.
-    now[fixed_a] = Shape::sphere(scene.objects[fixed_b].center, 2);
-    moves.push_back({h[fixed_a], now[fixed_a]});
-    g.update(moves);
-    g.validate();
-    auto same_shapes = [&] {
-      for (std::size_t i = 0; i < now.size(); ++i) {
-        if (!g.contains(h[i])) continue;
-        const Shape& s = g.shape(h[i]);
-        if (!(s.center == now[i].center && s.half == now[i].half)) return false;
-      }
-      return true;
-    };
-    EXPECT_TRUE(same_shapes()) << "threads=" << t;
-    const IdPairs before = pairs_of(g);
-    Naive n;
-    for (std::size_t i = 0; i < now.size(); ++i) n.insert(now[i], i);
-    EXPECT_EQ(before, pairs_of(n)) << "threads=" << t;
-    auto has = [&](std::size_t a, std::size_t b) {
-      return before.count({std::min(a, b), std::max(a, b)}) == 1;
-    };
-    EXPECT_TRUE(has(first_moving, fixed_b) && has(fixed_a, fixed_b) && has(first_moving, fixed_a));
-    // Refused whole: nothing moves, not even the valid moves before the bad one.
-    std::vector<Move> bad = moves;
-    for (Move& m : bad) m.shape = Shape::sphere(m.shape.center + Vec3{50, 0, 0}, 40);
-    const Handle stale = h[fixed_b];
-    g.remove(stale);
-    bad.push_back({stale, Shape::sphere({0, 0, 0}, 1)});
-    EXPECT_THROW(g.update(bad), InvalidHandle) << "threads=" << t;
-    bad.back() = {h[first_moving], Shape::sphere({std::nan(""), 0, 0}, 1)};
-    EXPECT_THROW(g.update(bad), InvalidShape) << "threads=" << t;
-    g.validate();
-    EXPECT_TRUE(same_shapes()) << "threads=" << t;
-    IdPairs expect;
-    for (const auto& p : before)
-      if (p.first != fixed_b && p.second != fixed_b) expect.insert(p);
-    EXPECT_EQ(pairs_of(g), expect) << "threads=" << t;
-    results.push_back(before);
-  }
-  EXPECT_EQ(results[0], results[1]);
+  on_one_and_two_threads(
+      generate(Distribution::scaled_even, 32000, 9),
+      [](FastGrid& g, Scene& scene, const std::vector<Handle>& h, const char* t, IdPairs& before) {
+        std::vector<Move> moves;
+        for (std::size_t i = 0; i < scene.size(); ++i)
+          if (scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
+        g.update(moves);
+        step(scene);
+        std::vector<Shape> now = scene.objects;
+        moves.clear();
+        constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+        std::size_t first_moving = kNone, fixed_a = kNone, fixed_b = kNone;
+        for (std::size_t i = 0; i < scene.size(); ++i) {
+          if (scene.is_moving(i)) {
+            if (moves.empty()) first_moving = i;
+            moves.push_back({h[i], scene.objects[i]});
+          } else if (fixed_a == kNone) {
+            fixed_a = i;
+          } else if (fixed_b == kNone) {
+            fixed_b = i;
+          }
+        }
+        ASSERT_NE(fixed_b, kNone);
+        // Twice the same mover: first far away, then onto a fixed object.
+        moves.insert(moves.begin() + 5, {h[first_moving], Shape::sphere({-5e3, 0, 0}, 1)});
+        now[first_moving] = Shape::sphere(scene.objects[fixed_b].center, 1);
+        moves.push_back({h[first_moving], now[first_moving]});
+        // A fixed object that moves onto another.
+        now[fixed_a] = Shape::sphere(scene.objects[fixed_b].center, 2);
+        moves.push_back({h[fixed_a], now[fixed_a]});
+        g.update(moves);
+        g.validate();
+        auto same_shapes = [&] {
+          for (std::size_t i = 0; i < now.size(); ++i) {
+            if (!g.contains(h[i])) continue;
+            const Shape& s = g.shape(h[i]);
+            if (!(s.center == now[i].center && s.half == now[i].half)) return false;
+          }
+          return true;
+        };
+        EXPECT_TRUE(same_shapes()) << "threads=" << t;
+        before = pairs_of(g);
+        EXPECT_EQ(before, naive_pairs(now)) << "threads=" << t;
+        auto has = [&](std::size_t a, std::size_t b) {
+          return before.count({std::min(a, b), std::max(a, b)}) == 1;
+        };
+        EXPECT_TRUE(has(first_moving, fixed_b) && has(fixed_a, fixed_b) &&
+                    has(first_moving, fixed_a));
+        // Refused whole: nothing moves, not even the valid moves before the bad one.
+        std::vector<Move> bad = moves;
+        for (Move& m : bad) m.shape = Shape::sphere(m.shape.center + Vec3{50, 0, 0}, 40);
+        const Handle stale = h[fixed_b];
+        g.remove(stale);
+        bad.push_back({stale, Shape::sphere({0, 0, 0}, 1)});
+        EXPECT_THROW(g.update(bad), InvalidHandle) << "threads=" << t;
+        bad.back() = {h[first_moving], Shape::sphere({std::nan(""), 0, 0}, 1)};
+        EXPECT_THROW(g.update(bad), InvalidShape) << "threads=" << t;
+        g.validate();
+        EXPECT_TRUE(same_shapes()) << "threads=" << t;
+        IdPairs expect;
+        for (const auto& p : before)
+          if (p.first != fixed_b && p.second != fixed_b) expect.insert(p);
+        EXPECT_EQ(pairs_of(g), expect) << "threads=" << t;
+      });
 }
 
 TEST(FastGrid, BulkUpdateNamingEveryMoverTwiceKeepsTheLaterMoves) {
@@ -412,52 +425,46 @@ TEST(FastGrid, BulkUpdateNamingEveryMoverTwiceKeepsTheLaterMoves) {
   // each mover's two moves at random places. Split over two threads by the
   // moves, decoys and places would race: every later move must still win,
   // with the same pairs as on one thread.
-  const Scene start = generate(Distribution::scaled_even, 32000, 4);
-  std::vector<IdPairs> results;
-  for (const char* t : {"1", "2"}) {
-    Scene scene = start;
-    FastGrid g(with_option("threads", t));
-    const std::vector<Handle> h = insert_scene(g, scene);
-    std::vector<std::size_t> movers;
-    for (std::size_t i = 0; i < scene.size(); ++i)
-      if (scene.is_moving(i)) movers.push_back(i);
-    const std::size_t m = movers.size();
-    Rng rng(17);
-    for (std::size_t block : {m, m / 8, m / 16, m / 5, std::size_t{0}}) {
-      step(scene);
-      // Where each mover's two moves go: tokens, a mover's first one its decoy.
-      std::vector<std::size_t> tokens;
-      if (block > 0) {
-        for (std::size_t b = 0; b < m; b += block)
-          for (int pass = 0; pass < 2; ++pass)
-            for (std::size_t k = b; k < std::min(m, b + block); ++k) tokens.push_back(k);
-      } else {
-        for (std::size_t k = 0; k < 2 * m; ++k) tokens.push_back(k / 2);
-        for (std::size_t k = tokens.size(); k > 1; --k)
-          std::swap(tokens[k - 1], tokens[rng.below(k)]);
-      }
-      std::vector<bool> seen(m, false);
-      std::vector<Move> moves;
-      for (std::size_t k : tokens) {
-        const std::size_t i = movers[k];
-        if (seen[k])
-          moves.push_back({h[i], scene.objects[i]});
-        else
-          moves.push_back({h[i], Shape::sphere(scene.objects[i].center + Vec3{0, 9e3, 0}, 1)});
-        seen[k] = true;
-      }
-      g.update(moves);
-      g.validate();
-      for (std::size_t i = 0; i < scene.size(); ++i)
-        ASSERT_EQ(g.shape(h[i]).center, scene.objects[i].center)
-            << "object " << i << ", blocks of " << block << ", threads=" << t;
-    }
-    Naive n;
-    for (std::size_t i = 0; i < scene.size(); ++i) n.insert(scene.objects[i], i);
-    results.push_back(pairs_of(g));
-    EXPECT_EQ(results.back(), pairs_of(n)) << "threads=" << t;
-  }
-  EXPECT_EQ(results[0], results[1]);
+  on_one_and_two_threads(
+      generate(Distribution::scaled_even, 32000, 4),
+      [](FastGrid& g, Scene& scene, const std::vector<Handle>& h, const char* t, IdPairs& pairs) {
+        std::vector<std::size_t> movers;
+        for (std::size_t i = 0; i < scene.size(); ++i)
+          if (scene.is_moving(i)) movers.push_back(i);
+        const std::size_t m = movers.size();
+        Rng rng(17);
+        for (std::size_t block : {m, m / 8, m / 16, m / 5, std::size_t{0}}) {
+          step(scene);
+          // Where each mover's two moves go: tokens, a mover's first one its decoy.
+          std::vector<std::size_t> tokens;
+          if (block > 0) {
+            for (std::size_t b = 0; b < m; b += block)
+              for (int pass = 0; pass < 2; ++pass)
+                for (std::size_t k = b; k < std::min(m, b + block); ++k) tokens.push_back(k);
+          } else {
+            for (std::size_t k = 0; k < 2 * m; ++k) tokens.push_back(k / 2);
+            for (std::size_t k = tokens.size(); k > 1; --k)
+              std::swap(tokens[k - 1], tokens[rng.below(k)]);
+          }
+          std::vector<bool> seen(m, false);
+          std::vector<Move> moves;
+          for (std::size_t k : tokens) {
+            const std::size_t i = movers[k];
+            if (seen[k])
+              moves.push_back({h[i], scene.objects[i]});
+            else
+              moves.push_back({h[i], Shape::sphere(scene.objects[i].center + Vec3{0, 9e3, 0}, 1)});
+            seen[k] = true;
+          }
+          g.update(moves);
+          g.validate();
+          for (std::size_t i = 0; i < scene.size(); ++i)
+            ASSERT_EQ(g.shape(h[i]).center, scene.objects[i].center)
+                << "object " << i << ", blocks of " << block << ", threads=" << t;
+        }
+        pairs = pairs_of(g);
+        EXPECT_EQ(pairs, naive_pairs(scene.objects)) << "threads=" << t;
+      });
 }
 
 TEST(FastGrid, UnboundedAndHugeObjects) {

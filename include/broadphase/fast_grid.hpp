@@ -302,13 +302,13 @@ class FastGrid {
   void place(Grid& g, const std::vector<Entry>& items, const std::vector<std::uint32_t>& src,
              const std::vector<LineShape>& old_shapes, std::size_t i, std::uint32_t k);
   void build_fixed_cache();
-  /// Runs job(k) for k in [0, shares), share 0 on the calling thread.
+  /// Runs job(k) once for every k in [0, shares) (a share, or a chunk of
+  /// the work), each taken by whichever of the caller and the pool's
+  /// workers is free; without workers, in order on the caller. The work of
+  /// a share depends on k alone, so results merged in share order do not
+  /// depend on the thread count or on timing.
   void run_shares(unsigned shares, const std::function<void(unsigned)>& job) const;
   unsigned shares_for(std::size_t entries) const;
-  /// Runs job(share, chunk) for every chunk in [0, chunks) on `shares`
-  /// threads, each taking the next chunk when free.
-  void run_chunks(unsigned shares, unsigned chunks,
-                  const std::function<void(unsigned, unsigned)>& job) const;
 
   /// Exact test of two shapes, with the sphere–sphere case inline.
   static bool exact(const Shape& a, const Shape& b) {

@@ -263,17 +263,6 @@ void FastGrid::run_shares(unsigned shares, const std::function<void(unsigned)>& 
   pool_->run(shares, job);
 }
 
-void FastGrid::run_chunks(unsigned shares, unsigned chunks,
-                          const std::function<void(unsigned, unsigned)>& job) const {
-  // Chunks are taken in order by whichever share is free: the work of a
-  // chunk depends on the chunk alone, so results merged in chunk order do
-  // not depend on the thread count or on timing.
-  std::atomic<unsigned> next{0};
-  run_shares(shares, [&](unsigned k) {
-    for (unsigned c; (c = next.fetch_add(1, std::memory_order_relaxed)) < chunks;) job(k, c);
-  });
-}
-
 std::uint32_t FastGrid::allocate_slot() {
   std::uint32_t s;
   if (free_head_ != Handle::kNullIndex) {
@@ -442,7 +431,7 @@ void FastGrid::update(std::span<const Move> moves) {
   auto mark = [&](std::uint32_t p) { return std::atomic_ref<std::uint32_t>(mark_[p]); };
   const std::uint32_t round = mark_round_ << 10;
   std::atomic<bool> bad{false}, others{false}, twice{false};
-  run_chunks(t, chunks, [&](unsigned, unsigned c) {
+  run_shares(chunks, [&](unsigned c) {
     bool any_other = false, any_twice = false;
     for (auto [j, end] = slice(n, c, chunks); j < end; ++j) {
       if (j + kAhead < end && moves[j + kAhead].handle.index < slots_.size())
@@ -471,7 +460,7 @@ void FastGrid::update(std::span<const Move> moves) {
     }
   }
   if (marks && !twice)
-    run_chunks(t, chunks, [&](unsigned, unsigned c) {
+    run_shares(chunks, [&](unsigned c) {
       bool any_twice = false;
       for (auto [j, end] = slice(n, c, chunks); j < end; ++j)
         any_twice |=
@@ -498,7 +487,7 @@ void FastGrid::update(std::span<const Move> moves) {
   if (twice)
     run_shares(t, [&](unsigned k) { move_range({0, n}, slice(m, k, t)); });
   else
-    run_chunks(t, chunks, [&](unsigned, unsigned c) { move_range(slice(n, c, chunks), {0, m}); });
+    run_shares(chunks, [&](unsigned c) { move_range(slice(n, c, chunks), {0, m}); });
   if (others)
     for (std::size_t j = 0; j < n; ++j)
       if (target[j] == kOther) move_via_loose(moves[j].handle.index, moves[j].shape);
@@ -566,7 +555,7 @@ void FastGrid::rebuild(bool fixed_too) {
   // be renewed (movers from the loose list have none), for the pools.
   const std::size_t m = moving_.entries.size();
   const unsigned t = shares_for(m);
-  share_stats_.resize(std::max(1u, t));
+  share_stats_.resize(t);
   run_shares(t, [&](unsigned share) {
     ListTotals sum;
     for (auto [k, end] = slice(m, share, t); k < end; ++k) {
@@ -626,7 +615,7 @@ void FastGrid::count_slow_movers() {
   const std::size_t m = moving_.entries.size();
   const std::size_t levels = moving_.levels.size();
   const unsigned t = shares_for(m);
-  share_stats_.resize(std::max(1u, t));
+  share_stats_.resize(t);
   run_shares(t, [&](unsigned share) {
     std::uint32_t* count = share_stats_[share].count;
     std::fill(count, count + levels, 0);
@@ -935,7 +924,7 @@ void FastGrid::build_candidate_lists(const ListTotals& totals) {
     near_parts_.resize(chunks);
     renewed_.resize(chunks);
   }
-  run_chunks(t, chunks, [&](unsigned, unsigned c) {
+  run_shares(chunks, [&](unsigned c) {
     // Chunk 0 appends to the pools themselves (no other chunk reads them).
     // Each chunk works on vectors on its own stack, moved in and out (as in
     // find_pairs: the vector records lie side by side).
@@ -1066,7 +1055,7 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
     std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
     if (buffers.size() < chunks) buffers.resize(chunks);
     std::vector<std::uint64_t> tests(chunks, 0);
-    run_chunks(t, chunks + 1, [&](unsigned, unsigned job) {
+    run_shares(chunks + 1, [&](unsigned job) {
       if (job == 0) {
         emit_fixed();
         return;
