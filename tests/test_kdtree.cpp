@@ -114,6 +114,25 @@ TEST(KdTree, CoincidentCentresMakeOneBigLeaf) {
   EXPECT_EQ(count_pairs(t), 1500u * 1499u / 2);
 }
 
+TEST(KdTree, SplitsCentresWhoseSpreadIsSubnormal) {
+  // Centres spread over less than 16 / DBL_MAX: the bins' scale overflows,
+  // and the split falls back to the median.
+  KdTree t;
+  Rng rng(5);
+  std::vector<Shape> shapes;
+  for (int i = 0; i < 200; ++i) {
+    shapes.push_back(Shape::sphere({rng.uniform(-1, 1) * 1e-310, rng.uniform(-1, 1) * 1e-310, 0},
+                                   rng.uniform(0, 1) * 1e-312));
+    t.insert(shapes.back(), static_cast<std::uint64_t>(i));
+  }
+  t.validate();
+  FrameDigest d;
+  t.for_each_pair([&](Handle a, Handle b) {
+    d.add(static_cast<std::uint32_t>(t.user_data(a)), static_cast<std::uint32_t>(t.user_data(b)));
+  });
+  EXPECT_EQ(d, testing::brute_force(shapes));
+}
+
 TEST(KdTree, FailedBulkUpdateLeavesAValidTree) {
   Filled f = filled("decay", 100);
   std::vector<Move> moves{{f.handles[0], Shape::sphere({5, 5, 5}, 1)},

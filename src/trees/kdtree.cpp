@@ -119,6 +119,9 @@ void KdTree::build(std::uint32_t node, std::size_t begin, std::size_t end) {
       AabbF box[kBins];
       std::fill(std::begin(box), std::end(box), kEmpty);
       const double scale = kBins / extent;
+      // A subnormal extent overflows the scale: no bins (the median split
+      // of the widest axis below still divides the items).
+      if (!std::isfinite(scale)) continue;
       for (const OctItem& it : items) {
         const int b = std::min(kBins - 1, static_cast<int>((centre(it, a) - cmin[a]) * scale));
         ++n[b];
