@@ -29,6 +29,13 @@ TEST_P(Differential, MatchesNaiveWhereTheArithmeticOverflows) {
   }
 }
 
+TEST_P(Differential, MatchesNaiveWhereTheSquaresUnderflow) {
+  for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+    differential(GetParam(), World::tiny, 2000 + seed, 500);
+    if (HasFailure()) return;
+  }
+}
+
 TEST_P(Differential, MatchesNaiveInAFarAwayWorld) {
   // The world box itself far from the origin.
   Config c;

@@ -86,8 +86,29 @@ TEST(Geometry, BoundsContainTheShape) {
       EXPECT_GE(static_cast<double>(f.hi[a]), b.hi[a]);
     }
   }
-  // No slack at all around a point at the origin.
-  EXPECT_EQ(bounds(Shape::sphere({0, 0, 0}, 0)), (Aabb{{0, 0, 0}, {0, 0, 0}}));
+  // Around a point at the origin only the absolute floor is left.
+  const double f = kBoundsFloor;
+  EXPECT_EQ(bounds(Shape::sphere({0, 0, 0}, 0)), (Aabb{{-f, -f, -f}, {f, f, f}}));
+}
+
+TEST(Geometry, BoundsOverlapWhereTheSquaresUnderflow) {
+  // Points 1e-170 apart: d² rounds to zero, so the contract's predicate
+  // holds (0 <= 0) though they are far apart for their size; their bounds
+  // must overlap too, at any offset from the origin where that can happen.
+  for (const double base : {0.0, 1e-300, -1e-200, 1e-160}) {
+    const Shape a = Shape::sphere({base, base, 0}, 0);
+    const Shape b = Shape::sphere({base + 1e-170, base, 0}, 0);
+    const Shape c = Shape::sphere({base, base - 1e-170, 1e-170}, 1e-300);
+    for (const Shape& other : {b, c}) {
+      ASSERT_TRUE(overlaps(a, other)) << base;
+      EXPECT_TRUE(bounds(a).overlaps(bounds(other))) << base;
+      EXPECT_TRUE(bounds_f(a).overlaps(bounds_f(other))) << base;
+    }
+    // A sphere and a box: e = |cs - cb| - hb squares to zero as well.
+    const Shape box = Shape::box({base - 1e-170, base, 0}, {0, 0, 0});
+    ASSERT_TRUE(overlaps(a, box)) << base;
+    EXPECT_TRUE(bounds(a).overlaps(bounds(box))) << base;
+  }
 }
 
 // A shape at distance about `gap` (in units of the touching distance) from

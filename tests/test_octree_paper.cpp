@@ -58,8 +58,11 @@ TEST(OctreePaper, ObjectGoesToTheDeepestNodeContainingItsBounds) {
   // A point on a cell face: the slack of its conservative bounds crosses the
   // face, so it rises to the parent.
   EXPECT_EQ(t.node_of(Shape::sphere({125, 62.5, 62.5}, 0)), node(2, 0, 0, 0));
-  // At the origin the slack is zero and the bounds are the point: cell 0.
-  EXPECT_EQ(t.node_of(Shape::sphere({0, 0, 0}, 0)), node(3, 0, 0, 0));
+  // At the origin only the absolute slack (kBoundsFloor) is left: it
+  // crosses the near faces, and the point lives at the root; a hair inside,
+  // the bounds stay in cell 0.
+  EXPECT_EQ(t.node_of(Shape::sphere({0, 0, 0}, 0)), 0u);
+  EXPECT_EQ(t.node_of(Shape::sphere({1e-100, 1e-100, 1e-100}, 0)), node(3, 0, 0, 0));
 }
 
 TEST(OctreePaper, ObjectsOutsideOrLargerThanTheWorldLiveAtTheRoot) {

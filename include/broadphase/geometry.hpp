@@ -141,6 +141,14 @@ inline bool overlaps(const Shape& a, const Shape& b) {
 /// `overlaps(a, b)` holds, `bounds(a).overlaps(bounds(b))` holds too.
 inline constexpr double kBoundsSlack = 0x1p-40;
 
+/// Absolute slack added around every conservative box. Squares below the
+/// smallest normal double lose absolute precision (down to 2^-1074), so the
+/// sphere predicates can hold for objects up to about 2^-537 apart whatever
+/// their radii (d² and s² both round to zero, and 0 <= 0); 2^-520 covers
+/// that, and is lost in the relative slack of any object not within 1e-140
+/// of the origin.
+inline constexpr double kBoundsFloor = 0x1p-520;
+
 /// Half-extents at or above these make the contract's arithmetic overflow
 /// to infinity, where `inf <= inf` counts as an overlap: a sphere of radius
 /// ≥ 2^511 can overlap a partner of radius ≥ 2^511 at any distance (their
@@ -151,8 +159,9 @@ inline constexpr double kHugeHalf = 0x1p1022;
 
 /// A conservative double box around the shape: whenever `overlaps(a, b)`
 /// is true, `bounds(a)` and `bounds(b)` overlap. Never tighter than the
-/// exact box; at most a relative 2^-40 larger, except that shapes so large
-/// that the predicate overflows (see kHugeRadius) get infinite extents.
+/// exact box; at most a relative 2^-40 and an absolute 2^-520 larger (see
+/// kBoundsFloor), except that shapes so large that the predicate overflows
+/// (see kHugeRadius) get infinite extents.
 inline Aabb bounds(const Shape& s) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const bool huge_sphere = s.kind == ShapeKind::sphere && s.half.x >= kHugeRadius;
@@ -165,7 +174,7 @@ inline Aabb bounds(const Shape& s) {
       b.hi[a] = kInf;
       continue;
     }
-    const double m = (std::fabs(c) + h) * kBoundsSlack;
+    const double m = (std::fabs(c) + h) * kBoundsSlack + kBoundsFloor;
     b.lo[a] = c - h - m;
     b.hi[a] = c + h + m;
   }

@@ -80,6 +80,8 @@ const char* to_string(World w) {
       return "huge";
     case World::extreme:
       return "extreme";
+    case World::tiny:
+      return "tiny";
   }
   return "?";
 }
@@ -135,6 +137,15 @@ class ShapeSource {
         const double size = u < 0.7 ? rng_.uniform(0, 50) : std::pow(10.0, rng_.uniform(0, 308));
         return shaped(c, size);
       }
+      case World::tiny: {
+        // Objects within 1e-150 of the origin, down to subnormal numbers:
+        // the squares of their distances underflow to zero, where the
+        // contract's predicate holds for objects far apart for their size.
+        auto tiny = [&] { return std::pow(10.0, rng_.uniform(-323, -150)); };
+        auto coord = [&] { return (rng_.uniform() < 0.5 ? -1 : 1) * tiny(); };
+        const Vec3 c{coord(), coord(), coord()};
+        return shaped(c, rng_.uniform() < 0.1 ? 0.0 : tiny());
+      }
     }
     return {};
   }
@@ -148,7 +159,8 @@ class ShapeSource {
       s.half = s.half * k;
       return s;
     }
-    const double step = std::max(1.0, s.max_half());
+    const double step = w_ == World::tiny ? std::max(s.max_half(), std::fabs(s.center.x))
+                                          : std::max(1.0, s.max_half());
     for (int a = 0; a < 3; ++a) s.center[a] += rng_.uniform(-step, step);
     return s;
   }

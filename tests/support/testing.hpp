@@ -39,6 +39,7 @@ enum class World {
   far,       ///< coordinates around 1e7 from the origin
   huge,      ///< a few objects larger than the world
   extreme,   ///< coordinates and sizes up to 1e300, where the predicate overflows
+  tiny,      ///< coordinates and sizes down to subnormals, where its squares underflow
 };
 const char* to_string(World w);
 
