@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 #include <sstream>
+#include <vector>
 
 #include "register.hpp"
 
@@ -88,6 +89,7 @@ std::unique_ptr<AnyBroadPhase> Registry::make(std::string_view spec, Config conf
     throw UnknownStructure("unknown structure '" + std::string(name) + "'; valid: " + names());
   if (colon != std::string_view::npos) {
     std::string_view rest = spec.substr(colon + 1);
+    std::vector<std::string_view> given;
     while (!rest.empty()) {
       const std::size_t comma = rest.find(',');
       const std::string_view item = rest.substr(0, comma);
@@ -95,7 +97,12 @@ std::unique_ptr<AnyBroadPhase> Registry::make(std::string_view spec, Config conf
       if (eq == std::string_view::npos || eq == 0)
         throw UnknownStructure(std::string(name) + ": option '" + std::string(item) +
                                "' is not of the form key=value");
-      config.options[std::string(item.substr(0, eq))] = std::string(item.substr(eq + 1));
+      const std::string_view key = item.substr(0, eq);
+      if (std::find(given.begin(), given.end(), key) != given.end())
+        throw UnknownStructure(std::string(name) + ": option '" + std::string(key) +
+                               "' is given twice");
+      given.push_back(key);
+      config.options[std::string(key)] = std::string(item.substr(eq + 1));
       rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
     }
   }

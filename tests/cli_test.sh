@@ -57,6 +57,8 @@ bad "unknown kind" "bad.scene:4:.*'cone'" "broadphase-scene 2\nworld 10\nobjects
 expect_error "missing file" "cannot open" run --scene "$tmp/none.scene" --algo naive
 expect_error "unknown algorithm" "valid: naive" run --scene "$data/scenes/single.scene" --algo nope
 expect_error "unknown option" "unknown option" run --scene "$data/scenes/single.scene" --algo naive:foo=1
+expect_error "option without a value" "not of the form key=value" run --scene "$data/scenes/single.scene" --algo fast-grid:threads
+expect_error "option given twice" "option 'threads' is given twice" run --scene "$data/scenes/single.scene" --algo fast-grid:threads=2,threads=1
 expect_error "bad frames" "frames" run --scene "$data/scenes/single.scene" --algo naive --frames 0
 expect_error "bad dist" "dist" gen --dist lumpy --n 10 --out "$tmp/x.scene"
 
