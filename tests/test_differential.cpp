@@ -3,6 +3,8 @@
 // structure's validate() after every step.
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include "testing.hpp"
 
 namespace broadphase::testing {
@@ -41,6 +43,20 @@ TEST_P(Differential, MatchesNaiveInAFarAwayWorld) {
   Config c;
   c.world = {{1e7, 1e7, -1e7}, {1e7 + 1000, 1e7 + 1000, -1e7 + 1000}};
   differential(GetParam(), World::far, 99, 800, c);
+}
+
+TEST_P(Differential, RejectsAnInvalidQueryShape) {
+  // As an insert would: a clear error, not a crash or a silent empty answer.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  auto bp = make_structure(GetParam());
+  for (int i = 0; i < 50; ++i) bp->insert(Shape::sphere({i * 10.0, 5, 5}, 6), i);
+  for (const Shape& bad :
+       {Shape::sphere({nan, 0, 0}, 1), Shape::sphere({0, inf, 0}, 1), Shape::sphere({0, 0, 0}, -1),
+        Shape::box({0, 0, 0}, {1, nan, 1}), Shape{{0, 0, 0}, {1, 2, 3}, ShapeKind::sphere}}) {
+    EXPECT_THROW(bp->query(bad, [](Handle) { return true; }), InvalidShape);
+  }
+  bp->validate();
 }
 
 INSTANTIATE_TEST_SUITE_P(All, Differential, ::testing::ValuesIn(library_structures()),

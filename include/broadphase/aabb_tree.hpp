@@ -260,6 +260,7 @@ class AabbTree {
 
 template <class V>
 QueryCost AabbTree::query(const Shape& q, V&& visitor, TraversalStats& stats) const {
+  require_valid(q);
   QueryCost cost;
   if (root_ == kNull) return cost;
   const AabbF qb = bounds_f(q);

@@ -468,6 +468,7 @@ bool FastGrid::Grid::scan(const AabbF& q, std::size_t first_level, double first_
 
 template <class V>
 QueryCost FastGrid::query(const Shape& q, V&& visitor) const {
+  require_valid(q);
   QueryCost cost;
   const AabbF b = bounds_f(q);
   auto test = [&](Handle h, const Shape& shape) {

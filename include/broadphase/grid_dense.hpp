@@ -109,6 +109,7 @@ class LinkedGrid {
   /// Visits every object overlapping `q`. O(cells of q + candidates).
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const {
+    require_valid(q);
     QueryCost cost;
     const AabbF qb = bounds_f(q);
     const bool go = visit_region(map_.range(qb), [&](std::uint32_t b) {

@@ -53,6 +53,7 @@ class GridImplicit {
   /// Visits every object overlapping `q`.
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const {
+    require_valid(q);
     QueryCost cost;
     const AabbF qb = bounds_f(q);
     const detail::CellRange r = map_.range(qb);

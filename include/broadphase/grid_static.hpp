@@ -67,6 +67,7 @@ class GridStatic {
   /// Visits every object overlapping `q`.
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const {
+    require_valid(q);
     QueryCost cost;
     const AabbF qb = bounds_f(q);
     const bool go = visit_region(map_.range(qb), 3, [&](std::uint32_t b) {

@@ -55,6 +55,7 @@ class HGrid {
   /// Visits every object overlapping `q`.
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const {
+    require_valid(q);
     QueryCost cost;
     const AabbF qb = bounds_f(q);
     for (int level : levels_) {

@@ -206,6 +206,7 @@ bool HGridPaper::probe_forward(std::uint32_t i, const CellBox& box, F& f) const 
 
 template <class V>
 QueryCost HGridPaper::query(const Shape& q, V&& visitor) const {
+  require_valid(q);
   QueryCost cost;
   auto test = [&](std::uint32_t j) {
     ++cost.tests;

@@ -118,6 +118,7 @@ class KdTree {
 
 template <class V>
 QueryCost KdTree::query(const Shape& q, V&& visitor) const {
+  require_valid(q);
   QueryCost cost;
   const AabbF qf = bounds_f(q);
   detail::InlineStack<std::uint32_t, 64> stack;

@@ -37,6 +37,7 @@ class Naive {
 
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const {
+    require_valid(q);
     QueryCost cost;
     for (std::uint32_t i : dense_) {
       ++cost.tests;

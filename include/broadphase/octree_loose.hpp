@@ -47,6 +47,7 @@ class LooseOctree {
   /// Visits every object overlapping `q`.
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const {
+    require_valid(q);
     return detail::tree_query(*this, store_, q, visitor);
   }
   /// Visits every overlapping pair once.

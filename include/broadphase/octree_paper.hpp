@@ -151,6 +151,7 @@ bool OctreePaper::visit_descendants(std::uint32_t at, const NodeCell& cell, cons
 
 template <class V>
 QueryCost OctreePaper::query(const Shape& q, V&& visitor) const {
+  require_valid(q);
   QueryCost cost;
   auto test_node = [&](std::uint32_t node) {
     for (std::uint32_t i : lists_[node]) {

@@ -50,6 +50,7 @@ class Sap {
   /// Visits every object overlapping `q` exactly.
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const {
+    require_valid(q);
     QueryCost cost;
     const AabbF b = normalized_bounds(q);
     scan(b, [&](std::uint32_t o) {

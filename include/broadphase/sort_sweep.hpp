@@ -38,6 +38,7 @@ class SortSweep {
   /// Visits every object overlapping `q` exactly (a linear scan of boxes).
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const {
+    require_valid(q);
     QueryCost cost;
     const AabbF b = bounds_f(q);
     for (std::size_t d = 0; d < dense_.size(); ++d) {
