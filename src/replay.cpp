@@ -1,5 +1,6 @@
 #include <broadphase/replay.hpp>
 #include <chrono>
+#include <string>
 
 namespace broadphase {
 
@@ -27,7 +28,12 @@ FrameResult Replay::next() {
   if (frame_ > 0) {
     step(scene_);
     moves_.clear();
-    for (std::uint32_t i : moving_) moves_.push_back({handles_[i], scene_.objects[i]});
+    for (std::uint32_t i : moving_) {
+      if (!is_valid(scene_.objects[i]))
+        throw SceneError("frame " + std::to_string(frame_) + ": object " + std::to_string(i) +
+                         " moves beyond the range of doubles (its motion overflows)");
+      moves_.push_back({handles_[i], scene_.objects[i]});
+    }
     const auto t0 = std::chrono::steady_clock::now();
     bp_.update(moves_);
     r.update_seconds = since(t0);

@@ -62,6 +62,15 @@ expect_error "option given twice" "option 'threads' is given twice" run --scene 
 expect_error "bad frames" "frames" run --scene "$data/scenes/single.scene" --algo naive --frames 0
 expect_error "bad dist" "dist" gen --dist lumpy --n 10 --out "$tmp/x.scene"
 
+# A motion that overflows the doubles: the frames before it are printed,
+# then an error naming the frame and the object.
+printf 'broadphase-scene 1\nworld 1e300\nobjects 2\n0 0 0 1 0 0 0\n1.79e308 0 0 1 1e306 0 0\n' >"$tmp/overflow.scene"
+"$cli" run --scene "$tmp/overflow.scene" --algo fast-grid --frames 3 >"$tmp/out" 2>"$tmp/err"
+rc=$?
+check "overflowing motion: exit" test "$rc" -eq 1
+check "overflowing motion: frame 0 printed" test "$(cat "$tmp/out")" = "0 0 0000000000000000"
+check "overflowing motion: message" grep -q "frame 1: object 1 moves beyond the range of doubles" "$tmp/err"
+
 # Comments and blank lines anywhere after line 1; r = 0 is valid.
 printf 'broadphase-scene 1\n# c\n\nworld 10\n# c\nobjects 2\n\n1 1 1 0 0 0 0\n# c\n1 1 1 0 0 0 0\n' >"$tmp/ok.scene"
 # splitmix64((0 << 32) | 1) is the hash of the single pair (0, 1).

@@ -60,7 +60,14 @@ void run(const RunOptions& o) {
   double total_ms = 0;
   std::string out;
   for (int f = 0; f < o.frames; ++f) {
-    const FrameResult r = replay.next();
+    FrameResult r;
+    try {
+      r = replay.next();
+    } catch (...) {
+      // The frames done so far are printed before the error.
+      if (!o.json) std::fwrite(out.data(), 1, out.size(), stdout);
+      throw;
+    }
     total.pairs += r.digest.pairs;
     total.hash += r.digest.hash;
     tests += r.tests;
