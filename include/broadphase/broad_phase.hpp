@@ -77,7 +77,10 @@ inline bool visit(V& v, Args&&... args) {
 }
 
 /// What every structure provides. Query visitors take `(Handle)`, pair
-/// visitors `(Handle, Handle)`; both may return bool to stop early.
+/// visitors `(Handle, Handle)`; both may return bool to stop early. A shape
+/// given to insert, update or query must be valid (`is_valid`), or the call
+/// throws InvalidShape and changes nothing; a stale handle throws
+/// InvalidHandle.
 template <class S>
 concept Structure = requires(S& s, const S& cs, const Shape& shape, Handle h, std::uint64_t user,
                              bool (*qv)(Handle), bool (*pv)(Handle, Handle)) {
