@@ -81,6 +81,11 @@ std::string Registry::names() const {
   return out;
 }
 
+namespace {
+// Slot indices are 32 bits, one value of which means "null".
+constexpr std::size_t kMaxObjects = Handle::kNullIndex;
+}  // namespace
+
 std::unique_ptr<AnyBroadPhase> Registry::make(std::string_view spec, Config config) const {
   const std::size_t colon = spec.find(':');
   const std::string_view name = spec.substr(0, colon);
@@ -106,6 +111,10 @@ std::unique_ptr<AnyBroadPhase> Registry::make(std::string_view spec, Config conf
       rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
     }
   }
+  if (config.expected_objects > kMaxObjects)
+    throw UnknownStructure(std::string(name) + ": expected_objects " +
+                           std::to_string(config.expected_objects) + " is more than the " +
+                           std::to_string(kMaxObjects) + " objects a handle can name");
   const Aabb& w = config.world;
   for (int a = 0; a < 3; ++a)
     if (!std::isfinite(w.lo[a]) || !std::isfinite(w.hi[a]) || !(w.lo[a] < w.hi[a]))

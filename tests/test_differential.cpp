@@ -59,6 +59,15 @@ TEST_P(Differential, RejectsAnInvalidQueryShape) {
   bp->validate();
 }
 
+TEST_P(Differential, RejectsMoreExpectedObjectsThanHandlesCanName) {
+  // An impossible size hint is named, not met with bad_alloc.
+  Config c;
+  c.expected_objects = std::size_t{1} << 40;
+  EXPECT_THROW(make_structure(GetParam(), c), UnknownStructure);
+  c.expected_objects = 1000;
+  EXPECT_NO_THROW(make_structure(GetParam(), c));
+}
+
 INSTANTIATE_TEST_SUITE_P(All, Differential, ::testing::ValuesIn(library_structures()),
                          [](const auto& info) {
                            std::string n = info.param;

@@ -2,6 +2,7 @@
 #include <broadphase/scene.hpp>
 #include <cstdio>
 #include <exception>
+#include <new>
 
 #include "commands.hpp"
 
@@ -27,6 +28,11 @@ int main(int argc, char** argv) {
     return 2;
   } catch (const broadphase::SceneError& e) {
     std::fprintf(stderr, "broadphase: error: %s\n", e.what());
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr,
+                 "broadphase: error: out of memory (the scene or the run is too large "
+                 "for this machine)\n");
     return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "broadphase: error: %s\n", e.what());
