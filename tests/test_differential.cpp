@@ -68,6 +68,11 @@ TEST_P(Differential, RejectsMoreExpectedObjectsThanHandlesCanName) {
   EXPECT_NO_THROW(make_structure(GetParam(), c));
 }
 
+TEST_P(Differential, ConstCallsRunConcurrently) {
+  // Run under ThreadSanitizer in CI.
+  const_calls_on_two_threads(GetParam(), generate(Distribution::uneven, 3000, 4));
+}
+
 INSTANTIATE_TEST_SUITE_P(All, Differential, ::testing::ValuesIn(library_structures()),
                          [](const auto& info) {
                            std::string n = info.param;

@@ -15,6 +15,8 @@
 #include <utility>
 #include <vector>
 
+#include "testing.hpp"
+
 namespace broadphase {
 namespace {
 
@@ -510,6 +512,13 @@ TEST(FastGrid, MemoryIsReported) {
   for (int i = 0; i < 1000; ++i)
     g.insert(Shape::sphere({i * 1.0, 0, 0}, 1), static_cast<std::uint64_t>(i));
   EXPECT_GT(g.memory_bytes(), empty + 1000 * sizeof(Shape));
+}
+
+TEST(FastGrid, ConstCallsRunConcurrentlyOnThreads) {
+  // Enough movers for the pair pass to split over the pool, whose buffers
+  // two concurrent calls must not share (run under ThreadSanitizer in CI).
+  broadphase::testing::const_calls_on_two_threads("fast-grid:threads=2",
+                                                  generate(Distribution::all_moving, 6000, 3));
 }
 
 }  // namespace

@@ -28,6 +28,12 @@ std::vector<std::string> library_structures();
 std::vector<FrameDigest> replay(const std::string& spec, const Scene& scene, int frames,
                                 bool validate_each_frame = false);
 
+/// Fills a structure `spec` with `scene` (moving objects as dynamic), then
+/// runs queries, all-pairs passes, validate and memory_bytes from two
+/// threads at once, as the interface allows, and expects what one thread
+/// gets (gtest expectations).
+void const_calls_on_two_threads(const std::string& spec, const Scene& scene);
+
 /// Brute-force digest of the objects' current positions.
 FrameDigest brute_force(const std::vector<Shape>& objects);
 
