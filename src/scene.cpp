@@ -56,10 +56,14 @@ class LineReader {
   }
   double number(std::string_view text, const char* what) const {
     double v = 0;
-    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+    // A leading '+' is a sign like '-' (from_chars takes only '-').
+    const std::string_view digits =
+        text.size() > 1 && text[0] == '+' && text[1] != '-' && text[1] != '+' ? text.substr(1)
+                                                                              : text;
+    const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), v);
     if (ec == std::errc::result_out_of_range)
       fail(std::string(what) + " '" + std::string(text) + "' is out of the range of a double");
-    if (ec != std::errc{} || end != text.data() + text.size())
+    if (ec != std::errc{} || end != digits.data() + digits.size())
       fail(std::string(what) + " '" + std::string(text) + "' is not a number");
     if (!std::isfinite(v)) fail(std::string(what) + " is " + std::string(text) + ", not finite");
     return v;
@@ -82,6 +86,8 @@ Scene parse_scene(std::istream& in, const std::string& name) {
   // The header must be line 1 exactly, so it is read raw, not skipped as blank.
   if (!r.raw(header)) r.fail("empty file; expected 'broadphase-scene 1' or 'broadphase-scene 2'");
   if (!header.empty() && header.back() == '\r') header.pop_back();
+  // A UTF-8 byte order mark, as some editors write, is not part of the text.
+  if (header.starts_with("\xEF\xBB\xBF")) header.erase(0, 3);
   int version = 0;
   if (header == "broadphase-scene 1")
     version = 1;

@@ -80,6 +80,17 @@ TEST(Scene, AcceptsCommentsBlankLinesAndCarriageReturns) {
   EXPECT_FALSE(s.is_moving(0));
 }
 
+TEST(Scene, AcceptsAByteOrderMarkAndPlusSigns) {
+  std::istringstream in(
+      "\xEF\xBB\xBF"
+      "broadphase-scene 1\nworld +10\nobjects 1\n+1 2 +3e0 4 +0.5 -0 0\n");
+  const Scene s = parse_scene(in, "ok.scene");
+  ASSERT_EQ(s.size(), 1u);
+  EXPECT_EQ(s.world, 10);
+  EXPECT_EQ(s.objects[0], Shape::sphere({1, 2, 3}, 4));
+  EXPECT_EQ(s.velocity[0].x, 0.5);
+}
+
 // The message must start with "bad.scene:LINE:".
 void expect_rejected(const std::string& text, int line, const std::string& why) {
   std::istringstream in(text);
@@ -112,6 +123,10 @@ TEST(Scene, RejectsEveryMalformedFileNamingTheLine) {
   expect_rejected(v1 + "1 2 3 4 0 0 0 9\n", 4, "extra field");
   expect_rejected(v1 + "1 abc 3 4 0 0 0\n", 4, "not a number");
   expect_rejected(v1 + "1 2 3 4 0 0 0x\n", 4, "trailing garbage");
+  expect_rejected(v1 + "1 ++2 3 4 0 0 0\n", 4, "two plus signs");
+  expect_rejected(v1 + "1 +-2 3 4 0 0 0\n", 4, "plus then minus");
+  expect_rejected(v1 + "1 + 3 4 0 0 0\n", 4, "a lone plus");
+  expect_rejected(v1 + "1 2 +inf 4 0 0 0\n", 4, "plus infinity");
   expect_rejected(v1 + "1 nan 3 4 0 0 0\n", 4, "NaN");
   expect_rejected(v1 + "1 2 inf 4 0 0 0\n", 4, "infinity");
   expect_rejected(v1 + "1 2 3 4 0 -inf 0\n", 4, "infinite velocity");

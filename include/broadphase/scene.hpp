@@ -34,7 +34,9 @@ class SceneError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Parses a scene. `name` is used in messages. Throws SceneError.
+/// Parses a scene. `name` is used in messages. Throws SceneError. Beyond
+/// the letter of the format, CRLF line ends, a UTF-8 byte order mark before
+/// the header and a leading '+' on a number are accepted.
 Scene parse_scene(std::istream& in, const std::string& name);
 /// Reads a scene file. Throws SceneError (also when it cannot be opened).
 Scene read_scene(const std::string& path);
