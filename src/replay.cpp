@@ -28,14 +28,18 @@ FrameResult Replay::next() {
   if (frame_ > 0) {
     step(scene_);
     moves_.clear();
-    for (std::uint32_t i : moving_) {
-      if (!is_valid(scene_.objects[i]))
-        throw SceneError("frame " + std::to_string(frame_) + ": object " + std::to_string(i) +
-                         " moves beyond the range of doubles (its motion overflows)");
-      moves_.push_back({handles_[i], scene_.objects[i]});
-    }
+    for (std::uint32_t i : moving_) moves_.push_back({handles_[i], scene_.objects[i]});
     const auto t0 = std::chrono::steady_clock::now();
-    bp_.update(moves_);
+    try {
+      bp_.update(moves_);  // checks every move, and changes nothing if one is bad
+    } catch (const InvalidShape&) {
+      // Only the motion can make a valid scene's shape invalid: name it.
+      for (std::uint32_t i : moving_)
+        if (!is_valid(scene_.objects[i]))
+          throw SceneError("frame " + std::to_string(frame_) + ": object " + std::to_string(i) +
+                           " moves beyond the range of doubles (its motion overflows)");
+      throw;
+    }
     r.update_seconds = since(t0);
   }
   pairs_.clear();

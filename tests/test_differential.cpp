@@ -74,12 +74,7 @@ TEST_P(Differential, ConstCallsRunConcurrently) {
 }
 
 INSTANTIATE_TEST_SUITE_P(All, Differential, ::testing::ValuesIn(library_structures()),
-                         [](const auto& info) {
-                           std::string n = info.param;
-                           for (char& ch : n)
-                             if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
-                           return n;
-                         });
+                         StructureParamName{});
 
 }  // namespace
 }  // namespace broadphase::testing

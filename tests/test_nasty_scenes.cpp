@@ -7,7 +7,6 @@
 
 #include <cmath>
 #include <functional>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -16,16 +15,17 @@
 namespace broadphase::testing {
 namespace {
 
+// The project's generator, with the draws these scenes use.
 class Draw {
  public:
   explicit Draw(std::uint64_t seed) : rng_(seed) {}
-  double uniform(double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng_); }
+  double uniform(double a, double b) { return rng_.uniform(a, b); }
   double log_uniform(double a, double b) { return std::exp(uniform(std::log(a), std::log(b))); }
-  int below(int n) { return std::uniform_int_distribution<int>(0, n - 1)(rng_); }
+  int below(int n) { return static_cast<int>(rng_.below(static_cast<std::uint64_t>(n))); }
   bool chance(int one_in) { return below(one_in) == 0; }
 
  private:
-  std::mt19937_64 rng_;
+  Rng rng_;
 };
 
 struct Kind {
@@ -161,12 +161,7 @@ TEST_P(NastyScenes, MatchNaiveOnEveryFrame) {
 }
 
 INSTANTIATE_TEST_SUITE_P(All, NastyScenes, ::testing::ValuesIn(library_structures()),
-                         [](const auto& info) {
-                           std::string n = info.param;
-                           for (char& ch : n)
-                             if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
-                           return n;
-                         });
+                         StructureParamName{});
 
 }  // namespace
 }  // namespace broadphase::testing

@@ -34,12 +34,7 @@ TEST_P(ReferenceScenes, MatchBruteForceOnGeneratedStudyScenes) {
 }
 
 INSTANTIATE_TEST_SUITE_P(All, ReferenceScenes, ::testing::ValuesIn(library_structures()),
-                         [](const auto& info) {
-                           std::string n = info.param;
-                           for (char& ch : n)
-                             if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
-                           return n;
-                         });
+                         StructureParamName{});
 
 }  // namespace
 }  // namespace broadphase::testing

@@ -6,6 +6,7 @@
 #include <barrier>
 #include <broadphase/naive.hpp>
 #include <broadphase/replay.hpp>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -59,61 +60,10 @@ std::vector<FrameDigest> replay(const std::string& spec, const Scene& scene, int
   return out;
 }
 
-void const_calls_on_two_threads(const std::string& spec, const Scene& scene) {
-  Config c;
-  c.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}};
-  auto bp = make_structure(spec, c);
-  // Filled, then one frame's bulk update: structures on threads split it
-  // and the pairs.
-  std::vector<Move> moves;
-  for (std::size_t i = 0; i < scene.size(); ++i) {
-    const bool moving = scene.is_moving(i);
-    const Handle h = bp->insert(scene.objects[i], i, moving ? Motion::dynamic : Motion::fixed);
-    if (moving) moves.push_back({h, scene.objects[i]});
-  }
-  bp->update(moves);
-  auto pairs = [&] {
-    std::vector<HandlePair> out;
-    bp->find_pairs(out);
-    FrameDigest d;
-    for (const HandlePair& p : out)
-      d.add(static_cast<std::uint32_t>(bp->user_data(p.a)),
-            static_cast<std::uint32_t>(bp->user_data(p.b)));
-    return d;
-  };
-  auto queries = [&] {
-    std::uint64_t hits = 0;
-    for (std::size_t i = 0; i < scene.size(); i += 7)
-      bp->query(scene.objects[i], [&](Handle) {
-        ++hits;
-        return true;
-      });
-    return hits;
-  };
-  const FrameDigest want_pairs = pairs();
-  const std::uint64_t want_hits = queries();
-  std::vector<FrameDigest> got_pairs(2);
-  std::vector<std::uint64_t> got_hits(2);
-  {
-    // Both threads start each kind of call together, so that the calls
-    // overlap.
-    std::barrier sync(2);
-    std::vector<std::jthread> threads;
-    for (std::size_t t = 0; t < 2; ++t)
-      threads.emplace_back([&, t] {
-        sync.arrive_and_wait();
-        for (int round = 0; round < 5; ++round) got_pairs[t] = pairs();
-        sync.arrive_and_wait();
-        got_hits[t] = queries();
-        sync.arrive_and_wait();
-        bp->validate();
-        EXPECT_GT(bp->memory_bytes(), 0u);
-      });
-  }
-  for (std::size_t t = 0; t < 2; ++t) {
-    EXPECT_EQ(got_pairs[t], want_pairs) << spec << ", thread " << t;
-    EXPECT_EQ(got_hits[t], want_hits) << spec << ", thread " << t;
-  }
+std::string StructureParamName::identifier(std::string name) {
+  for (char& ch : name)
+    if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+  return name;
 }
 
 FrameDigest brute_force(const std::vector<Shape>& objects) {
@@ -393,6 +343,53 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
       ADD_FAILURE() << op << " threw: " << e.what() << where;
       return;
     }
+  }
+}
+
+void const_calls_on_two_threads(const std::string& spec, const Scene& scene) {
+  Config c;
+  c.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}};
+  auto bp = make_structure(spec, c);
+  // Filled, then one frame's bulk update: structures on threads split it
+  // and the pairs.
+  std::vector<Move> moves;
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    const bool moving = scene.is_moving(i);
+    const Handle h = bp->insert(scene.objects[i], i, moving ? Motion::dynamic : Motion::fixed);
+    if (moving) moves.push_back({h, scene.objects[i]});
+  }
+  bp->update(moves);
+  using Pairs = std::vector<std::pair<std::uint64_t, std::uint64_t>>;
+  using Hits = std::vector<std::vector<std::uint64_t>>;
+  auto queries = [&] {
+    Hits hits;
+    for (std::size_t i = 0; i < scene.size(); i += 7)
+      hits.push_back(ids_of_query(*bp, scene.objects[i]));
+    return hits;
+  };
+  const Pairs want_pairs = ids_of_pairs(*bp);
+  const Hits want_hits = queries();
+  std::vector<Pairs> got_pairs(2);
+  std::vector<Hits> got_hits(2);
+  {
+    // Both threads start each kind of call together, so that the calls
+    // overlap.
+    std::barrier sync(2);
+    std::vector<std::jthread> threads;
+    for (std::size_t t = 0; t < 2; ++t)
+      threads.emplace_back([&, t] {
+        sync.arrive_and_wait();
+        for (int round = 0; round < 5; ++round) got_pairs[t] = ids_of_pairs(*bp);
+        sync.arrive_and_wait();
+        got_hits[t] = queries();
+        sync.arrive_and_wait();
+        bp->validate();
+        EXPECT_GT(bp->memory_bytes(), 0u);
+      });
+  }
+  for (std::size_t t = 0; t < 2; ++t) {
+    EXPECT_EQ(got_pairs[t], want_pairs) << spec << ", thread " << t;
+    EXPECT_EQ(got_hits[t], want_hits) << spec << ", thread " << t;
   }
 }
 

@@ -24,6 +24,16 @@ std::vector<ReferenceScene> reference_scenes();
 /// The names of every library structure (what `broadphase list` shows).
 std::vector<std::string> library_structures();
 
+/// Names a test instantiated over structure names: the name with every
+/// character that is not a letter or digit made '_' (gtest's rule).
+struct StructureParamName {
+  template <class Info>
+  std::string operator()(const Info& info) const {
+    return identifier(info.param);
+  }
+  static std::string identifier(std::string name);
+};
+
 /// Replays `scene` through a fresh structure `spec` for `frames` frames.
 std::vector<FrameDigest> replay(const std::string& spec, const Scene& scene, int frames,
                                 bool validate_each_frame = false);
