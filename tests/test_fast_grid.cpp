@@ -77,6 +77,8 @@ TEST(FastGrid, RejectsUnknownAndBadOptions) {
   EXPECT_THROW(FastGrid(with_option("threads", "1.5")), UnknownStructure);
   EXPECT_THROW(FastGrid(with_option("threads", "-1")), UnknownStructure);
   EXPECT_GE(FastGrid(with_option("threads", "0")).threads(), 1u);
+  EXPECT_LE(FastGrid(with_option("threads", "0")).threads(), 64u);
+  EXPECT_THROW(FastGrid(with_option("threads", "65")), UnknownStructure);
   EXPECT_EQ(FastGrid(with_option("threads", "2")).threads(), 2u);
 }
 

@@ -84,7 +84,7 @@ inline void prefetch(const void* p) {
 /// need exclusive access.
 class FastGrid {
  public:
-  /// Options: `threads=N` (0..64; 0 = hardware concurrency; default 1:
+  /// Options: `threads=N` (0..64; 0 = hardware concurrency, at most 64; default 1:
   /// the bulk update and find_pairs split their work over N threads, with
   /// the same results and pair order for every N);
   /// `cell=F` (0.5..64, default 1): a cell's side over its level's reach

@@ -49,6 +49,8 @@ constexpr double kMaxMargin = 0.5;
 // keeps no near list (2 against 1.5, 3 and 5: all-moving 20 000
 // 2.7 ms against 2.6-4.7, explosion 5.3-5.9 against 4.6-6.2, noisy).
 constexpr double kMinFrames = 2;
+// Threads at most (option threads=N, and hardware concurrency for N = 0).
+constexpr unsigned kMaxThreads = 64;
 // Moving entries per share below which work stays on one thread.
 constexpr std::size_t kMinEntriesPerThread = 2048;
 // Work split over threads comes in this many chunks per thread, taken by
@@ -234,12 +236,12 @@ struct alignas(64) FastGrid::ShareStats {  // on lines of its own: each share wr
 
 FastGrid::FastGrid(const Config& c) : world_(c.world) {
   OptionReader opt(c, "fast-grid");
-  const double t = opt.number("threads", 1, 0, 64);
+  const double t = opt.number("threads", 1, 0, kMaxThreads);
   cell_factor_ = opt.number("cell", 1, 0.5, 64);
   opt.finish();
   if (t != std::floor(t)) throw UnknownStructure("fast-grid: option 'threads' must be an integer");
   threads_ = static_cast<unsigned>(t);
-  if (threads_ == 0) threads_ = std::max(1u, std::thread::hardware_concurrency());
+  if (threads_ == 0) threads_ = std::clamp(std::thread::hardware_concurrency(), 1u, kMaxThreads);
   if (threads_ > 1) pool_ = std::make_unique<detail::WorkerPool>(threads_ - 1);
   if (c.expected_objects > 0) {
     const std::size_t n = c.expected_objects;
@@ -419,7 +421,7 @@ void FastGrid::update(std::span<const Move> moves) {
   target.resize(n);
   // A chunk's mark: this update's round and the chunk. Marks are written
   // and read through relaxed atomics: two chunks may write one mover's.
-  static_assert(64 * kChunksPerShare <= 1024, "a mark holds the chunk in 10 bits");
+  static_assert(kMaxThreads * kChunksPerShare <= 1024, "a mark holds the chunk in 10 bits");
   const bool marks = t > 1;
   if (marks) {
     mark_.resize(m);
