@@ -374,7 +374,8 @@ class FastGrid {
   std::vector<LineShape> scratch_shapes_;
   std::vector<Mover> scratch_movers_;
   std::vector<std::uint32_t> scratch_tag_;  // per item: its level, then its cell
-  // A bulk update on threads: per moving entry, the mark (update and chunk)
+  std::vector<std::uint32_t> move_target_;  // per move in a bulk update: its mover
+  // A bulk update on threads: per slot, the mark (update and chunk)
   // of the last chunk of moves that named it, to find a handle named twice.
   std::vector<std::uint32_t> mark_;
   std::uint32_t mark_round_ = 0;

@@ -404,27 +404,33 @@ void FastGrid::update(std::span<const Move> moves) {
   // then repeated on one thread, for the error) and notes each one's mover;
   // the last moves the movers, each chunk those of its moves, which it
   // reads front to back. A handle named twice must be moved by one thread,
-  // in order: on several threads the first pass also marks each mover with
-  // its chunk, a second pass finds any mark overwritten (by another chunk)
-  // or met again (in a chunk), and then each share takes instead every move
-  // into its range of movers. Movers stay movers here; the other objects,
-  // which change home, move afterwards, in order. The passes prefetch
-  // ahead: the moves come in the caller's order, the slots and movers they
-  // name are scattered.
+  // in order: on several threads the first pass also marks each moved
+  // object's slot with its chunk, a second pass finds any mark overwritten
+  // (by another chunk) or met again (in a chunk), and then each share takes
+  // instead every move into its range of movers. The marks go by slot, the
+  // place the move names: by mover, each mark waited for the slot's load,
+  // which doubled the first pass. Movers stay movers here; the other
+  // objects, which change home, move afterwards, in order. The passes
+  // prefetch ahead: the moves come in the caller's order, the slots and
+  // movers they name are scattered.
   constexpr std::uint32_t kOther = 0xFFFFFFFFu;
   constexpr std::size_t kAhead = 16;
   const std::size_t m = moving_.entries.size();
   const std::size_t n = moves.size();
   const unsigned t = shares_for(std::min(n, m));
   const unsigned chunks = t <= 1 ? 1 : t * kChunksPerShare;
-  std::vector<std::uint32_t>& target = scratch_tag_;
+  // Not the grid build's tag array: that one's lines are written pass
+  // after pass by the thread that owns the same range of the moving grid,
+  // and would cross between the cores were they first written in the
+  // moves' order.
+  std::vector<std::uint32_t>& target = move_target_;
   target.resize(n);
   // A chunk's mark: this update's round and the chunk. Marks are written
   // and read through relaxed atomics: two chunks may write one mover's.
   static_assert(kMaxThreads * kChunksPerShare <= 1024, "a mark holds the chunk in 10 bits");
   const bool marks = t > 1;
   if (marks) {
-    mark_.resize(m);
+    mark_.resize(slots_.size());
     if (++mark_round_ >= (1u << 22)) {  // wrapped: no entry may hold a current mark
       std::fill(mark_.begin(), mark_.end(), 0);
       mark_round_ = 1;
@@ -448,8 +454,8 @@ void FastGrid::update(std::span<const Move> moves) {
       if (target[j] == kOther) {
         any_other = true;
       } else if (marks) {
-        any_twice |= mark(target[j]).load(std::memory_order_relaxed) == (round | c);
-        mark(target[j]).store(round | c, std::memory_order_relaxed);
+        any_twice |= mark(h.index).load(std::memory_order_relaxed) == (round | c);
+        mark(h.index).store(round | c, std::memory_order_relaxed);
       }
     }
     if (any_other) others = true;
@@ -465,8 +471,8 @@ void FastGrid::update(std::span<const Move> moves) {
     run_shares(chunks, [&](unsigned c) {
       bool any_twice = false;
       for (auto [j, end] = slice(n, c, chunks); j < end; ++j)
-        any_twice |=
-            target[j] != kOther && mark(target[j]).load(std::memory_order_relaxed) != (round | c);
+        any_twice |= target[j] != kOther &&
+                     mark(moves[j].handle.index).load(std::memory_order_relaxed) != (round | c);
       if (any_twice) twice = true;
     });
   // Moves [first, last) to movers in [lo, hi).
@@ -549,13 +555,21 @@ void FastGrid::rebuild(bool fixed_too) {
   // The moving grid holds fat boxes: a mover whose bounds left its box gets
   // a new one now (and new lists below), a new mover its first.
   ++stamp_;
+  // The same pass sums the lengths of the lists that stay and of those to
+  // be renewed (movers from the loose list have none), for the pools, and,
+  // while no entry is dead, copies each entry to the build's input, at its
+  // own index (else a pass on one thread gathers the live ones).
+  const std::size_t m = moving_.entries.size();
+  const bool none_dead = moving_count_ == m;
   std::vector<Entry>& items = scratch_items_;
   std::vector<std::uint32_t>& src = scratch_src_;
-  items.clear();
-  src.clear();
-  // The same pass sums the lengths of the lists that stay and of those to
-  // be renewed (movers from the loose list have none), for the pools.
-  const std::size_t m = moving_.entries.size();
+  if (none_dead) {
+    items.resize(m);  // no work when the size stays, as from frame to frame
+    src.resize(m);
+  } else {
+    items.clear();
+    src.clear();
+  }
   const unsigned t = shares_for(m);
   share_stats_.resize(t);
   run_shares(t, [&](unsigned share) {
@@ -577,6 +591,10 @@ void FastGrid::rebuild(bool fixed_too) {
       const bool keep = mv.epoch == epoch_;
       (keep ? sum.kept : sum.renewing) += mv.list_count;
       (keep ? sum.near_kept : sum.near_renewing) += mv.near_count;
+      if (none_dead) {
+        items[k] = e;
+        src[k] = static_cast<std::uint32_t>(k);
+      }
     }
     share_stats_[share].lists = sum;
   });
@@ -588,7 +606,7 @@ void FastGrid::rebuild(bool fixed_too) {
     totals.near_kept += sum.near_kept;
     totals.near_renewing += sum.near_renewing;
   }
-  take_grid(moving_, items, src);
+  if (!none_dead) take_grid(moving_, items, src);
   const std::size_t first_loose = items.size();
   take_loose(Motion::dynamic, items, src);
   for (std::size_t i = first_loose; i < items.size(); ++i) {
@@ -1100,6 +1118,7 @@ std::size_t FastGrid::memory_bytes() const {
                       fixed_pairs_.capacity() * sizeof(HandlePair) +
                       scratch_items_.capacity() * sizeof(Entry) + scratch_src_.capacity() * 4 +
                       scratch_shapes_.capacity() * sizeof(LineShape) + scratch_tag_.capacity() * 4 +
+                      move_target_.capacity() * 4 +
                       (movers_.capacity() + scratch_movers_.capacity()) * sizeof(Mover) +
                       list_pool_.capacity() * sizeof(Candidate) + near_pool_.capacity() * 4 +
                       slow_per_level_.capacity() * 4 + mark_.capacity() * 4;
