@@ -1066,45 +1066,61 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
     emit_fixed();
     mover_pairs(0, m, emit_out, cost.tests);
   } else {
-    // Chunk 0 emits the fixed pairs straight into `out`; the movers' pairs
-    // are found by the other chunks, each into its own buffer, appended
-    // afterwards in chunk order: the order of one thread.
+    // Job 0 emits the fixed pairs straight into `out`; the movers' pairs
+    // are found by the other jobs, one chunk of the moving grid each, into
+    // the chunk's own buffer. The pieces, fixed pairs first, then the
+    // chunks in order (the order of one thread), are appended while later
+    // chunks are still being found (appended after the run, they took 0.09
+    // of a 3 ms frame at scaled-even 102 400 on one thread).
     const unsigned chunks = t * kChunksPerShare;
     std::unique_lock lock(buffers_mutex_, std::try_to_lock);
     std::vector<std::vector<HandlePair>> local;
     std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
     if (buffers.size() < chunks) buffers.resize(chunks);
     std::vector<std::uint64_t> tests(chunks, 0);
+    // Per piece: found (written under `append`, like `next` and `out`).
+    bool done[kMaxThreads * kChunksPerShare + 1] = {};
+    unsigned next = 0;  // the next piece to append
+    std::mutex append;
+    auto append_done_pieces = [&](unsigned piece) {
+      // Every thread that finishes a piece appends, under the lock, what is
+      // done from the next piece on: no done piece waits past the last job.
+      std::lock_guard hold(append);
+      done[piece] = true;
+      for (; next <= chunks && done[next]; ++next)
+        if (next > 0) out.insert(out.end(), buffers[next - 1].begin(), buffers[next - 1].end());
+    };
+    const std::size_t expected = last_mover_pairs_.load(std::memory_order_relaxed);
+    out.reserve(out.size() + fixed_pairs_.size() + expected + expected / 8);
     run_shares(chunks + 1, [&](unsigned job) {
       if (job == 0) {
         emit_fixed();
-        return;
+      } else {
+        // A chunk works on a vector and a count on its own stack, moved in
+        // and out: the chunks' vector records and counts lie side by side,
+        // and writing them on every pair would bounce their cache lines
+        // between the cores.
+        const unsigned c = job - 1;
+        std::vector<HandlePair> buf = std::move(buffers[c]);
+        buf.clear();
+        auto into = [&buf](Handle a, Handle b) {
+          buf.push_back({a, b});
+          return true;
+        };
+        std::uint64_t n_tests = 0;
+        const auto [begin, end] = slice(m, c, chunks);
+        mover_pairs(begin, end, into, n_tests);
+        tests[c] = n_tests;
+        buffers[c] = std::move(buf);
       }
-      // A chunk works on a vector and a count on its own stack, moved in
-      // and out: the chunks' vector records and counts lie side by side,
-      // and writing them on every pair would bounce their cache lines
-      // between the cores.
-      const unsigned c = job - 1;
-      std::vector<HandlePair> buf = std::move(buffers[c]);
-      buf.clear();
-      auto into = [&buf](Handle a, Handle b) {
-        buf.push_back({a, b});
-        return true;
-      };
-      std::uint64_t n_tests = 0;
-      const auto [begin, end] = slice(m, c, chunks);
-      mover_pairs(begin, end, into, n_tests);
-      tests[c] = n_tests;
-      buffers[c] = std::move(buf);
+      append_done_pieces(job);
     });
-    std::size_t extra = 0;
+    std::size_t mover_pairs_found = 0;
     for (unsigned c = 0; c < chunks; ++c) {
       cost.tests += tests[c];
-      extra += buffers[c].size();
+      mover_pairs_found += buffers[c].size();
     }
-    out.reserve(out.size() + extra);
-    for (unsigned c = 0; c < chunks; ++c)
-      out.insert(out.end(), buffers[c].begin(), buffers[c].end());
+    last_mover_pairs_.store(mover_pairs_found, std::memory_order_relaxed);
   }
   loose_pairs(emit_out, cost.tests);
   return cost;
