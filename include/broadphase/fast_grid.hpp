@@ -310,6 +310,10 @@ class FastGrid {
   /// depend on the thread count or on timing.
   void run_shares(unsigned shares, const std::function<void(unsigned)>& job) const;
   unsigned shares_for(std::size_t entries) const;
+  /// Chunks for a pass over that many entries: several per share, taken by
+  /// whichever thread is free, so that a thread slowed down (by the host,
+  /// on a virtual machine) leaves its part to the others.
+  unsigned chunks_for(std::size_t entries) const;
 
   /// Exact test of two shapes, with the sphere–sphere case inline.
   static bool exact(const Shape& a, const Shape& b) {

@@ -252,6 +252,11 @@ FastGrid::FastGrid(const Config& c) : world_(c.world) {
 
 FastGrid::~FastGrid() = default;
 
+unsigned FastGrid::chunks_for(std::size_t entries) const {
+  const unsigned t = shares_for(entries);
+  return t <= 1 ? 1 : t * kChunksPerShare;
+}
+
 unsigned FastGrid::shares_for(std::size_t entries) const {
   return static_cast<unsigned>(
       std::min<std::size_t>(threads_, std::max<std::size_t>(1, entries / kMinEntriesPerThread)));
@@ -418,7 +423,7 @@ void FastGrid::update(std::span<const Move> moves) {
   const std::size_t m = moving_.entries.size();
   const std::size_t n = moves.size();
   const unsigned t = shares_for(std::min(n, m));
-  const unsigned chunks = t <= 1 ? 1 : t * kChunksPerShare;
+  const unsigned chunks = chunks_for(std::min(n, m));
   // Not the grid build's tag array: that one's lines are written pass
   // after pass by the thread that owns the same range of the moving grid,
   // and would cross between the cores were they first written in the
@@ -570,11 +575,11 @@ void FastGrid::rebuild(bool fixed_too) {
     items.clear();
     src.clear();
   }
-  const unsigned t = shares_for(m);
-  share_stats_.resize(t);
-  run_shares(t, [&](unsigned share) {
+  const unsigned parts = chunks_for(m);
+  share_stats_.resize(parts);
+  run_shares(parts, [&](unsigned share) {
     ListTotals sum;
-    for (auto [k, end] = slice(m, share, t); k < end; ++k) {
+    for (auto [k, end] = slice(m, share, parts); k < end; ++k) {
       Entry& e = moving_.entries[k];
       if (e.dead()) continue;
       Mover& mv = movers_[k];
@@ -599,7 +604,7 @@ void FastGrid::rebuild(bool fixed_too) {
     share_stats_[share].lists = sum;
   });
   ListTotals totals;
-  for (unsigned k = 0; k < t; ++k) {
+  for (unsigned k = 0; k < parts; ++k) {
     const ListTotals& sum = share_stats_[k].lists;
     totals.kept += sum.kept;
     totals.renewing += sum.renewing;
@@ -634,27 +639,27 @@ void FastGrid::rebuild(bool fixed_too) {
 void FastGrid::count_slow_movers() {
   const std::size_t m = moving_.entries.size();
   const std::size_t levels = moving_.levels.size();
-  const unsigned t = shares_for(m);
-  share_stats_.resize(t);
-  run_shares(t, [&](unsigned share) {
+  const unsigned parts = chunks_for(m);
+  share_stats_.resize(parts);
+  run_shares(parts, [&](unsigned share) {
     std::uint32_t* count = share_stats_[share].count;
     std::fill(count, count + levels, 0);
-    auto [k, end] = slice(m, share, t);
+    auto [k, end] = slice(m, share, parts);
     for (std::size_t l = 0; l < levels && k < end; ++l)
       for (const std::size_t e = std::min(end, moving_.level_end(l)); k < e; ++k)
         count[l] += movers_[k].fast ? 0 : 1;
   });
   slow_per_level_.assign(levels, 0);
-  for (unsigned k = 0; k < t; ++k)
+  for (unsigned k = 0; k < parts; ++k)
     for (std::size_t l = 0; l < levels; ++l) slow_per_level_[l] += share_stats_[k].count[l];
 }
 
 void FastGrid::point_slots(const Grid& g, Home home) {
   // Every slot is named by one entry: the shares write distinct records.
   const std::size_t n = g.entries.size();
-  const unsigned t = shares_for(n);
-  run_shares(t, [&](unsigned share) {
-    for (auto [k, end] = slice(n, share, t); k < end; ++k) {
+  const unsigned parts = chunks_for(n);
+  run_shares(parts, [&](unsigned share) {
+    for (auto [k, end] = slice(n, share, parts); k < end; ++k) {
       Slot& sl = slots_[g.entries[k].slot];
       sl.home = home;
       sl.pos = static_cast<std::uint32_t>(k);
@@ -701,14 +706,16 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
     if (moving) movers_.clear();
     return;
   }
-  // The passes over the items are split over the threads, each share
-  // taking a contiguous range and keeping its own totals, merged in share
-  // order (sums, minima and maxima: the same for any split).
+  // The passes over the items are split over the threads, in chunks, each
+  // taking a contiguous range and keeping its own totals, merged in chunk
+  // order (sums, minima and maxima: the same for any split); the scatter
+  // in t shares.
   const unsigned t = shares_for(n);
-  share_stats_.resize(t);
-  run_shares(t, [&](unsigned k) {
+  const unsigned parts = chunks_for(n);
+  share_stats_.resize(parts);
+  run_shares(parts, [&](unsigned k) {
     double m = 0;
-    for (auto [i, end] = slice(n, k, t); i < end; ++i) {
+    for (auto [i, end] = slice(n, k, parts); i < end; ++i) {
       const double e = extent_of(items[i].lo, items[i].hi);
       if (std::isfinite(e)) m = std::max(m, e);
     }
@@ -726,14 +733,14 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
   // Pass 1: each item's level, and each level's count and lower-corner span.
   std::vector<std::uint32_t>& tag = scratch_tag_;
   tag.resize(n);
-  run_shares(t, [&](unsigned share) {
+  run_shares(parts, [&](unsigned share) {
     ShareStats& st = share_stats_[share];
     for (int k = 0; k < kLevelSlots; ++k) {
       st.count[k] = 0;
       std::fill(st.span_lo[k], st.span_lo[k] + 3, std::numeric_limits<float>::infinity());
       std::fill(st.span_hi[k], st.span_hi[k] + 3, -std::numeric_limits<float>::infinity());
     }
-    for (auto [i, end] = slice(n, share, t); i < end; ++i) {
+    for (auto [i, end] = slice(n, share, parts); i < end; ++i) {
       const Entry& it = items[i];
       const double e = extent_of(it.lo, it.hi);
       int k = kFiniteLevels;
@@ -831,8 +838,8 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
   // The cells are counted one place up (cell_start[c + 2]), so that after
   // the prefix sum cell_start[c + 1] is the start of cell c: the scatter
   // uses it as the cell's cursor, which leaves it at the start of c + 1.
-  run_shares(t, [&](unsigned share) {
-    for (auto [i, end] = slice(n, share, t); i < end; ++i) {
+  run_shares(parts, [&](unsigned share) {
+    for (auto [i, end] = slice(n, share, parts); i < end; ++i) {
       const Level& lv = g.levels[static_cast<std::size_t>(level_index[target[tag[i]]])];
       tag[i] = lv.cell_of(items[i].lo);
     }
@@ -930,8 +937,7 @@ void FastGrid::make_room_for_renewals(const ListTotals& totals) {
 
 void FastGrid::build_candidate_lists(const ListTotals& totals) {
   const std::size_t m = moving_.entries.size();
-  const unsigned t = shares_for(m);
-  const unsigned chunks = t <= 1 ? 1 : t * kChunksPerShare;
+  const unsigned chunks = chunks_for(m);
   // Each chunk renews the lists of a contiguous range of the moving entries
   // into its own parts (distinct entries share no state; the grids are
   // only read); the parts are appended to the pools in order, so the pools
