@@ -80,6 +80,28 @@ Slice slice(std::size_t n, unsigned k, unsigned parts) {
 // renewals of half as many again.
 std::size_t with_room(std::size_t n) { return n + n / 2 + 1024; }
 
+// Pieces of work numbered 0, 1, ... whose results are joined in that
+// order while later pieces are still being made, on threads: finish(k,
+// join) marks piece k made and then, under a lock, calls join(j) for every
+// piece j from the next one not joined on that is made, in order. Each
+// thread that finishes a piece joins what it can, so no made piece waits
+// for more than the lock, and the last piece made leaves none unjoined.
+class InOrder {
+ public:
+  static constexpr unsigned kMaxPieces = kMaxThreads * kChunksPerShare + 1;
+  template <class F>
+  void finish(unsigned piece, F&& join) {
+    std::lock_guard hold(m_);
+    made_[piece] = true;
+    for (; next_ < kMaxPieces && made_[next_]; ++next_) join(next_);
+  }
+
+ private:
+  std::mutex m_;
+  bool made_[kMaxPieces] = {};
+  unsigned next_ = 0;
+};
+
 // Sorts keys by their high 32 bits, stably: an LSD radix sort, 11 bits a
 // pass, as many passes as the largest key needs (std::sort took half of a
 // pool compaction's time at 102 400 objects).
@@ -950,6 +972,9 @@ void FastGrid::build_candidate_lists(const ListTotals& totals) {
     near_parts_.resize(chunks);
     renewed_.resize(chunks);
   }
+  // The parts are appended as soon as the chunks before them are (while
+  // later chunks still renew lists), on whichever thread is free.
+  InOrder joined;
   run_shares(chunks, [&](unsigned c) {
     // Chunk 0 appends to the pools themselves (no other chunk reads them).
     // Each chunk works on vectors on its own stack, moved in and out (as in
@@ -969,24 +994,25 @@ void FastGrid::build_candidate_lists(const ListTotals& totals) {
     part_home = std::move(part);
     near_home = std::move(near);
     renewed_[c] = std::move(renewed);
+    joined.finish(c, [&](unsigned k) {
+      if (k == 0) return;  // made in the pools
+      const auto offset = static_cast<std::uint32_t>(list_pool_.size());
+      const auto near_offset = static_cast<std::uint32_t>(near_pool_.size());
+      for (std::uint32_t i : renewed_[k]) {
+        movers_[i].list_begin += offset;
+        movers_[i].near_begin += near_offset;
+      }
+      list_pool_.insert(list_pool_.end(), list_parts_[k].begin(), list_parts_[k].end());
+      near_pool_.insert(near_pool_.end(), near_parts_[k].begin(), near_parts_[k].end());
+      // A wave of renewals (every list after a fixed-grid rebuild) leaves
+      // parts far larger than a frame's renewals need: let them go, so
+      // that they do not double the lists' memory; the next frames regrow
+      // them to their steady size once.
+      release_if_oversized(list_parts_[k]);
+      release_if_oversized(near_parts_[k]);
+      release_if_oversized(renewed_[k]);
+    });
   });
-  for (unsigned k = 1; k < chunks; ++k) {
-    const auto offset = static_cast<std::uint32_t>(list_pool_.size());
-    const auto near_offset = static_cast<std::uint32_t>(near_pool_.size());
-    for (std::uint32_t i : renewed_[k]) {
-      movers_[i].list_begin += offset;
-      movers_[i].near_begin += near_offset;
-    }
-    list_pool_.insert(list_pool_.end(), list_parts_[k].begin(), list_parts_[k].end());
-    near_pool_.insert(near_pool_.end(), near_parts_[k].begin(), near_parts_[k].end());
-    // A wave of renewals (every list after a fixed-grid rebuild) leaves
-    // parts far larger than a frame's renewals need: let them go, so that
-    // they do not double the lists' memory; the next frames regrow them to
-    // their steady size once.
-    release_if_oversized(list_parts_[k]);
-    release_if_oversized(near_parts_[k]);
-    release_if_oversized(renewed_[k]);
-  }
   // A pool that had to grow while lists were appended (the first lists, or
   // all of them after a fixed-grid rebuild) keeps room for renewals of half
   // its lists, not what doubling left.
@@ -1076,26 +1102,15 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
     // are found by the other jobs, one chunk of the moving grid each, into
     // the chunk's own buffer. The pieces, fixed pairs first, then the
     // chunks in order (the order of one thread), are appended while later
-    // chunks are still being found (appended after the run, they took 0.09
-    // of a 3 ms frame at scaled-even 102 400 on one thread).
+    // chunks are still being found (appended by the caller after the run,
+    // they took 0.09 ms of a 3 ms two-thread frame at scaled-even 102 400).
     const unsigned chunks = t * kChunksPerShare;
     std::unique_lock lock(buffers_mutex_, std::try_to_lock);
     std::vector<std::vector<HandlePair>> local;
     std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
     if (buffers.size() < chunks) buffers.resize(chunks);
     std::vector<std::uint64_t> tests(chunks, 0);
-    // Per piece: found (written under `append`, like `next` and `out`).
-    bool done[kMaxThreads * kChunksPerShare + 1] = {};
-    unsigned next = 0;  // the next piece to append
-    std::mutex append;
-    auto append_done_pieces = [&](unsigned piece) {
-      // Every thread that finishes a piece appends, under the lock, what is
-      // done from the next piece on: no done piece waits past the last job.
-      std::lock_guard hold(append);
-      done[piece] = true;
-      for (; next <= chunks && done[next]; ++next)
-        if (next > 0) out.insert(out.end(), buffers[next - 1].begin(), buffers[next - 1].end());
-    };
+    InOrder joined;
     const std::size_t expected = last_mover_pairs_.load(std::memory_order_relaxed);
     out.reserve(out.size() + fixed_pairs_.size() + expected + expected / 8);
     run_shares(chunks + 1, [&](unsigned job) {
@@ -1119,7 +1134,9 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
         tests[c] = n_tests;
         buffers[c] = std::move(buf);
       }
-      append_done_pieces(job);
+      joined.finish(job, [&](unsigned piece) {
+        if (piece > 0) out.insert(out.end(), buffers[piece - 1].begin(), buffers[piece - 1].end());
+      });
     });
     std::size_t mover_pairs_found = 0;
     for (unsigned c = 0; c < chunks; ++c) {
