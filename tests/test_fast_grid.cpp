@@ -33,6 +33,17 @@ IdPairs pairs_of(const S& s) {
   return out;
 }
 
+using IdList = std::vector<std::pair<std::uint64_t, std::uint64_t>>;
+
+/// find_pairs' pairs as user data, in the order reported.
+IdList found_in_order(const FastGrid& g) {
+  std::vector<HandlePair> out;
+  g.find_pairs(out);
+  IdList ids;
+  for (const HandlePair& p : out) ids.push_back({g.user_data(p.a), g.user_data(p.b)});
+  return ids;
+}
+
 /// Inserts every object of `scene` (user data: its index), fixed or moving
 /// as the scene says.
 std::vector<Handle> insert_scene(FastGrid& g, const Scene& scene) {
@@ -331,33 +342,21 @@ TEST(FastGrid, PairsOnThreadsComeWholeAndInOrderEveryTime) {
   }
   one.update(m1);
   four.update(m4);
-  std::vector<HandlePair> expect, got;
-  one.find_pairs(expect);
+  const IdList expect = found_in_order(one);
   ASSERT_GT(expect.size(), 10000u);
-  for (HandlePair& p : expect)
-    p = {Handle{static_cast<std::uint32_t>(one.user_data(p.a)), 0},
-         Handle{static_cast<std::uint32_t>(one.user_data(p.b)), 0}};
-  for (int k = 0; k < 200; ++k) {
-    got.clear();
-    four.find_pairs(got);
-    ASSERT_EQ(got.size(), expect.size()) << "call " << k;
-    for (std::size_t j = 0; j < got.size(); ++j)
-      ASSERT_TRUE(four.user_data(got[j].a) == expect[j].a.index &&
-                  four.user_data(got[j].b) == expect[j].b.index)
-          << "call " << k << ", pair " << j;
-  }
+  for (int k = 0; k < 200; ++k) ASSERT_EQ(found_in_order(four), expect) << "call " << k;
 }
 
 TEST(FastGrid, PairOrderDoesNotDependOnThreads) {
   // 32 000 objects give 6400 moving ones: enough for three threads to split
   // both the candidate lists and the pair finding.
   const Scene start = generate(Distribution::scaled_even, 32000, 5);
-  std::vector<std::vector<std::pair<std::uint64_t, std::uint64_t>>> orders;
+  std::vector<IdList> orders;
   for (const char* t : {"1", "2", "3"}) {
     Scene scene = start;
     FastGrid g(with_option("threads", t));
     const std::vector<Handle> h = insert_scene(g, scene);
-    std::vector<std::pair<std::uint64_t, std::uint64_t>> ids;
+    IdList ids;
     std::vector<Move> moves;
     for (int f = 0; f < 3; ++f) {
       if (f > 0) {
@@ -370,11 +369,8 @@ TEST(FastGrid, PairOrderDoesNotDependOnThreads) {
         if (scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
       g.update(moves);
       g.validate();
-      std::vector<HandlePair> out;
-      g.find_pairs(out);
-      std::vector<std::pair<std::uint64_t, std::uint64_t>> frame;
-      for (const HandlePair& p : out) frame.push_back({g.user_data(p.a), g.user_data(p.b)});
-      std::vector<std::pair<std::uint64_t, std::uint64_t>> visited;
+      const IdList frame = found_in_order(g);
+      IdList visited;
       g.for_each_pair([&](Handle a, Handle b) {
         visited.push_back({g.user_data(a), g.user_data(b)});
       });

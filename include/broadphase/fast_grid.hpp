@@ -50,7 +50,6 @@
 #pragma once
 
 #include <algorithm>
-#include <atomic>
 #include <broadphase/broad_phase.hpp>
 #include <broadphase/registry.hpp>
 #include <cmath>
@@ -413,9 +412,6 @@ class FastGrid {
   /// Per-share pair buffers of find_pairs, reused between frames.
   mutable std::mutex buffers_mutex_;
   mutable std::vector<std::vector<HandlePair>> buffers_;
-  /// The movers' pairs the last find_pairs on threads found: room reserved
-  /// in `out` up front, as its appends run on whichever thread is free.
-  mutable std::atomic<std::size_t> last_mover_pairs_{0};
   std::unique_ptr<detail::WorkerPool> pool_;
 };
 

@@ -1111,8 +1111,6 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
     if (buffers.size() < chunks) buffers.resize(chunks);
     std::vector<std::uint64_t> tests(chunks, 0);
     InOrder joined;
-    const std::size_t expected = last_mover_pairs_.load(std::memory_order_relaxed);
-    out.reserve(out.size() + fixed_pairs_.size() + expected + expected / 8);
     run_shares(chunks + 1, [&](unsigned job) {
       if (job == 0) {
         emit_fixed();
@@ -1138,12 +1136,7 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
         if (piece > 0) out.insert(out.end(), buffers[piece - 1].begin(), buffers[piece - 1].end());
       });
     });
-    std::size_t mover_pairs_found = 0;
-    for (unsigned c = 0; c < chunks; ++c) {
-      cost.tests += tests[c];
-      mover_pairs_found += buffers[c].size();
-    }
-    last_mover_pairs_.store(mover_pairs_found, std::memory_order_relaxed);
+    for (unsigned c = 0; c < chunks; ++c) cost.tests += tests[c];
   }
   loose_pairs(emit_out, cost.tests);
   return cost;
