@@ -95,6 +95,10 @@ s = {x['structure']: x for x in j['structures']}
 ok = sorted(s) == ['fast-grid', 'grid-hashed', 'naive'] and all(x['pairs_agree'] for x in s.values())
 ok = ok and j['recommended'] in s and all(x['frames'] >= 1 and x['mean_frame_ms'] > 0 for x in s.values())
 sys.exit(0 if ok else 1)"
+check "advise times a query, an insert and a remove of every structure" python3 -c "
+import json, sys
+j = json.load(open('$tmp/adv'))
+sys.exit(0 if all(x[k] > 0 for x in j['structures'] for k in ('query_us', 'insert_us', 'remove_us')) else 1)"
 expect_error "advise: unknown algorithm" "nope" advise --scene "$tmp/a.scene" --algos naive,nope
 expect_error "advise: missing scene" "cannot open" advise --scene "$tmp/none.scene"
 
