@@ -22,6 +22,7 @@ double OptionReader::number(const std::string& key, double fallback, double lo, 
   if (ec != std::errc{} || end != text.data() + text.size() || !std::isfinite(v) || v < lo ||
       v > hi) {
     std::ostringstream msg;
+    msg.precision(10);  // whole bounds such as 2^24 in full
     msg << structure_ << ": option '" << key << "' must be a number in [" << lo << ", " << hi
         << "], got '" << text << "'";
     throw UnknownStructure(msg.str());
