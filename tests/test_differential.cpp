@@ -73,7 +73,7 @@ TEST_P(Differential, ConstCallsRunConcurrently) {
   const_calls_on_two_threads(GetParam(), generate(Distribution::uneven, 3000, 4));
 }
 
-INSTANTIATE_TEST_SUITE_P(All, Differential, ::testing::ValuesIn(library_structures()),
+INSTANTIATE_TEST_SUITE_P(All, Differential, ::testing::ValuesIn(structure_specs()),
                          StructureParamName{});
 
 }  // namespace

@@ -91,6 +91,9 @@ TEST(FastGrid, RejectsUnknownAndBadOptions) {
   EXPECT_LE(FastGrid(with_option("threads", "0")).threads(), 64u);
   EXPECT_THROW(FastGrid(with_option("threads", "65")), UnknownStructure);
   EXPECT_EQ(FastGrid(with_option("threads", "2")).threads(), 2u);
+  EXPECT_THROW(FastGrid(with_option("grain", "0")), UnknownStructure);
+  EXPECT_THROW(FastGrid(with_option("grain", "2.5")), UnknownStructure);
+  EXPECT_NO_THROW(FastGrid(with_option("grain", "1")));
 }
 
 TEST(FastGrid, CachedFixedPairsFollowRemovalAndUpdate) {

@@ -160,7 +160,7 @@ TEST_P(NastyScenes, MatchNaiveOnEveryFrame) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(All, NastyScenes, ::testing::ValuesIn(library_structures()),
+INSTANTIATE_TEST_SUITE_P(All, NastyScenes, ::testing::ValuesIn(structure_specs()),
                          StructureParamName{});
 
 }  // namespace

@@ -33,7 +33,7 @@ TEST_P(ReferenceScenes, MatchBruteForceOnGeneratedStudyScenes) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(All, ReferenceScenes, ::testing::ValuesIn(library_structures()),
+INSTANTIATE_TEST_SUITE_P(All, ReferenceScenes, ::testing::ValuesIn(structure_specs()),
                          StructureParamName{});
 
 }  // namespace

@@ -88,7 +88,11 @@ class FastGrid {
   /// the bulk update and find_pairs split their work over N threads, with
   /// the same results and pair order for every N);
   /// `cell=F` (0.5..64, default 1): a cell's side over its level's reach
-  /// (larger: fewer cells to visit, more entries per cell).
+  /// (larger: fewer cells to visit, more entries per cell);
+  /// `grain=N` (1..2^24, default 2048): moving objects per thread below
+  /// which the work stays on fewer threads (1: every thread takes part
+  /// from two movers on, which tests use to run the threaded paths on
+  /// small scenes).
   explicit FastGrid(const Config& c = {});
   ~FastGrid();
 
@@ -341,6 +345,7 @@ class FastGrid {
 
   Aabb world_;
   unsigned threads_ = 1;
+  std::size_t grain_ = 1;   // option grain=N: moving objects per share at least
   double cell_factor_ = 1;  // cell side over reach
 
   std::vector<std::uint64_t> user_;  // for a free slot: the next free slot

@@ -51,7 +51,8 @@ constexpr double kMaxMargin = 0.5;
 constexpr double kMinFrames = 2;
 // Threads at most (option threads=N, and hardware concurrency for N = 0).
 constexpr unsigned kMaxThreads = 64;
-// Moving entries per share below which work stays on one thread.
+// Moving entries per share below which work stays on one thread (the
+// default of the option grain=N).
 constexpr std::size_t kMinEntriesPerThread = 2048;
 // Work split over threads comes in this many chunks per thread, taken by
 // whichever thread is free (renewals and list lengths are uneven).
@@ -260,9 +261,13 @@ FastGrid::FastGrid(const Config& c) : world_(c.world) {
   OptionReader opt(c, "fast-grid");
   const double t = opt.number("threads", 1, 0, kMaxThreads);
   cell_factor_ = opt.number("cell", 1, 0.5, 64);
+  const double grain = opt.number("grain", kMinEntriesPerThread, 1, 1 << 24);
   opt.finish();
   if (t != std::floor(t)) throw UnknownStructure("fast-grid: option 'threads' must be an integer");
+  if (grain != std::floor(grain))
+    throw UnknownStructure("fast-grid: option 'grain' must be an integer");
   threads_ = static_cast<unsigned>(t);
+  grain_ = static_cast<std::size_t>(grain);
   if (threads_ == 0) threads_ = std::clamp(std::thread::hardware_concurrency(), 1u, kMaxThreads);
   if (threads_ > 1) pool_ = std::make_unique<detail::WorkerPool>(threads_ - 1);
   if (c.expected_objects > 0) {
@@ -281,7 +286,7 @@ unsigned FastGrid::chunks_for(std::size_t entries) const {
 
 unsigned FastGrid::shares_for(std::size_t entries) const {
   return static_cast<unsigned>(
-      std::min<std::size_t>(threads_, std::max<std::size_t>(1, entries / kMinEntriesPerThread)));
+      std::min<std::size_t>(threads_, std::max<std::size_t>(1, entries / grain_)));
 }
 
 void FastGrid::run_shares(unsigned shares, const std::function<void(unsigned)>& job) const {

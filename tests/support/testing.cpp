@@ -45,6 +45,12 @@ std::vector<std::string> library_structures() {
   return names;
 }
 
+std::vector<std::string> structure_specs() {
+  std::vector<std::string> specs = library_structures();
+  specs.push_back("fast-grid:threads=3,grain=1");
+  return specs;
+}
+
 std::vector<FrameDigest> replay(const std::string& spec, const Scene& scene, int frames,
                                 bool validate_each_frame) {
   Config config;

@@ -24,6 +24,11 @@ std::vector<ReferenceScene> reference_scenes();
 /// The names of every library structure (what `broadphase list` shows).
 std::vector<std::string> library_structures();
 
+/// Every library structure, plus variants whose options take other code
+/// paths: fast-grid on three threads with every pass split from two movers
+/// on (grain=1), so that small scenes run its threaded update and pairs.
+std::vector<std::string> structure_specs();
+
 /// Names a test instantiated over structure names: the name with every
 /// character that is not a letter or digit made '_' (gtest's rule).
 struct StructureParamName {
