@@ -655,12 +655,20 @@ void FastGrid::rebuild(bool fixed_too) {
   moving_count_ = moving_.entries.size();
   count_slow_movers();
   build_candidate_lists(totals);
+  // The loose list can grow to an eighth of the objects while a scene is
+  // inserted; kept after the build it would hold 11 bytes per object for
+  // single inserts that seldom come.
   loose_.clear();
   loose_bounds_.clear();
   loose_shapes_.clear();
   loose_speed_.clear();
+  release_if_oversized(loose_);
+  release_if_oversized(loose_bounds_);
+  release_if_oversized(loose_shapes_);
+  release_if_oversized(loose_speed_);
   for (std::uint32_t s : held_) free_slot(s);
   held_.clear();
+  release_if_oversized(held_);
 }
 
 void FastGrid::count_slow_movers() {
