@@ -12,22 +12,39 @@ namespace broadphase {
 OptionReader::OptionReader(const Config& c, std::string structure)
     : config_(c), structure_(std::move(structure)) {}
 
+namespace {
+// The value of option `key` when `text` is a number in [lo, hi] (a whole
+// one when `whole`); otherwise throws, naming the structure and the range.
+double parse_number(const std::string& structure, const std::string& key, const std::string& text,
+                    double lo, double hi, bool whole) {
+  double v = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc{} || end != text.data() + text.size() || !std::isfinite(v) || v < lo ||
+      v > hi || (whole && v != std::floor(v))) {
+    std::ostringstream msg;
+    msg.precision(10);  // whole bounds such as 2^24 in full
+    msg << structure << ": option '" << key << "' must be " << (whole ? "an integer" : "a number")
+        << " in [" << lo << ", " << hi << "], got '" << text << "'";
+    throw UnknownStructure(msg.str());
+  }
+  return v;
+}
+}  // namespace
+
 double OptionReader::number(const std::string& key, double fallback, double lo, double hi) {
   read_.push_back(key);
   const auto it = config_.options.find(key);
   if (it == config_.options.end()) return fallback;
-  const std::string& text = it->second;
-  double v = 0;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (ec != std::errc{} || end != text.data() + text.size() || !std::isfinite(v) || v < lo ||
-      v > hi) {
-    std::ostringstream msg;
-    msg.precision(10);  // whole bounds such as 2^24 in full
-    msg << structure_ << ": option '" << key << "' must be a number in [" << lo << ", " << hi
-        << "], got '" << text << "'";
-    throw UnknownStructure(msg.str());
-  }
-  return v;
+  return parse_number(structure_, key, it->second, lo, hi, false);
+}
+
+std::int64_t OptionReader::integer(const std::string& key, std::int64_t fallback, std::int64_t lo,
+                                   std::int64_t hi) {
+  read_.push_back(key);
+  const auto it = config_.options.find(key);
+  if (it == config_.options.end()) return fallback;
+  return static_cast<std::int64_t>(parse_number(
+      structure_, key, it->second, static_cast<double>(lo), static_cast<double>(hi), true));
 }
 
 std::string OptionReader::choice(const std::string& key, const std::string& fallback,

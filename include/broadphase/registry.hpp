@@ -6,6 +6,7 @@
 #pragma once
 
 #include <broadphase/broad_phase.hpp>
+#include <cstdint>
 #include <functional>
 #include <initializer_list>
 #include <memory>
@@ -37,6 +38,9 @@ class OptionReader {
   OptionReader(const Config& c, std::string structure);
   /// A number in [lo, hi], or `fallback` when absent.
   double number(const std::string& key, double fallback, double lo, double hi);
+  /// A whole number in [lo, hi], or `fallback` when absent.
+  std::int64_t integer(const std::string& key, std::int64_t fallback, std::int64_t lo,
+                       std::int64_t hi);
   /// One of `allowed`, or `fallback` when absent.
   std::string choice(const std::string& key, const std::string& fallback,
                      std::initializer_list<std::string_view> allowed);

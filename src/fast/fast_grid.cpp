@@ -259,15 +259,10 @@ struct alignas(64) FastGrid::ShareStats {  // on lines of its own: each share wr
 
 FastGrid::FastGrid(const Config& c) : world_(c.world) {
   OptionReader opt(c, "fast-grid");
-  const double t = opt.number("threads", 1, 0, kMaxThreads);
+  threads_ = static_cast<unsigned>(opt.integer("threads", 1, 0, kMaxThreads));
   cell_factor_ = opt.number("cell", 1, 0.5, 64);
-  const double grain = opt.number("grain", kMinEntriesPerThread, 1, 1 << 24);
+  grain_ = static_cast<std::size_t>(opt.integer("grain", kMinEntriesPerThread, 1, 1 << 24));
   opt.finish();
-  if (t != std::floor(t)) throw UnknownStructure("fast-grid: option 'threads' must be an integer");
-  if (grain != std::floor(grain))
-    throw UnknownStructure("fast-grid: option 'grain' must be an integer");
-  threads_ = static_cast<unsigned>(t);
-  grain_ = static_cast<std::size_t>(grain);
   if (threads_ == 0) threads_ = std::clamp(std::thread::hardware_concurrency(), 1u, kMaxThreads);
   if (threads_ > 1) pool_ = std::make_unique<detail::WorkerPool>(threads_ - 1);
   if (c.expected_objects > 0) {

@@ -34,12 +34,8 @@ std::int64_t clamp_cell(double f) {
 
 HGridPaper::HGridPaper(const Config& c) {
   OptionReader options(c, "hgrid-paper");
-  const double levels = options.number("levels", kDefaultLevels, 1, kMaxLevels);
+  levels_ = static_cast<int>(options.integer("levels", kDefaultLevels, 1, kMaxLevels));
   options.finish();
-  if (levels != std::floor(levels))
-    throw UnknownStructure("hgrid-paper: option 'levels' must be a whole number, got " +
-                           c.options.at("levels"));
-  levels_ = static_cast<int>(levels);
   origin_ = c.world.lo;
   const Vec3 extent = c.world.hi - c.world.lo;
   const double side = std::max(extent.x, std::max(extent.y, extent.z));
