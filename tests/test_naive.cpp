@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <broadphase/naive.hpp>
+#include <broadphase/registry.hpp>
 #include <broadphase/scene.hpp>
 #include <utility>
 #include <vector>
@@ -93,6 +94,20 @@ TEST(Naive, MemoryGrowsWithObjectsAndOptionsAreRejected) {
   Config c;
   c.options["cell"] = "1";
   EXPECT_THROW(Naive{c}, UnknownStructure);
+}
+
+TEST(Options, WholeNumberOptionsRefuseFractions) {
+  // A fraction given for a count or a depth is refused, not truncated.
+  for (const char* spec :
+       {"kdtree:leaf=2.5", "octree:split=40.5", "octree-loose:depth=3.5", "octree-linear:depth=3.5",
+        "aabb-tree:max_depth=7.5", "grid-hashed:buckets=100.5", "hgrid-paper:levels=2.5",
+        "fast-grid:threads=1.5", "fast-grid:grain=2.5"})
+    EXPECT_THROW(make_structure(spec), UnknownStructure) << spec;
+  for (const char* spec :
+       {"kdtree:leaf=2", "octree:split=40", "octree-loose:depth=3", "octree-linear:depth=3",
+        "aabb-tree:max_depth=7", "grid-hashed:buckets=100", "hgrid-paper:levels=2",
+        "fast-grid:threads=1", "fast-grid:grain=2"})
+    EXPECT_NO_THROW(make_structure(spec)) << spec;
 }
 
 }  // namespace

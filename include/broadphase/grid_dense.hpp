@@ -47,7 +47,7 @@ class LinkedGrid {
     OptionReader opt(c, name);
     const double cell = opt.number("cell", 0, 0, 1e300);
     if constexpr (kHashed) {
-      const double buckets = opt.number("buckets", 0, 0, 1u << 30);
+      const std::int64_t buckets = opt.integer("buckets", 0, 0, std::int64_t{1} << 30);
       forced_buckets_ = buckets > 0;
       const std::size_t want = forced_buckets_ ? static_cast<std::size_t>(buckets)
                                                : std::max<std::size_t>(c.expected_objects, 64);

@@ -34,7 +34,7 @@ AabbTree::AabbTree(const Config& c, const std::string& name) {
   order_ = parse_order(r.choice(
       "order", "leaves-first", {"leaves-first", "smaller-first", "hit-ratio", "near-far", "none"}));
   predict_ = r.number("predict", 2, 0, 1e6);
-  max_depth_ = static_cast<std::uint32_t>(r.number("max_depth", 0, 0, 1e6));
+  max_depth_ = static_cast<std::uint32_t>(r.integer("max_depth", 0, 0, 1000000));
   front_mode_ = parse_front(r.choice("front", "off", {"off", "basic", "deferred"}));
   r.finish();
   if (c.expected_objects > 0) {

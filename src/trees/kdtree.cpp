@@ -45,7 +45,7 @@ KdTree::KdTree(const Config& c) {
   const std::string p = opt.choice("rebuild", "decay", {"refit", "decay", "always"});
   policy_ = p == "refit" ? Policy::refit : (p == "always" ? Policy::always : Policy::decay);
   decay_ = opt.number("decay", 1.5, 1, 1e6);
-  leaf_size_ = static_cast<std::size_t>(opt.number("leaf", 8, 1, 1024));
+  leaf_size_ = static_cast<std::size_t>(opt.integer("leaf", 8, 1, 1024));
   opt.finish();
   root_ = new_node(kNoNode);
   if (c.expected_objects != 0) index_.reserve(c.expected_objects);

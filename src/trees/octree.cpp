@@ -7,7 +7,7 @@ using detail::kNoNode;
 
 Octree::Octree(const Config& c) : cube_(detail::Cube::around(c.world)) {
   OptionReader opt(c, "octree");
-  split_ = static_cast<std::size_t>(opt.number("split", 32, 1, 1e6));
+  split_ = static_cast<std::size_t>(opt.integer("split", 32, 1, 1000000));
   opt.finish();
   nodes_.emplace_back();
   nodes_[0].cell = cube_.cell(0, 0, 0, 0);

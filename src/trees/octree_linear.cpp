@@ -8,7 +8,7 @@ using detail::kNoNode;
 
 LinearOctree::LinearOctree(const Config& c) : cube_(detail::Cube::around(c.world)) {
   OptionReader opt(c, "octree-linear");
-  max_depth_ = static_cast<int>(opt.number("depth", 4, 0, 20));
+  max_depth_ = static_cast<int>(opt.integer("depth", 4, 0, 20));
   opt.finish();
   nodes_.emplace_back();
   table_.insert(1, 0);

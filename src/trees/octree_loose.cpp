@@ -10,7 +10,7 @@ using detail::kNoNode;
 LooseOctree::LooseOctree(const Config& c) : cube_(detail::Cube::around(c.world)) {
   OptionReader opt(c, "octree-loose");
   const double k = opt.number("k", 2, 1.1, 8);
-  max_depth_ = static_cast<int>(opt.number("depth", 4, 0, 20));
+  max_depth_ = static_cast<int>(opt.integer("depth", 4, 0, 20));
   opt.finish();
   margin_ = (k - 1) / 2 * cube_.side;
   nodes_.emplace_back();
