@@ -3,7 +3,7 @@
 #include <benchmark/benchmark.h>
 
 #include <broadphase/fast_grid.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <string>
 #include <vector>
 

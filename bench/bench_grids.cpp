@@ -5,8 +5,8 @@
 #include <benchmark/benchmark.h>
 
 #include <broadphase/registry.hpp>
-#include <broadphase/replay.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/replay.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <memory>
 #include <string>
 

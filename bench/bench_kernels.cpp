@@ -3,8 +3,8 @@
 
 #include <broadphase/geometry.hpp>
 #include <broadphase/naive.hpp>
-#include <broadphase/replay.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/replay.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <vector>
 
 namespace {

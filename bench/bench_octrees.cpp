@@ -6,7 +6,7 @@
 #include <broadphase/octree.hpp>
 #include <broadphase/octree_linear.hpp>
 #include <broadphase/octree_loose.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <cstdint>
 #include <vector>
 

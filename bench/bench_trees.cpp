@@ -2,9 +2,9 @@
 // and the AABB tree, and the pair table behind sap, each in isolation.
 #include <benchmark/benchmark.h>
 
-#include <broadphase/pair_cache.hpp>
+#include <broadphase/detail/pair_table.hpp>
 #include <broadphase/registry.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <string>
 #include <vector>
 

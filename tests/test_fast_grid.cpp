@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <broadphase/fast_grid.hpp>
 #include <broadphase/naive.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <broadphase/sort_sweep.hpp>
 #include <cmath>
 #include <cstdint>

@@ -4,7 +4,7 @@
 
 #include <algorithm>
 #include <broadphase/grid_dense.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <vector>
 
 #include "structure_testing.hpp"

@@ -4,8 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <broadphase/hgrid_paper.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/study/hgrid_paper.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <set>
 #include <utility>
 #include <vector>

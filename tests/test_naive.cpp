@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <broadphase/naive.hpp>
 #include <broadphase/registry.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <utility>
 #include <vector>
 

@@ -3,8 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <broadphase/octree_paper.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/study/octree_paper.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <set>
 #include <utility>
 #include <vector>

@@ -2,8 +2,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <broadphase/pair_cache.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/detail/pair_table.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <set>
 
 namespace broadphase {

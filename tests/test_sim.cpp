@@ -3,9 +3,9 @@
 // structure.
 #include <gtest/gtest.h>
 
-#include <broadphase/ccd.hpp>
+#include <broadphase/lab/ccd.hpp>
 #include <broadphase/registry.hpp>
-#include <broadphase/sim.hpp>
+#include <broadphase/lab/sim.hpp>
 #include <cmath>
 
 #include "testing.hpp"

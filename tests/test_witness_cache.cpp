@@ -2,7 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <broadphase/naive.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <broadphase/witness_cache.hpp>
 
 #include "testing.hpp"

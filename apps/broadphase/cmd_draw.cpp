@@ -6,8 +6,8 @@
 
 #include <algorithm>
 #include <array>
-#include <broadphase/scene.hpp>
-#include <broadphase/sim.hpp>
+#include <broadphase/lab/scene.hpp>
+#include <broadphase/lab/sim.hpp>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>

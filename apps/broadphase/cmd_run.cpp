@@ -1,7 +1,7 @@
 // `list`, `run` and `gen`: the structures, the replay contract, and scenes.
 #include <algorithm>
-#include <broadphase/replay.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/replay.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>

@@ -1,8 +1,8 @@
 // `sim`: steps a scene with collision response over any structure, and
 // measures the contacts a discrete step misses.
 #include <algorithm>
-#include <broadphase/scene.hpp>
-#include <broadphase/sim.hpp>
+#include <broadphase/lab/scene.hpp>
+#include <broadphase/lab/sim.hpp>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>

@@ -1,5 +1,5 @@
 // broadphase: the command line of the library and its lab.
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <cstdio>
 #include <exception>
 #include <new>

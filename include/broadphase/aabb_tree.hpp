@@ -9,9 +9,9 @@
 
 #include <array>
 #include <atomic>
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <broadphase/detail/inline_stack.hpp>
-#include <broadphase/pair_cache.hpp>
+#include <broadphase/detail/pair_table.hpp>
 #include <broadphase/registry.hpp>
 #include <cstdint>
 #include <mutex>

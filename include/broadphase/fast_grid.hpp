@@ -50,7 +50,7 @@
 #pragma once
 
 #include <algorithm>
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <broadphase/registry.hpp>
 #include <cmath>
 #include <cstddef>

@@ -18,7 +18,7 @@
 #pragma once
 
 #include <bit>
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <broadphase/detail/grid_common.hpp>
 #include <broadphase/registry.hpp>
 #include <cstdint>

@@ -25,7 +25,7 @@
 /// default) patches when few objects changed cells and rebuilds otherwise.
 #pragma once
 
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <broadphase/detail/grid_common.hpp>
 #include <broadphase/registry.hpp>
 #include <span>

@@ -24,7 +24,7 @@
 /// tested against everything.
 #pragma once
 
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <broadphase/detail/grid_common.hpp>
 #include <broadphase/registry.hpp>
 #include <cmath>

@@ -3,7 +3,7 @@
 /// other structure is checked against.
 #pragma once
 
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <broadphase/registry.hpp>
 #include <vector>
 

@@ -10,7 +10,7 @@
 #pragma once
 
 #include <array>
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <broadphase/detail/inline_stack.hpp>
 #include <broadphase/detail/node_items.hpp>
 #include <broadphase/registry.hpp>

@@ -5,7 +5,7 @@
 /// each structure reads the keys it knows and rejects any other.
 #pragma once
 
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <cstdint>
 #include <functional>
 #include <initializer_list>

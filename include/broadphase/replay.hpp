@@ -1,52 +1,9 @@
 /// \file replay.hpp
-/// Replays a scene through any structure, frame by frame, as the contract
-/// says: frame 0 at the file's positions, then move, update, find pairs.
+/// Deprecated forwarding header, kept so that existing code builds: include
+/// <broadphase/lab/replay.hpp> instead. Define BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
+/// to silence the warning.
 #pragma once
-
-#include <broadphase/broad_phase.hpp>
-#include <broadphase/scene.hpp>
-#include <cstdint>
-#include <vector>
-
-namespace broadphase {
-
-/// What one frame found and cost.
-struct FrameResult {
-  FrameDigest digest;
-  std::uint64_t tests = 0;    ///< narrow-phase tests performed
-  double update_seconds = 0;  ///< the structure's update of the moved objects
-  double pairs_seconds = 0;   ///< finding all pairs
-  double seconds() const { return update_seconds + pairs_seconds; }
-};
-
-/// Holds a scene and a structure filled with its objects (object id i has
-/// user data i; moving objects are inserted as Motion::dynamic, the others
-/// as Motion::fixed). Each `next()` evaluates one frame.
-class Replay {
- public:
-  /// Inserts every object of `scene` into `structure` (which should be empty).
-  Replay(AnyBroadPhase& structure, Scene scene);
-
-  /// Evaluates the next frame: frame 0 as loaded, each later one after the
-  /// contract's motion step. The time covers the structure's work only.
-  FrameResult next();
-
-  const Scene& scene() const { return scene_; }
-  int frames_done() const { return frame_; }
-  /// Seconds spent inserting the scene's objects.
-  double build_seconds() const { return build_seconds_; }
-  /// The handle of object id `i`.
-  Handle handle(std::size_t i) const { return handles_[i]; }
-
- private:
-  AnyBroadPhase& bp_;
-  Scene scene_;
-  std::vector<Handle> handles_;
-  std::vector<std::uint32_t> moving_;  // ids of moving objects
-  std::vector<Move> moves_;
-  std::vector<HandlePair> pairs_;
-  int frame_ = 0;
-  double build_seconds_ = 0;
-};
-
-}  // namespace broadphase
+#ifndef BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
+#pragma GCC warning "<broadphase/replay.hpp> is deprecated: include <broadphase/lab/replay.hpp>"
+#endif
+#include <broadphase/lab/replay.hpp>

@@ -9,8 +9,8 @@
 #include <algorithm>
 #include <array>
 #include <bit>
-#include <broadphase/broad_phase.hpp>
-#include <broadphase/pair_cache.hpp>
+#include <broadphase/structure.hpp>
+#include <broadphase/detail/pair_table.hpp>
 #include <broadphase/registry.hpp>
 #include <cstdint>
 #include <vector>

@@ -5,7 +5,7 @@
 /// float keys) and sweeps.
 #pragma once
 
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <broadphase/registry.hpp>
 #include <cstdint>
 #include <span>

@@ -5,7 +5,7 @@
 /// questions cost one exact test instead of a query.
 #pragma once
 
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <cstdint>
 #include <vector>
 

@@ -1,6 +1,6 @@
 #include <algorithm>
 #include <bit>
-#include <broadphase/hgrid_paper.hpp>
+#include <broadphase/study/hgrid_paper.hpp>
 #include <cmath>
 #include <stdexcept>
 #include <string>

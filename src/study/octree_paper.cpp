@@ -1,6 +1,6 @@
 #include <algorithm>
 #include <bit>
-#include <broadphase/octree_paper.hpp>
+#include <broadphase/study/octree_paper.hpp>
 #include <cmath>
 #include <stdexcept>
 #include <string>

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <barrier>
 #include <broadphase/naive.hpp>
-#include <broadphase/replay.hpp>
+#include <broadphase/lab/replay.hpp>
 #include <cctype>
 #include <cmath>
 #include <filesystem>

@@ -2,9 +2,9 @@
 // harness that drives any structure and the naive oracle side by side.
 #pragma once
 
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <broadphase/registry.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <cstdint>
 #include <string>
 #include <vector>

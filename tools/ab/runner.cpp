@@ -3,8 +3,14 @@
 #include "runner.hpp"
 
 #include <broadphase/registry.hpp>
+// A commit from before the lab headers moved has them at the top level.
+#if __has_include(<broadphase/lab/replay.hpp>)
+#include <broadphase/lab/replay.hpp>
+#include <broadphase/lab/scene.hpp>
+#else
 #include <broadphase/replay.hpp>
 #include <broadphase/scene.hpp>
+#endif
 
 #define AB_CAT2(a, b) a##b
 #define AB_CAT(a, b) AB_CAT2(a, b)

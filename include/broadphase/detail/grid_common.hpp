@@ -15,7 +15,7 @@
 #pragma once
 
 #include <algorithm>
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <broadphase/cell_size.hpp>
 #include <broadphase/handle.hpp>
 #include <cmath>

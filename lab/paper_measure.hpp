@@ -3,7 +3,7 @@
 #pragma once
 
 #include <broadphase/registry.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <cstdint>
 #include <functional>
 #include <string>

@@ -6,8 +6,8 @@
 
 #include <algorithm>
 #include <broadphase/registry.hpp>
-#include <broadphase/replay.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/replay.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <chrono>
 #include <cstdint>
 #include <exception>

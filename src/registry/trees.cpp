@@ -1,4 +1,4 @@
-#include "../register.hpp"
+#include "register.hpp"
 
 #include <broadphase/aabb_tree.hpp>
 #include <broadphase/kdtree.hpp>

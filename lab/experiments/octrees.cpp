@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <broadphase/kdtree.hpp>
 #include <broadphase/registry.hpp>
-#include <broadphase/replay.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/replay.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <chrono>
 #include <cstdio>
 #include <fstream>

@@ -1,6 +1,6 @@
 #include <algorithm>
 #include <bit>
-#include <broadphase/pair_cache.hpp>
+#include <broadphase/detail/pair_table.hpp>
 #include <stdexcept>
 
 namespace broadphase {

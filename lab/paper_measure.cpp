@@ -1,7 +1,7 @@
 #include "paper_measure.hpp"
 
 #include <algorithm>
-#include <broadphase/replay.hpp>
+#include <broadphase/lab/replay.hpp>
 #include <chrono>
 #include <numeric>
 

@@ -1,8 +1,8 @@
-#include "../register.hpp"
+#include "register.hpp"
 
-#include <broadphase/hgrid_paper.hpp>
+#include <broadphase/study/hgrid_paper.hpp>
 #include <broadphase/naive.hpp>
-#include <broadphase/octree_paper.hpp>
+#include <broadphase/study/octree_paper.hpp>
 
 namespace broadphase::detail {
 

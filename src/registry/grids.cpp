@@ -1,4 +1,4 @@
-#include "../register.hpp"
+#include "register.hpp"
 
 #include <broadphase/grid_dense.hpp>
 #include <broadphase/grid_hashed.hpp>

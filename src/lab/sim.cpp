@@ -1,6 +1,6 @@
 #include <algorithm>
-#include <broadphase/ccd.hpp>
-#include <broadphase/sim.hpp>
+#include <broadphase/lab/ccd.hpp>
+#include <broadphase/lab/sim.hpp>
 #include <chrono>
 #include <cmath>
 #include <limits>

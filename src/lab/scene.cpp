@@ -1,4 +1,4 @@
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <cerrno>
 #include <charconv>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "../register.hpp"
+#include "register.hpp"
 
 #include <broadphase/fast_grid.hpp>
 

@@ -1,4 +1,4 @@
-#include <broadphase/replay.hpp>
+#include <broadphase/lab/replay.hpp>
 #include <chrono>
 #include <string>
 

@@ -17,7 +17,7 @@
 #include <utility>
 #include <vector>
 
-#include "../commands.hpp"
+#include "commands.hpp"
 
 namespace {
 

@@ -3,8 +3,8 @@
 // with the automatic choice marked.
 #include <algorithm>
 #include <broadphase/grid_hashed.hpp>
-#include <broadphase/replay.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/replay.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <chrono>
 #include <cmath>
 #include <cstdio>

@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <broadphase/aabb_tree.hpp>
 #include <broadphase/registry.hpp>
-#include <broadphase/scene.hpp>
+#include <broadphase/lab/scene.hpp>
 #include <broadphase/witness_cache.hpp>
 #include <cstdio>
 #include <ctime>

@@ -2,8 +2,8 @@
 // frames, and the cost of a frame, for the three ways of finding contacts,
 // on a scene made to tunnel and on the study's workload.
 #include <algorithm>
-#include <broadphase/scene.hpp>
-#include <broadphase/sim.hpp>
+#include <broadphase/lab/scene.hpp>
+#include <broadphase/lab/sim.hpp>
 #include <chrono>
 #include <cmath>
 #include <cstdio>

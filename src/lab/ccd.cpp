@@ -1,4 +1,4 @@
-#include <broadphase/ccd.hpp>
+#include <broadphase/lab/ccd.hpp>
 #include <cmath>
 
 namespace broadphase {

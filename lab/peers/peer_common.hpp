@@ -9,7 +9,7 @@
 // loses a candidate (docs/peers.md lists where that happens).
 #pragma once
 
-#include <broadphase/broad_phase.hpp>
+#include <broadphase/structure.hpp>
 #include <broadphase/handle.hpp>
 #include <broadphase/registry.hpp>
 #include <cstdint>

@@ -1,0 +1,52 @@
+/// \file lab/replay.hpp
+/// Replays a scene through any structure, frame by frame, as the contract
+/// says: frame 0 at the file's positions, then move, update, find pairs.
+#pragma once
+
+#include <broadphase/structure.hpp>
+#include <broadphase/lab/scene.hpp>
+#include <cstdint>
+#include <vector>
+
+namespace broadphase {
+
+/// What one frame found and cost.
+struct FrameResult {
+  FrameDigest digest;
+  std::uint64_t tests = 0;    ///< narrow-phase tests performed
+  double update_seconds = 0;  ///< the structure's update of the moved objects
+  double pairs_seconds = 0;   ///< finding all pairs
+  double seconds() const { return update_seconds + pairs_seconds; }
+};
+
+/// Holds a scene and a structure filled with its objects (object id i has
+/// user data i; moving objects are inserted as Motion::dynamic, the others
+/// as Motion::fixed). Each `next()` evaluates one frame.
+class Replay {
+ public:
+  /// Inserts every object of `scene` into `structure` (which should be empty).
+  Replay(AnyBroadPhase& structure, Scene scene);
+
+  /// Evaluates the next frame: frame 0 as loaded, each later one after the
+  /// contract's motion step. The time covers the structure's work only.
+  FrameResult next();
+
+  const Scene& scene() const { return scene_; }
+  int frames_done() const { return frame_; }
+  /// Seconds spent inserting the scene's objects.
+  double build_seconds() const { return build_seconds_; }
+  /// The handle of object id `i`.
+  Handle handle(std::size_t i) const { return handles_[i]; }
+
+ private:
+  AnyBroadPhase& bp_;
+  Scene scene_;
+  std::vector<Handle> handles_;
+  std::vector<std::uint32_t> moving_;  // ids of moving objects
+  std::vector<Move> moves_;
+  std::vector<HandlePair> pairs_;
+  int frame_ = 0;
+  double build_seconds_ = 0;
+};
+
+}  // namespace broadphase

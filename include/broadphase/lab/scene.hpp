@@ -1,0 +1,150 @@
+/// \file lab/scene.hpp
+/// Scene files (SCENE-FORMAT.md, versions 1 and 2), the replay motion, the
+/// pair hash, and the study's workload generator.
+#pragma once
+
+#include <broadphase/geometry.hpp>
+#include <cstdint>
+#include <iosfwd>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace broadphase {
+
+/// A world cube [0, L]^3 with objects; object id = position in `objects`.
+struct Scene {
+  double world = 1000;
+  std::vector<Shape> objects;
+  std::vector<Vec3> velocity;  ///< per object; (0,0,0) means static
+
+  std::size_t size() const { return objects.size(); }
+  bool is_moving(std::size_t i) const {
+    const Vec3& v = velocity[i];
+    return v.x != 0 || v.y != 0 || v.z != 0;
+  }
+  /// True when any object is a box (the file must then be version 2).
+  bool has_boxes() const;
+};
+
+/// Thrown for a malformed scene; `what()` is "FILE:LINE: reason".
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Parses a scene. `name` is used in messages. Throws SceneError. Beyond
+/// the letter of the format, CRLF line ends, a UTF-8 byte order mark before
+/// the header and a leading '+' on a number are accepted.
+Scene parse_scene(std::istream& in, const std::string& name);
+/// Reads a scene file. Throws SceneError (also when it cannot be opened).
+Scene read_scene(const std::string& path);
+/// Writes version 1 (spheres only) or version 2 (when there are boxes),
+/// numbers as %.17g so that reading gives back the same doubles.
+void write_scene(std::ostream& out, const Scene& scene);
+/// Writes a scene file. Throws std::runtime_error when it cannot be written.
+void write_scene(const std::string& path, const Scene& scene);
+
+/// Moves every object with a non-zero velocity by one frame, axis by axis,
+/// reflecting off the walls of [0, L], exactly as the contract says.
+void step(Scene& scene);
+/// The motion of one coordinate (exposed for tests and other steppers).
+inline void step_axis(double& p, double& v, double world) {
+  p += v;
+  if (p < 0) {
+    p = -p;
+    v = -v;
+  } else if (p > world) {
+    p = 2 * world - p;
+    v = -v;
+  }
+}
+
+/// splitmix64 as the contract defines it.
+constexpr std::uint64_t splitmix64(std::uint64_t x) {
+  std::uint64_t z = x + 0x9E3779B97F4A7C15ull;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+
+/// The contract's hash of one pair of object ids (any order).
+constexpr std::uint64_t pair_hash(std::uint32_t i, std::uint32_t j) {
+  if (i > j) std::swap(i, j);
+  return splitmix64((std::uint64_t(i) << 32) | j);
+}
+
+/// Pair count and order-independent hash of one frame.
+struct FrameDigest {
+  std::uint64_t pairs = 0;
+  std::uint64_t hash = 0;
+  void add(std::uint32_t i, std::uint32_t j) {
+    ++pairs;
+    hash += pair_hash(i, j);
+  }
+  friend bool operator==(const FrameDigest&, const FrameDigest&) = default;
+};
+
+/// 16 lowercase hex digits.
+std::string hex16(std::uint64_t v);
+
+/// The study's workloads (SCENE-FORMAT.md, "The paper's workloads"), and
+/// the stress kinds the performance work is measured on.
+enum class Distribution {
+  even,           ///< the study: centres uniform in the 1 km cube
+  uneven,         ///< the study: 80% within the lowest tenth of the cube
+  scaled_even,    ///< even at the study's density of 6400 objects per km³
+  scaled_uneven,  ///< uneven at the study's density
+  clusters,       ///< Gaussian clusters of 500 objects each (sigma L/40)
+  decades,        ///< radii log-uniform over five decades, 0.001 to 100
+  all_moving,     ///< even, but every object moves
+  explosion,      ///< debris flying out of a small ball: incoherent motion
+  flat,           ///< every centre within 1 unit of the ground (y in [0, 1])
+  coincident,     ///< a quarter of the objects share one of N/100 centres
+  outside,        ///< 10% of the centres outside the world, 1 in 5000 larger than it
+};
+
+/// Every distribution, in enum order.
+inline constexpr Distribution kAllDistributions[] = {
+    Distribution::even,          Distribution::uneven,    Distribution::scaled_even,
+    Distribution::scaled_uneven, Distribution::clusters,  Distribution::decades,
+    Distribution::all_moving,    Distribution::explosion, Distribution::flat,
+    Distribution::coincident,    Distribution::outside};
+
+/// Parses a distribution name ("even", "scaled-even", "all-moving", ...).
+/// Throws std::invalid_argument listing the valid names.
+Distribution parse_distribution(std::string_view name);
+std::string_view to_string(Distribution d);
+
+/// A small, portable, seedable generator (splitmix64 stream), so a seed
+/// gives the same scene on every platform and standard library.
+class Rng {
+ public:
+  explicit Rng(std::uint64_t seed) : state_(seed) {}
+  std::uint64_t next() {
+    state_ += 0x9E3779B97F4A7C15ull;
+    return splitmix64(state_ - 0x9E3779B97F4A7C15ull);
+  }
+  /// Uniform in [0, 1), 53 bits.
+  double uniform() { return static_cast<double>(next() >> 11) * 0x1p-53; }
+  double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
+  /// Uniform in [0, n).
+  std::uint64_t below(std::uint64_t n) { return n == 0 ? 0 : next() % n; }
+  /// A direction uniform on the unit sphere.
+  Vec3 direction();
+
+ private:
+  std::uint64_t state_;
+};
+
+/// Generates a workload of N objects. The study's kinds: spheres with radius
+/// uniform in [0.5, 50] (diameters L/1000 .. L/10 of the 1 km world), 20%
+/// moving with a uniform direction and a speed uniform in [0.1, 2]; scaled
+/// kinds keep the density of 6400 objects per km³: L = 1000 * cbrt(N / 6400).
+/// The stress kinds keep L = 1000 and the study's speeds unless their
+/// description says otherwise, with radii uniform in [0.5, 5] so that 20 000
+/// objects are about as crowded as the study's 6400.
+Scene generate(Distribution d, std::size_t n, std::uint64_t seed);
+
+}  // namespace broadphase

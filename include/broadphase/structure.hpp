@@ -1,0 +1,203 @@
+/// \file structure.hpp
+/// The one interface every structure implements, as a compile-time concept
+/// for the hot paths and as a type-erased class for the CLI and the lab.
+///
+/// Reading and writing are separate: `query`, `for_each_pair`, `size`,
+/// `memory_bytes` and `validate` are const and may run concurrently with each
+/// other; `insert`, `remove`, `update` mutate and need exclusive access.
+/// Mutations are complete when they return: no structure defers work to the
+/// next query.
+#pragma once
+
+#include <broadphase/geometry.hpp>
+#include <broadphase/handle.hpp>
+#include <concepts>
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+namespace broadphase {
+
+/// How an object is expected to move. A hint only: every structure stays
+/// exact when a `fixed` object is updated, it may just cost more.
+enum class Motion : std::uint8_t {
+  dynamic,  ///< updated often (the study's moving 20%)
+  fixed,    ///< rarely or never updated (the study's static 80%)
+};
+
+/// What a query or an all-pairs pass cost. `tests` counts exact narrow-phase
+/// predicate evaluations (the study's "narrow-phase tests"); `stopped` is
+/// true when the visitor asked to stop early.
+struct QueryCost {
+  std::uint64_t tests = 0;
+  bool stopped = false;
+};
+
+/// Two objects that overlap. The order inside a pair is unspecified.
+struct HandlePair {
+  Handle a, b;
+};
+
+/// One object's new shape, for bulk updates.
+struct Move {
+  Handle handle;
+  Shape shape;
+};
+
+/// Options common to all structures. Every field has a sensible default.
+struct Config {
+  /// The region most objects live in. A hint for structures that subdivide
+  /// a box (octrees, dense grids): objects outside it are still handled
+  /// exactly, at some cost. Must be non-empty and finite.
+  Aabb world{{0, 0, 0}, {1000, 1000, 1000}};
+  /// How many objects the caller expects; sizes tables up front. 0: grow.
+  std::size_t expected_objects = 0;
+  /// Structure-specific options, `key=value` as given after a structure's
+  /// name (`grid-dense:cell=25`). Each structure rejects keys it does not know.
+  std::map<std::string, std::string> options;
+};
+
+/// Calls a visitor and tells whether to continue: a visitor may return bool
+/// (false stops the traversal) or nothing (never stops).
+template <class V, class... Args>
+inline bool visit(V& v, Args&&... args) {
+  if constexpr (std::is_void_v<std::invoke_result_t<V&, Args...>>) {
+    v(std::forward<Args>(args)...);
+    return true;
+  } else {
+    return static_cast<bool>(v(std::forward<Args>(args)...));
+  }
+}
+
+/// What every structure provides. Query visitors take `(Handle)`, pair
+/// visitors `(Handle, Handle)`; both may return bool to stop early. A shape
+/// given to insert, update or query must be valid (`is_valid`), or the call
+/// throws InvalidShape and changes nothing; a stale handle throws
+/// InvalidHandle.
+template <class S>
+concept Structure = requires(S& s, const S& cs, const Shape& shape, Handle h, std::uint64_t user,
+                             bool (*qv)(Handle), bool (*pv)(Handle, Handle)) {
+  { s.insert(shape, user, Motion::dynamic) } -> std::same_as<Handle>;
+  s.remove(h);
+  s.update(h, shape);
+  { cs.query(shape, qv) } -> std::same_as<QueryCost>;
+  { cs.for_each_pair(pv) } -> std::same_as<QueryCost>;
+  { cs.size() } -> std::convertible_to<std::size_t>;
+  { cs.memory_bytes() } -> std::convertible_to<std::size_t>;
+  { cs.contains(h) } -> std::same_as<bool>;
+  { cs.shape(h) } -> std::convertible_to<Shape>;
+  { cs.user_data(h) } -> std::same_as<std::uint64_t>;
+  cs.validate();
+};
+
+/// A non-owning reference to a callable, cheaper than std::function: one
+/// indirect call, no allocation. The referenced callable must outlive it.
+template <class Sig>
+class FunctionRef;
+
+template <class R, class... Args>
+class FunctionRef<R(Args...)> {
+ public:
+  template <class F>
+  requires(!std::is_same_v<std::remove_cvref_t<F>, FunctionRef> &&
+           std::is_invocable_r_v<R, F&, Args...>)
+      FunctionRef(F&& f)  // NOLINT(google-explicit-constructor): a reference wrapper
+      : obj_(const_cast<void*>(static_cast<const void*>(std::addressof(f)))),
+        call_([](void* o, Args... a) -> R {
+          return static_cast<R>(
+              (*static_cast<std::remove_reference_t<F>*>(o))(std::forward<Args>(a)...));
+        }) {}
+  R operator()(Args... a) const { return call_(obj_, std::forward<Args>(a)...); }
+
+ private:
+  void* obj_;
+  R (*call_)(void*, Args...);
+};
+
+/// The type-erased face of a structure: one virtual call per operation or
+/// query, never per node. Used by the CLI, the lab and the tests to handle
+/// all structures alike. Same thread-safety as the structure it wraps.
+class AnyBroadPhase {
+ public:
+  virtual ~AnyBroadPhase() = default;
+
+  /// Adds an object; returns its handle. Throws InvalidShape.
+  virtual Handle insert(const Shape& s, std::uint64_t user, Motion m = Motion::dynamic) = 0;
+  /// Removes an object; its handle becomes stale. Throws InvalidHandle.
+  virtual void remove(Handle h) = 0;
+  /// Moves and/or resizes an object. Throws InvalidHandle, InvalidShape.
+  virtual void update(Handle h, const Shape& s) = 0;
+  /// Updates many objects at once (some structures rebuild once per batch).
+  virtual void update(std::span<const Move> moves) = 0;
+  /// Visits every object whose shape overlaps `s` exactly.
+  virtual QueryCost query(const Shape& s, FunctionRef<bool(Handle)> visitor) const = 0;
+  /// Visits every overlapping pair once.
+  virtual QueryCost for_each_pair(FunctionRef<bool(Handle, Handle)> visitor) const = 0;
+  /// Appends every overlapping pair once to `out` (no per-pair virtual call).
+  virtual QueryCost find_pairs(std::vector<HandlePair>& out) const = 0;
+
+  virtual std::size_t size() const = 0;
+  /// Bytes of memory the structure holds (capacities, not sizes).
+  virtual std::size_t memory_bytes() const = 0;
+  virtual bool contains(Handle h) const = 0;
+  virtual Shape shape(Handle h) const = 0;
+  virtual std::uint64_t user_data(Handle h) const = 0;
+  /// Checks the structure's invariants; throws std::logic_error naming the
+  /// first one that fails.
+  virtual void validate() const = 0;
+};
+
+/// Wraps a concrete structure behind AnyBroadPhase.
+template <Structure S>
+class Erased final : public AnyBroadPhase {
+ public:
+  template <class... A>
+  explicit Erased(A&&... a) : s_(std::forward<A>(a)...) {}
+
+  Handle insert(const Shape& s, std::uint64_t user, Motion m) override {
+    return s_.insert(s, user, m);
+  }
+  void remove(Handle h) override { s_.remove(h); }
+  void update(Handle h, const Shape& s) override { s_.update(h, s); }
+  void update(std::span<const Move> moves) override {
+    if constexpr (requires { s_.update(moves); }) {
+      s_.update(moves);
+    } else {
+      for (const Move& m : moves) s_.update(m.handle, m.shape);
+    }
+  }
+  QueryCost query(const Shape& s, FunctionRef<bool(Handle)> v) const override {
+    return s_.query(s, v);
+  }
+  QueryCost for_each_pair(FunctionRef<bool(Handle, Handle)> v) const override {
+    return s_.for_each_pair(v);
+  }
+  QueryCost find_pairs(std::vector<HandlePair>& out) const override {
+    if constexpr (requires { s_.find_pairs(out); }) {
+      return s_.find_pairs(out);
+    } else {
+      return s_.for_each_pair([&out](Handle a, Handle b) { out.push_back({a, b}); });
+    }
+  }
+  std::size_t size() const override { return s_.size(); }
+  std::size_t memory_bytes() const override { return s_.memory_bytes(); }
+  bool contains(Handle h) const override { return s_.contains(h); }
+  Shape shape(Handle h) const override { return s_.shape(h); }
+  std::uint64_t user_data(Handle h) const override { return s_.user_data(h); }
+  void validate() const override { s_.validate(); }
+
+  S& get() { return s_; }
+  const S& get() const { return s_; }
+
+ private:
+  S s_;
+};
+
+}  // namespace broadphase
