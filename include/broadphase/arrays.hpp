@@ -1,0 +1,242 @@
+/// \file arrays.hpp
+/// The lean path: overlapping pairs over the caller's own arrays.
+///
+/// The handle API (`structure.hpp`) copies every object into the structure,
+/// which then owns its shape and user data. Codes that keep their objects in
+/// arrays of their own (particle and DEM codes, numpy, an engine's body pool,
+/// an MPI rank's local block) do not want that copy: this header finds pairs
+/// by reading the caller's arrays in place, and keeps only its own index
+/// between calls. Results are the caller's indices.
+///
+/// Exact by the same contract as every structure: a pair (i, j) is reported
+/// exactly when `overlaps()` of geometry.hpp holds for the two objects as
+/// read in double (a float is widened exactly), touching counts, each pair
+/// once, with i < j (bipartite calls: i indexes the first set, j the second).
+///
+/// Thread safety: the free functions are reentrant and may run concurrently
+/// on any arrays. A `PairTracker` is used by one thread at a time (its calls
+/// mutate its index); distinct trackers are independent. No call writes to
+/// the caller's arrays; the arrays must not change during a call.
+#pragma once
+
+#include <broadphase/geometry.hpp>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <functional>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace broadphase {
+
+/// The number type of a column of the caller's data.
+enum class Real : std::uint8_t { f64, f32 };
+
+/// One number per object, read in place from the caller's memory:
+/// object i's value is at `data + i * stride` (bytes), of type `type`.
+/// A stride of 0 gives every object the same value (a scalar radius).
+/// Array-of-structs and struct-of-arrays layouts are both columns with
+/// different strides.
+struct Column {
+  const void* data = nullptr;
+  std::ptrdiff_t stride = 0;
+  Real type = Real::f64;
+
+  /// Object i's value, widened exactly to double.
+  double at(std::size_t i) const {
+    const auto* p =
+        static_cast<const unsigned char*>(data) + static_cast<std::ptrdiff_t>(i) * stride;
+    if (type == Real::f64) {
+      double v;
+      std::memcpy(&v, p, sizeof v);
+      return v;
+    }
+    float v;
+    std::memcpy(&v, p, sizeof v);
+    return static_cast<double>(v);
+  }
+  bool empty() const { return data == nullptr; }
+
+  /// A dense column of `T` with `stride_elems` elements between objects.
+  template <class T>
+  static Column of(const T* p, std::ptrdiff_t stride_elems = 1) {
+    static_assert(std::is_same_v<T, double> || std::is_same_v<T, float>);
+    return {p, stride_elems * static_cast<std::ptrdiff_t>(sizeof(T)),
+            std::is_same_v<T, double> ? Real::f64 : Real::f32};
+  }
+};
+
+/// A borrowed set of objects: centres plus, per object, a sphere radius or
+/// box half-extents, all read from the caller's memory. Nothing is copied;
+/// the memory must outlive every call that reads it.
+///
+/// Kinds: with `kind` empty, every object is a sphere when `radius` is set,
+/// else a box. With `kind` set, byte `kind[i * kind_stride]` is 0 for a
+/// sphere (its `radius` is read) and 1 for a box (its `half_*` are read).
+struct Objects {
+  std::size_t count = 0;
+  Column x, y, z;                 ///< centre coordinates
+  Column radius;                  ///< sphere radius (stride 0: one for all)
+  Column half_x, half_y, half_z;  ///< box half-extents
+  const std::uint8_t* kind = nullptr;
+  std::ptrdiff_t kind_stride = 1;
+
+  /// Spheres, centres as n×3 rows (`xyz[3i + a]`), radii one per object
+  /// (or `radius_stride` 0 for one radius shared by all).
+  template <class T>
+  static Objects spheres(const T* xyz, const T* radii, std::size_t n,
+                         std::ptrdiff_t radius_stride = 1) {
+    Objects o;
+    o.count = n;
+    o.x = Column::of(xyz, 3);
+    o.y = Column::of(xyz + 1, 3);
+    o.z = Column::of(xyz + 2, 3);
+    o.radius = Column::of(radii, radius_stride);
+    return o;
+  }
+  /// Boxes, centres and half-extents as n×3 rows.
+  template <class T>
+  static Objects boxes(const T* center_xyz, const T* half_xyz, std::size_t n) {
+    Objects o;
+    o.count = n;
+    o.x = Column::of(center_xyz, 3);
+    o.y = Column::of(center_xyz + 1, 3);
+    o.z = Column::of(center_xyz + 2, 3);
+    o.half_x = Column::of(half_xyz, 3);
+    o.half_y = Column::of(half_xyz + 1, 3);
+    o.half_z = Column::of(half_xyz + 2, 3);
+    return o;
+  }
+
+  bool is_sphere(std::size_t i) const {
+    if (kind != nullptr) return kind[static_cast<std::ptrdiff_t>(i) * kind_stride] == 0;
+    return !radius.empty();
+  }
+  /// Object i as a Shape (no validity check: see `check_objects`).
+  Shape shape(std::size_t i) const {
+    const Vec3 c{x.at(i), y.at(i), z.at(i)};
+    if (is_sphere(i)) return Shape::sphere(c, radius.at(i));
+    return Shape::box(c, {half_x.at(i), half_y.at(i), half_z.at(i)});
+  }
+};
+
+/// Thrown for unusable input: a NaN or infinite coordinate, a negative or
+/// non-finite radius or half-extent, a missing column, an unknown kind byte,
+/// more objects than 32-bit indices can name. `index` is the first bad
+/// object (or SIZE_MAX when the error is not about one object).
+class InvalidObjects : public std::invalid_argument {
+ public:
+  InvalidObjects(const std::string& what, std::size_t index)
+      : std::invalid_argument(what), index_(index) {}
+  std::size_t index() const { return index_; }
+
+ private:
+  std::size_t index_;
+};
+
+/// Checks every value the calls will read; throws InvalidObjects naming
+/// the first bad object and what is wrong with it. Every call below runs it
+/// on its input before it reads anything else (its cost is measured in
+/// docs/performance.md).
+void check_objects(const Objects& objects, const char* what = "objects");
+
+/// Two indices of the caller's objects: i < j within one set; for the
+/// bipartite calls, i in the first set and j in the second.
+struct IndexPair {
+  std::uint32_t i, j;
+  friend constexpr bool operator==(const IndexPair&, const IndexPair&) = default;
+};
+
+/// Where pairs go. Pairs are handed over in chunks, in one deterministic
+/// order that does not depend on the thread count; a chunk is valid only
+/// during the call. Return false to stop early.
+using PairSink = std::function<bool(std::span<const IndexPair>)>;
+
+/// Options of the one-shot calls and the tracker.
+struct ArrayOptions {
+  /// Threads to use; 1 runs on the calling thread, 0 uses every core. The
+  /// pairs and their order are the same for every thread count.
+  unsigned threads = 1;
+  /// Verlet skin of the tracker, relative to the typical object size: a
+  /// moved object keeps its candidate list while it stays within the skin.
+  /// 0 picks a default from the measured trade-off.
+  double skin = 0;
+  /// Sort the pairs (by i, then j) before handing them over.
+  bool sorted = false;
+};
+
+/// What one call did, for the lab and the tests.
+struct ArrayCallStats {
+  std::uint64_t pairs = 0;
+  std::uint64_t tests = 0;  ///< exact predicate evaluations
+  bool rebuilt = false;     ///< the tracker rebuilt its index in this call
+  bool stopped = false;     ///< the sink asked to stop
+};
+
+/// All overlapping pairs (i < j) of one set, streamed to `sink`.
+ArrayCallStats find_pairs(const Objects& objects, const PairSink& sink,
+                          const ArrayOptions& options = {});
+/// All overlapping pairs of one set, appended to `out`.
+ArrayCallStats find_pairs(const Objects& objects, std::vector<IndexPair>& out,
+                          const ArrayOptions& options = {});
+/// All overlapping pairs (i in `a`, j in `b`) between two sets.
+ArrayCallStats find_pairs(const Objects& a, const Objects& b, const PairSink& sink,
+                          const ArrayOptions& options = {});
+ArrayCallStats find_pairs(const Objects& a, const Objects& b, std::vector<IndexPair>& out,
+                          const ArrayOptions& options = {});
+/// The indices of the objects that overlap `shape`, in increasing order.
+/// Throws InvalidShape for an invalid shape.
+std::vector<std::uint32_t> query(const Objects& objects, const Shape& shape);
+
+/// Which objects changed since the tracker's last call.
+struct Changes {
+  /// True: any object may have moved, resized or changed kind (the tracker
+  /// finds out which itself). False: only those listed in `indices` did.
+  bool all = true;
+  std::span<const std::uint32_t> indices;
+
+  static Changes everything() { return {}; }
+  static Changes only(std::span<const std::uint32_t> changed) { return {false, changed}; }
+};
+
+/// Pairs of one set, frame after frame. The caller moves its objects in
+/// place and calls `find_pairs` again; the tracker reuses its index through
+/// a skin (as Verlet lists do) and is exact however far objects moved.
+///
+/// Growing and shrinking: a call may see more objects than the last one
+/// (appended at the end) or fewer (those past the new count are gone);
+/// a caller that removes object k by moving the last one into its place
+/// lists k as changed.
+class PairTracker {
+ public:
+  explicit PairTracker(const ArrayOptions& options = {});
+  ~PairTracker();
+  PairTracker(PairTracker&&) noexcept;
+  PairTracker& operator=(PairTracker&&) noexcept;
+
+  /// All overlapping pairs (i < j) of `objects` as they are now.
+  /// Throws InvalidObjects (the tracker is then as before the call).
+  ArrayCallStats find_pairs(const Objects& objects, const PairSink& sink,
+                            const Changes& changes = Changes::everything());
+  ArrayCallStats find_pairs(const Objects& objects, std::vector<IndexPair>& out,
+                            const Changes& changes = Changes::everything());
+
+  /// Bytes the tracker keeps between calls (its index and candidate lists;
+  /// the caller's arrays and output excluded).
+  std::size_t memory_bytes() const;
+  /// Forgets everything; the next call rebuilds.
+  void clear();
+  /// Checks the tracker's invariants against `objects` (the arrays of the
+  /// last call); throws std::logic_error naming the first that fails.
+  void validate(const Objects& objects) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace broadphase
