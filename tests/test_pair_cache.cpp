@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <broadphase/detail/pair_table.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/pair_cache.hpp>
 #include <set>
 
 namespace broadphase {

@@ -1,5 +1,5 @@
 /// \file grid_hashed.hpp
-/// `grid-hashed`: the grid of grid_dense.hpp with no memory of its own:
+/// `grid-hashed`: the linked grid of grid-dense (detail/linked_grid.hpp) with no memory of its own:
 /// cells hash into a table of buckets, so the world is unbounded and memory
 /// is O(n) whatever the world's volume.
 ///
@@ -10,7 +10,7 @@
 /// duplicated pair.
 #pragma once
 
-#include <broadphase/grid_dense.hpp>
+#include <broadphase/detail/linked_grid.hpp>
 
 namespace broadphase {
 

@@ -19,7 +19,7 @@
 /// after the current one ends, which cannot overlap it.
 #pragma once
 
-#include <broadphase/grid_dense.hpp>
+#include <broadphase/detail/linked_grid.hpp>
 
 namespace broadphase {
 
