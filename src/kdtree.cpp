@@ -331,17 +331,11 @@ std::size_t KdTree::memory_bytes() const {
 }
 
 void KdTree::validate() const {
-  store_.validate();
   auto fail = [](const std::string& what) { throw std::logic_error("kdtree: " + what); };
-  std::size_t placed = 0;
-  for (std::uint32_t slot = 0; slot < store_.slot_count(); ++slot) {
-    if (!store_.slots().alive(slot)) continue;
-    ++placed;
-    if (!index_.consistent(nodes_, slot) || !leaf(index_.node_of[slot]))
-      fail("an object's leaf and position disagree with the leaf's items");
-    if (!detail::same_box(index_.item(nodes_, slot).box, bounds_f(store_.shape(slot))))
-      fail("stale stored box");
-  }
+  const std::size_t placed =
+      detail::validate_items(store_, index_, nodes_, fail, [&](std::uint32_t, std::uint32_t n) {
+        if (!leaf(n)) fail("an object held by an inner node");
+      });
   std::size_t reachable = 0, items = 0;
   std::vector<std::uint32_t> stack{root_};
   if (nodes_[root_].parent != kNoNode) fail("root has a parent");

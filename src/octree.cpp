@@ -191,21 +191,13 @@ std::size_t Octree::memory_bytes() const {
 }
 
 void Octree::validate() const {
-  store_.validate();
   auto fail = [](const std::string& what) { throw std::logic_error("octree: " + what); };
-  std::size_t placed = 0;
-  for (std::uint32_t slot = 0; slot < store_.slot_count(); ++slot) {
-    if (!store_.slots().alive(slot)) continue;
-    ++placed;
-    if (!index_.consistent(nodes_, slot))
-      fail("an object's node and position disagree with the node's items");
-    const std::uint32_t n = index_.node_of[slot];
-    if (!detail::same_box(nodes_[n].items[index_.pos_of[slot]].box, bounds_f(store_.shape(slot))))
-      fail("stale stored box");
-    const Aabb b = bounds(store_.shape(slot));
-    const std::uint32_t want = nodes_[0].cell.contains(b) ? descend(0, b) : 0;
-    if (want != n) fail("object " + std::to_string(slot) + " is not at its smallest cell");
-  }
+  const std::size_t placed = detail::validate_items(
+      store_, index_, nodes_, fail, [&](std::uint32_t slot, std::uint32_t n) {
+        const Aabb b = bounds(store_.shape(slot));
+        const std::uint32_t want = nodes_[0].cell.contains(b) ? descend(0, b) : 0;
+        if (want != n) fail("object " + std::to_string(slot) + " is not at its smallest cell");
+      });
   // Walk the tree: counts, parents, cells and merging.
   std::size_t reachable = 0, items = 0;
   std::vector<std::uint32_t> stack{0};

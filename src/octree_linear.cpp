@@ -108,22 +108,14 @@ std::size_t LinearOctree::memory_bytes() const {
 }
 
 void LinearOctree::validate() const {
-  store_.validate();
   auto fail = [](const std::string& what) { throw std::logic_error("octree-linear: " + what); };
-  std::size_t placed = 0;
-  for (std::uint32_t slot = 0; slot < store_.slot_count(); ++slot) {
-    if (!store_.slots().alive(slot)) continue;
-    ++placed;
-    if (!index_.consistent(nodes_, slot))
-      fail("an object's node and position disagree with the node's items");
-    const std::uint32_t n = index_.node_of[slot];
-    const Shape& s = store_.shape(slot);
-    if (!detail::same_box(nodes_[n].items[index_.pos_of[slot]].box, bounds_f(s)))
-      fail("stale stored box");
-    if (nodes_[n].key != key_of(bounds(s)))
-      fail("object " + std::to_string(slot) + " is not at its smallest cell");
-    if (n != 0 && !box(n).contains(bounds(s))) fail("object outside its cell");
-  }
+  const std::size_t placed = detail::validate_items(
+      store_, index_, nodes_, fail, [&](std::uint32_t slot, std::uint32_t n) {
+        const Aabb b = bounds(store_.shape(slot));
+        if (nodes_[n].key != key_of(b))
+          fail("object " + std::to_string(slot) + " is not at its smallest cell");
+        if (n != 0 && !box(n).contains(b)) fail("object outside its cell");
+      });
   std::size_t reachable = 0, items = 0;
   std::vector<std::uint32_t> stack{0};
   while (!stack.empty()) {

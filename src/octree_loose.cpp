@@ -134,24 +134,16 @@ std::size_t LooseOctree::memory_bytes() const {
 }
 
 void LooseOctree::validate() const {
-  store_.validate();
   auto fail = [](const std::string& what) { throw std::logic_error("octree-loose: " + what); };
-  std::size_t placed = 0;
-  for (std::uint32_t slot = 0; slot < store_.slot_count(); ++slot) {
-    if (!store_.slots().alive(slot)) continue;
-    ++placed;
-    if (!index_.consistent(nodes_, slot))
-      fail("an object's node and position disagree with the node's items");
-    const std::uint32_t n = index_.node_of[slot];
-    const Shape& s = store_.shape(slot);
-    if (!detail::same_box(nodes_[n].items[index_.pos_of[slot]].box, bounds_f(s)))
-      fail("stale stored box");
-    const Place p = place_of(s);
-    const Node& node = nodes_[n];
-    if (node.depth != p.depth || node.ix != p.ix || node.iy != p.iy || node.iz != p.iz)
-      fail("object " + std::to_string(slot) + " is not at the node of its size and centre");
-    if (n != 0 && !node.loose.contains(bounds(s))) fail("object outside its node's loose box");
-  }
+  const std::size_t placed = detail::validate_items(
+      store_, index_, nodes_, fail, [&](std::uint32_t slot, std::uint32_t n) {
+        const Shape& s = store_.shape(slot);
+        const Place p = place_of(s);
+        const Node& node = nodes_[n];
+        if (node.depth != p.depth || node.ix != p.ix || node.iy != p.iy || node.iz != p.iz)
+          fail("object " + std::to_string(slot) + " is not at the node of its size and centre");
+        if (n != 0 && !node.loose.contains(bounds(s))) fail("object outside its node's loose box");
+      });
   std::size_t reachable = 0, items = 0;
   std::vector<std::uint32_t> stack{0};
   while (!stack.empty()) {
