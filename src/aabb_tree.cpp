@@ -403,6 +403,7 @@ void AabbTree::update(Handle h, const Shape& s) {
 }
 
 void AabbTree::update(std::span<const Move> moves) {
+  check_moves(*this, moves);
   for (const Move& m : moves) update(m.handle, m.shape);
 }
 

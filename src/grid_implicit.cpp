@@ -17,14 +17,13 @@ GridImplicit::GridImplicit(const Config& c) : world_(c.world) {
 }
 
 void GridImplicit::layout(double cell, std::size_t words) {
-  for (int a = 0; a < 3; ++a) {
-    const double extent = world_.hi[a] - world_.lo[a];
-    cell = std::max(cell, extent / kMaxSlabs);
-  }
+  // width_over: a world with finite corners may be wider than the largest
+  // double ([-1e308, 1e308]); its width / kMaxSlabs is still finite.
+  for (int a = 0; a < 3; ++a)
+    cell = std::max(cell, detail::width_over(world_.lo[a], world_.hi[a], kMaxSlabs));
   std::int32_t n[3];
   for (int a = 0; a < 3; ++a) {
-    const double want = std::ceil((world_.hi[a] - world_.lo[a]) / cell);
-    n[a] = static_cast<std::int32_t>(std::clamp(want, 1.0, double{kMaxSlabs}));
+    n[a] = detail::cells_across(world_.lo[a], world_.hi[a], cell, double{kMaxSlabs});
     slabs_[a] = n[a];
   }
   map_ = detail::CellMap(world_.lo, cell, n);

@@ -309,14 +309,10 @@ void KdTree::update(Handle h, const Shape& s) {
 }
 
 void KdTree::update(std::span<const Move> moves) {
-  try {
-    for (const Move& m : moves) {
-      const std::uint32_t slot = store_.set_shape(m.handle, m.shape);
-      index_.item(nodes_, slot).box = bounds_f(m.shape);
-    }
-  } catch (...) {
-    refit_all();  // the moves made before the bad one stand
-    throw;
+  check_moves(*this, moves);  // all-or-nothing: nothing below fails on input
+  for (const Move& m : moves) {
+    const std::uint32_t slot = store_.set_shape(m.handle, m.shape);
+    index_.item(nodes_, slot).box = bounds_f(m.shape);
   }
   refit_all();
   after_motion();

@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <broadphase/detail/clamp_index.hpp>
 #include <broadphase/octree_loose.hpp>
 #include <cmath>
 #include <string>
@@ -39,16 +40,17 @@ LooseOctree::Place LooseOctree::place_of(const Shape& s) const {
   // The deepest level whose margin covers the extent: margin_ / 2^d >= ext.
   int d = max_depth_;
   if (ext > 0) {
-    const double levels = std::floor(std::log2(margin_ / ext));
-    d = levels < 0 ? 0 : static_cast<int>(std::min<double>(levels, max_depth_));
+    // NaN (an infinite margin over an infinite extent) or beyond int:
+    // clamped before the conversion; the containment test below decides.
+    d = detail::clamp_floor<int>(std::log2(margin_ / ext), 0, max_depth_);
   }
   for (; d >= 1; --d) {
     const double cell = std::ldexp(cube_.side, -d);
     const double last = std::ldexp(1.0, d) - 1;
     std::uint32_t idx[3];
     for (int a = 0; a < 3; ++a) {
-      const double i = std::floor((s.center[a] - cube_.origin[a]) / cell);
-      idx[a] = static_cast<std::uint32_t>(std::clamp(i, 0.0, last));
+      idx[a] =
+          detail::clamp_floor<std::uint32_t>((s.center[a] - cube_.origin[a]) / cell, 0.0, last);
     }
     if (loose_box(d, idx[0], idx[1], idx[2]).contains(b)) return {d, idx[0], idx[1], idx[2]};
   }

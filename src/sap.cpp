@@ -147,6 +147,9 @@ void Sap::update(Handle h, const Shape& s) {
 }
 
 void Sap::update(std::span<const Move> moves) {
+  // Checked first: a bad move met after the switch to the rebuild path left
+  // the endpoint lists disagreeing with the boxes (issue 21, finding 3).
+  check_moves(*this, moves);
   // Coherent batches go object by object. When a batch has crossed more
   // endpoints than a full rebuild would roughly cost (incoherent motion: an
   // explosion), the rest of it is applied at once and the lists and the pair

@@ -9,10 +9,10 @@
 
 #include <array>
 #include <atomic>
-#include <broadphase/structure.hpp>
 #include <broadphase/detail/inline_stack.hpp>
 #include <broadphase/detail/pair_table.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/structure.hpp>
 #include <cstdint>
 #include <mutex>
 #include <span>
@@ -82,7 +82,9 @@ class AabbTree {
   /// Moves an object; free while its box stays inside its fat box.
   /// Throws InvalidHandle, InvalidShape.
   void update(Handle h, const Shape& s);
-  /// Moves many objects (each as `update`).
+  /// Moves many objects (each as `update`). All-or-nothing: throws
+  /// InvalidHandle, InvalidShape before moving anything; a repeated handle
+  /// takes its last move.
   void update(std::span<const Move> moves);
 
   /// Visits every object overlapping `q` exactly.

@@ -24,9 +24,9 @@
 /// tested against everything.
 #pragma once
 
-#include <broadphase/structure.hpp>
 #include <broadphase/detail/grid_common.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/structure.hpp>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -130,8 +130,7 @@ class HGrid {
 
   static double edge(int level) { return std::ldexp(1.0, level); }
   static std::int32_t coord(double x, int level) {
-    const double t = std::clamp(std::ldexp(x, -level), -0x1p30, 0x1p30);
-    return static_cast<std::int32_t>(std::floor(t));
+    return detail::clamp_floor<std::int32_t>(std::ldexp(x, -level), -0x1p30, 0x1p30);
   }
   std::size_t find(int level, const detail::CellKey& k) const {
     const std::size_t mask = table_.size() - 1;

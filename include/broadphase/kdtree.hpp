@@ -48,8 +48,9 @@ class KdTree {
   /// Moves or resizes one object (refits its path). Throws InvalidHandle,
   /// InvalidShape.
   void update(Handle h, const Shape& s);
-  /// Moves many objects, then refits the whole tree once. Throws
-  /// InvalidHandle, InvalidShape (objects before the bad one are moved).
+  /// Moves many objects, then refits the whole tree once. All-or-nothing:
+  /// throws InvalidHandle, InvalidShape before moving anything; a repeated
+  /// handle takes its last move.
   void update(std::span<const Move> moves);
 
   /// Visits every object overlapping `q`.

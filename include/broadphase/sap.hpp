@@ -9,9 +9,9 @@
 #include <algorithm>
 #include <array>
 #include <bit>
-#include <broadphase/structure.hpp>
 #include <broadphase/detail/pair_table.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/structure.hpp>
 #include <cstdint>
 #include <vector>
 
@@ -45,6 +45,8 @@ class Sap {
   /// Moves many objects, each as `update`; when the batch has crossed more
   /// than a few endpoints per object (incoherent motion), the rest of it is
   /// applied at once and the lists and pairs are rebuilt: O(n log n + k).
+  /// All-or-nothing: the batch is checked before any move is applied
+  /// (Throws InvalidHandle, InvalidShape); a repeated handle takes its last move.
   void update(std::span<const Move> moves);
 
   /// Visits every object overlapping `q` exactly.

@@ -46,10 +46,31 @@ struct HandlePair {
 };
 
 /// One object's new shape, for bulk updates.
+///
+/// A bulk update (`update(std::span<const Move>)`) is all-or-nothing: every
+/// move is checked (live handle, valid shape) before any is applied, so a
+/// batch that throws InvalidHandle or InvalidShape leaves the structure
+/// exactly as it was. A handle named more than once in one batch ends with
+/// its last move's shape, as if the moves were applied in order; every
+/// structure gives that meaning.
 struct Move {
   Handle handle;
   Shape shape;
 };
+
+/// Checks a whole batch of moves against structure `s` before any of it is
+/// applied: throws InvalidHandle for the first move whose handle `s` does
+/// not hold and InvalidShape for the first invalid shape, in batch order.
+/// O(batch); every bulk update calls it first (a failed move half-way
+/// through a batch would otherwise leave the moves before it applied, or,
+/// in a structure that rebuilds once per batch, leave it inconsistent).
+template <class S>
+void check_moves(const S& s, std::span<const Move> moves) {
+  for (const Move& m : moves) {
+    if (!s.contains(m.handle)) throw InvalidHandle(m.handle);
+    require_valid(m.shape);
+  }
+}
 
 /// Options common to all structures. Every field has a sensible default.
 struct Config {
@@ -135,6 +156,8 @@ class AnyBroadPhase {
   /// Moves and/or resizes an object. Throws InvalidHandle, InvalidShape.
   virtual void update(Handle h, const Shape& s) = 0;
   /// Updates many objects at once (some structures rebuild once per batch).
+  /// All-or-nothing: throws InvalidHandle or InvalidShape, changing nothing,
+  /// when any move is bad; a handle named twice takes its last move (Move).
   virtual void update(std::span<const Move> moves) = 0;
   /// Visits every object whose shape overlaps `s` exactly.
   virtual QueryCost query(const Shape& s, FunctionRef<bool(Handle)> visitor) const = 0;
@@ -168,8 +191,9 @@ class Erased final : public AnyBroadPhase {
   void update(Handle h, const Shape& s) override { s_.update(h, s); }
   void update(std::span<const Move> moves) override {
     if constexpr (requires { s_.update(moves); }) {
-      s_.update(moves);
+      s_.update(moves);  // checks the batch itself
     } else {
+      check_moves(s_, moves);  // all-or-nothing: nothing below can fail on input
       for (const Move& m : moves) s_.update(m.handle, m.shape);
     }
   }

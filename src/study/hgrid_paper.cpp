@@ -2,6 +2,7 @@
 #include <bit>
 #include <broadphase/study/hgrid_paper.hpp>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -38,9 +39,16 @@ HGridPaper::HGridPaper(const Config& c) {
   options.finish();
   origin_ = c.world.lo;
   const Vec3 extent = c.world.hi - c.world.lo;
-  const double side = std::max(extent.x, std::max(extent.y, extent.z));
-  if (!(side > 0) || !std::isfinite(side))
+  double side = std::max(extent.x, std::max(extent.y, extent.z));
+  bool finite = true;
+  for (int a = 0; a < 3; ++a)
+    finite = finite && std::isfinite(c.world.lo[a]) && std::isfinite(c.world.hi[a]);
+  if (!(side > 0) || !finite)
     throw std::invalid_argument("hgrid-paper: the world box must be finite and non-empty");
+  // Finite corners farther apart than the largest double ([-1e308, 1e308]):
+  // the cells of the largest side; objects whose cell coordinates then
+  // overflow go to the oversize list, which is exact.
+  if (!std::isfinite(side)) side = std::numeric_limits<double>::max();
   for (int k = 0; k <= levels_; ++k) {
     const auto i = static_cast<std::size_t>(k);
     side_[i] = std::ldexp(side, -k);
@@ -68,6 +76,14 @@ HGridPaper::Placement HGridPaper::place(const Shape& s) const {
   const double extent = std::max(b.hi.x - b.lo.x, std::max(b.hi.y - b.lo.y, b.hi.z - b.lo.z));
   Placement p{level_for_extent(extent), {0, 0, 0}};
   if (p.level == 0) return p;
+  // Bounds that, widened by the coarsest level's reach and taken from the
+  // origin, overflow (an object near +-1.8e308) would give probe boxes
+  // clamped to +-2^40 cells: walks that never end (issue 21, finding 2).
+  // Such objects go oversize, tested against everything.
+  for (int a = 0; a < 3; ++a)
+    if (!std::isfinite((b.lo[a] - reach_[1]) - origin_[a]) ||
+        !std::isfinite((b.hi[a] + reach_[1]) - origin_[a]))
+      return {0, {0, 0, 0}};
   for (int a = 0; a < 3; ++a) {
     const double f = cell_coord(s.center[a], a, p.level);
     if (!(std::fabs(f) <= kCellLimit)) return {0, {0, 0, 0}};

@@ -2,6 +2,7 @@
 #include <bit>
 #include <broadphase/study/octree_paper.hpp>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -31,9 +32,15 @@ OctreePaper::OctreePaper(const Config& c) {
   options.finish();
   origin_ = c.world.lo;
   const Vec3 extent = c.world.hi - c.world.lo;
-  const double side = std::max(extent.x, std::max(extent.y, extent.z));
-  if (!(side > 0) || !std::isfinite(side))
+  double side = std::max(extent.x, std::max(extent.y, extent.z));
+  bool finite = true;
+  for (int a = 0; a < 3; ++a)
+    finite = finite && std::isfinite(c.world.lo[a]) && std::isfinite(c.world.hi[a]);
+  if (!(side > 0) || !finite)
     throw std::invalid_argument("octree-paper: the world box must be finite and non-empty");
+  // Finite corners farther apart than the largest double ([-1e308, 1e308]):
+  // a cube of the largest side; what lies beyond it lives at the root.
+  if (!std::isfinite(side)) side = std::numeric_limits<double>::max();
   scale_ = kFinestCells / side;
 }
 

@@ -4,12 +4,13 @@
 
 #include <algorithm>
 #include <barrier>
-#include <broadphase/naive.hpp>
 #include <broadphase/lab/replay.hpp>
+#include <broadphase/naive.hpp>
 #include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <thread>
 
@@ -243,6 +244,7 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
   Naive oracle;
   std::vector<Live> live;
   std::uint64_t next_id = 0;
+  Handle stale;  // the last handle removed, for bad moves
   const std::size_t target = world == World::crowded ? 1500 : 300;
 
   for (int step = 0; step < steps; ++step) {
@@ -262,6 +264,7 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
         op = "remove";
         const std::size_t k = rng.below(live.size());
         const Handle gone = live[k].s;
+        stale = gone;
         bp->remove(gone);
         oracle.remove(live[k].n);
         live[k] = live.back();
@@ -289,18 +292,83 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
           bp->update(o.s, s);
           oracle.update(o.n, s);
         } else {
+          // A bulk batch; sometimes naming a handle twice (the last move
+          // wins), sometimes with one bad move at a random place (the whole
+          // batch must then be refused and change nothing).
           std::vector<Move> batch;
-          std::vector<char> used(live.size(), 0);
+          std::vector<std::size_t> picks;
+          std::vector<std::ptrdiff_t> last(live.size(), -1);  // pick -> its last move
+          const bool repeats = rng.uniform() < 0.2;
           const std::size_t k = 1 + rng.below(std::min<std::size_t>(live.size(), 64));
           for (std::size_t t = 0; t < k; ++t) {
             const std::size_t pick = rng.below(live.size());
-            if (used[pick]) continue;
-            used[pick] = 1;
-            const Shape s = source.moved(oracle.shape(live[pick].n));
-            batch.push_back({live[pick].s, s});
-            oracle.update(live[pick].n, s);
+            if (last[pick] >= 0 && !repeats) continue;
+            const Shape base = last[pick] >= 0 ? batch[static_cast<std::size_t>(last[pick])].shape
+                                               : oracle.shape(live[pick].n);
+            last[pick] = static_cast<std::ptrdiff_t>(batch.size());
+            batch.push_back({live[pick].s, source.moved(base)});
+            picks.push_back(pick);
           }
-          bp->update(batch);
+          const bool inject = rng.uniform() < 0.25;
+          if (inject) {
+            const std::size_t at = rng.below(batch.size() + 1);
+            const double nan = std::numeric_limits<double>::quiet_NaN();
+            Move bad = batch.empty() ? Move{live[0].s, {}} : batch[rng.below(batch.size())];
+            switch (rng.below(stale.is_null() ? 3 : 4)) {
+              case 0:
+                bad.shape.center.y = nan;
+                op = "bulk update with a NaN centre at " + std::to_string(at);
+                break;
+              case 1:
+                bad.shape = Shape::sphere(bad.shape.center, -1);
+                op = "bulk update with a negative radius at " + std::to_string(at);
+                break;
+              case 2:
+                bad.shape.half.z = std::numeric_limits<double>::infinity();
+                op = "bulk update with an infinite extent at " + std::to_string(at);
+                break;
+              default:
+                bad.handle = stale;
+                op = "bulk update with a stale handle at " + std::to_string(at);
+                break;
+            }
+            batch.insert(batch.begin() + static_cast<std::ptrdiff_t>(at), bad);
+            bool refused = false;
+            try {
+              bp->update(batch);
+            } catch (const InvalidShape&) {
+              refused = true;
+            } catch (const InvalidHandle&) {
+              refused = true;
+            }
+            if (!refused) {
+              ADD_FAILURE() << op << " was not refused" << where;
+              return;
+            }
+            bp->validate();
+            const auto got = ids_of_pairs(*bp);
+            std::vector<std::pair<std::uint64_t, std::uint64_t>> want;
+            oracle.for_each_pair([&](Handle a, Handle b) {
+              std::uint64_t x = oracle.user_data(a), y = oracle.user_data(b);
+              want.emplace_back(std::min(x, y), std::max(x, y));
+            });
+            std::sort(want.begin(), want.end());
+            if (got != want) {
+              ADD_FAILURE() << "after a refused " << op
+                            << ", pairs differ from naive: " << describe_difference(got, want)
+                            << where;
+              return;
+            }
+            for (const Live& o : live)
+              if (!(bp->shape(o.s) == oracle.shape(o.n))) {
+                ADD_FAILURE() << "a refused " << op << " changed object " << o.id << where;
+                return;
+              }
+          } else {
+            bp->update(batch);
+            for (std::size_t t = 0; t < batch.size(); ++t)
+              oracle.update(live[picks[t]].n, batch[t].shape);
+          }
         }
       } else if (u < insert_p + 0.52) {
         op = "query";

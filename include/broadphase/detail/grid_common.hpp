@@ -15,11 +15,13 @@
 #pragma once
 
 #include <algorithm>
-#include <broadphase/structure.hpp>
 #include <broadphase/cell_size.hpp>
+#include <broadphase/detail/clamp_index.hpp>
 #include <broadphase/handle.hpp>
+#include <broadphase/structure.hpp>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace broadphase::detail {
@@ -94,11 +96,18 @@ inline unsigned link_mask(const CellRange& r) {
 /// Maps world coordinates to cell coordinates with a non-decreasing
 /// function. Unbounded maps clamp to +-2^30 cells (far objects share border
 /// cells: slower, still exact); bounded maps clamp to [0, n-1] per axis.
+///
+/// Defined for every double, infinite float bounds included: the origin is
+/// made finite and the inverse cell edge finite and positive (an infinite
+/// cell, from an automatic size that overflowed, or a subnormal one whose
+/// inverse is infinite, would give 0 * inf = NaN), so `(x - origin) * inv`
+/// is never NaN and is clamped before it becomes an integer.
 class CellMap {
  public:
   CellMap() = default;
   /// An unbounded grid of cells of edge `cell` with a corner at `origin`.
-  CellMap(const Vec3& origin, double cell) : origin_(origin), cell_(cell), inv_(1.0 / cell) {
+  CellMap(const Vec3& origin, double cell)
+      : origin_(finite_origin(origin)), cell_(cell), inv_(safe_inverse(cell)) {
     for (int a = 0; a < 3; ++a) {
       lo_[a] = -0x1p30;
       hi_[a] = 0x1p30;
@@ -106,7 +115,7 @@ class CellMap {
   }
   /// A bounded grid of n[a] cells per axis starting at `origin`.
   CellMap(const Vec3& origin, double cell, const std::int32_t (&n)[3])
-      : origin_(origin), cell_(cell), inv_(1.0 / cell) {
+      : origin_(finite_origin(origin)), cell_(cell), inv_(safe_inverse(cell)) {
     for (int a = 0; a < 3; ++a) {
       lo_[a] = 0;
       hi_[a] = n[a] - 1;
@@ -114,8 +123,15 @@ class CellMap {
   }
 
   std::int32_t coord(double x, int a) const {
-    const double t = std::clamp((x - origin_[a]) * inv_, lo_[a], hi_[a]);
-    return static_cast<std::int32_t>(std::floor(t));
+    return clamp_floor<std::int32_t>((x - origin_[a]) * inv_, lo_[a], hi_[a]);
+  }
+  /// 1 / cell, made finite and positive for every cell (NaN, zero, negative,
+  /// subnormal or infinite ones included).
+  static double safe_inverse(double cell) {
+    const double inv = 1.0 / cell;
+    if (!(inv > 0)) return std::numeric_limits<double>::denorm_min();
+    if (!(inv <= std::numeric_limits<double>::max())) return std::numeric_limits<double>::max();
+    return inv;
   }
   CellRange range(const AabbF& b) const {
     CellRange r;
@@ -128,6 +144,11 @@ class CellMap {
   double cell() const { return cell_; }
 
  private:
+  static Vec3 finite_origin(const Vec3& o) {
+    return {std::isfinite(o.x) ? o.x : 0, std::isfinite(o.y) ? o.y : 0,
+            std::isfinite(o.z) ? o.z : 0};
+  }
+
   Vec3 origin_;
   double cell_ = 1;
   double inv_ = 1;
@@ -203,9 +224,20 @@ struct RegridTrigger {
 inline double initial_cell_size(const Config& c) {
   const Aabb& w = c.world;
   const double n = static_cast<double>(std::max<std::size_t>(c.expected_objects, 64));
-  const double v = (w.hi.x - w.lo.x) * (w.hi.y - w.lo.y) * (w.hi.z - w.lo.z);
-  const double cell = std::cbrt(v / n);
+  // Per axis first (the cube root of each width), so that a world whose
+  // width or volume overflows a double still gets its mean spacing.
+  double cell = 2 / std::cbrt(n);
+  for (int a = 0; a < 3; ++a) cell *= std::cbrt(width_over(w.lo[a], w.hi[a], 2));
   return cell > 0 && std::isfinite(cell) ? cell : 1.0;
+}
+
+/// How many cells of edge `cell` cover [lo, hi], in [1, max]: never NaN
+/// and never beyond `max`, whatever the width (it may overflow) or the cell
+/// (it may be infinite or subnormal).
+inline std::int32_t cells_across(double lo, double hi, double cell, double max) {
+  const double width = hi - lo;
+  const double want = std::ceil(std::isfinite(width) ? width / cell : hi / cell - lo / cell);
+  return clamp_floor<std::int32_t>(want, 1, max);
 }
 
 }  // namespace broadphase::detail

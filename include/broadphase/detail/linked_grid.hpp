@@ -455,11 +455,14 @@ class LinkedGrid {
     } else {
       const double cap = std::clamp(16.0 * static_cast<double>(n), 4096.0, 4194304.0);
       std::int32_t count[3];
+      // A cell of zero or NaN (an automatic size of degenerate objects)
+      // would never grow below; each pass grows the cell by at least 1%,
+      // and at once by the cube root of the excess when counts are capped.
+      if (!(cell > 0)) cell = std::numeric_limits<double>::min();
       for (;;) {
         double total = 1;
         for (int a = 0; a < 3; ++a) {
-          const double want = std::ceil((world_.hi[a] - world_.lo[a]) / cell);
-          count[a] = static_cast<std::int32_t>(std::clamp(want, 1.0, 4194304.0));
+          count[a] = cells_across(world_.lo[a], world_.hi[a], cell, 4194304.0);
           total *= count[a];
         }
         if (total <= cap) break;

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <stdexcept>
 #include <vector>
@@ -54,7 +55,13 @@ struct Cube {
                            std::max(world.hi.y - world.lo.y, world.hi.z - world.lo.z));
     if (!(side > 0)) side = 1;
     side *= kRootGrowth;
-    const Vec3 c = (world.lo + world.hi) * 0.5;
+    Vec3 c = (world.lo + world.hi) * 0.5;
+    // Finite corners farther apart than the largest double ([-1e308, 1e308]):
+    // the largest cube whose cell boundaries stay finite, around the
+    // centre taken without overflow; objects beyond it live at the root.
+    if (!std::isfinite(side)) side = std::numeric_limits<double>::max();
+    for (int a = 0; a < 3; ++a)
+      if (!std::isfinite(c[a])) c[a] = world.lo[a] * 0.5 + world.hi[a] * 0.5;
     return {c - Vec3{side, side, side} * 0.5, side};
   }
   /// Boundary `i` of the cells of depth `depth` along `axis`.
