@@ -492,4 +492,21 @@ void AabbTree::validate() const {
   }
 }
 
+void AabbTree::visit_cells(CellVisitor visitor) const {
+  if (root_ == kNull) return;
+  std::vector<std::pair<std::uint32_t, int>> stack{{root_, 0}};
+  while (!stack.empty()) {
+    const auto [i, depth] = stack.back();
+    stack.pop_back();
+    const Node& n = nodes_[i];
+    const Aabb box{{n.box.lo[0], n.box.lo[1], n.box.lo[2]},
+                   {n.box.hi[0], n.box.hi[1], n.box.hi[2]}};
+    visitor(box, depth, n.is_leaf() ? 1 : 0);
+    if (!n.is_leaf()) {
+      stack.push_back({n.child[0], depth + 1});
+      stack.push_back({n.child[1], depth + 1});
+    }
+  }
+}
+
 }  // namespace broadphase

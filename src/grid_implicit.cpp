@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <broadphase/detail/cell_tally.hpp>
 #include <broadphase/grid_implicit.hpp>
 #include <cmath>
 #include <cstring>
@@ -114,6 +115,13 @@ void GridImplicit::validate() const {
     }
     if (want != bits_[a]) fail("slab bits disagree with the objects' ranges");
   }
+}
+
+void GridImplicit::visit_cells(CellVisitor visitor) const {
+  detail::CellTally tally;
+  for (std::uint32_t i = 0; i < store_.slot_count(); ++i)
+    if (store_.slots().alive(i)) tally.add(0, range_[i]);
+  tally.report([&](int, const detail::CellKey& k) { return map_.box(k); }, visitor);
 }
 
 }  // namespace broadphase

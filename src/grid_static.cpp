@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <bit>
+#include <broadphase/detail/cell_tally.hpp>
 #include <broadphase/grid_static.hpp>
 #include <cstring>
 #include <stdexcept>
@@ -385,6 +386,13 @@ void GridStatic::validate() const {
     for (std::uint32_t o : overflow_) count(o);
     if (want != degree[i]) fail("pair cache misses or repeats a fixed pair");
   }
+}
+
+void GridStatic::visit_cells(CellVisitor visitor) const {
+  detail::CellTally tally;
+  for (std::uint32_t i = 0; i < store_.slot_count(); ++i)
+    if (kind_[i] != kDead && where_[i] == kNone) tally.add(0, range_[i]);
+  tally.report([&](int, const CellKey& k) { return map_.box(k); }, visitor);
 }
 
 }  // namespace broadphase

@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <bit>
+#include <broadphase/detail/cell_tally.hpp>
 #include <broadphase/hgrid.hpp>
 #include <cstring>
 #include <stdexcept>
@@ -204,6 +205,21 @@ void HGrid::validate() const {
       fail("table cell heads a foreign object");
   }
   if (used != cells_used_) fail("table cell count");
+}
+
+void HGrid::visit_cells(CellVisitor visitor) const {
+  detail::CellTally tally;
+  for (const Cell& c : table_) {
+    if (c.head == kNone) continue;
+    for (std::uint32_t b = c.head; b != kNone; b = next_[b]) tally.add(c.level, c.key);
+  }
+  tally.report(
+      [](int level, const CellKey& k) {
+        const double e = edge(level);
+        return Aabb{{k.c[0] * e, k.c[1] * e, k.c[2] * e},
+                    {(k.c[0] + 1.0) * e, (k.c[1] + 1.0) * e, (k.c[2] + 1.0) * e}};
+      },
+      visitor);
 }
 
 }  // namespace broadphase

@@ -359,4 +359,17 @@ void KdTree::validate() const {
   if (reachable + free_.size() != nodes_.size()) fail("node pool and free list");
 }
 
+void KdTree::visit_cells(CellVisitor visitor) const {
+  if (nodes_.empty()) return;
+  std::vector<std::pair<std::uint32_t, int>> stack{{root_, 0}};
+  while (!stack.empty()) {
+    const auto [i, depth] = stack.back();
+    stack.pop_back();
+    const Node& n = nodes_[i];
+    visitor(detail::to_double(n.box), depth, n.items.size());
+    if (n.left != kNoNode) stack.push_back({n.left, depth + 1});
+    if (n.right != kNoNode) stack.push_back({n.right, depth + 1});
+  }
+}
+
 }  // namespace broadphase

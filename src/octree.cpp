@@ -225,4 +225,15 @@ void Octree::validate() const {
   if (reachable + 8 * free_blocks_.size() != nodes_.size()) fail("node pool and free list");
 }
 
+void Octree::visit_cells(CellVisitor visitor) const {
+  std::vector<std::uint32_t> stack{root()};
+  while (!stack.empty()) {
+    const Node& n = nodes_[stack.back()];
+    stack.pop_back();
+    visitor(n.cell, n.depth, n.items.size());
+    for_each_child(static_cast<std::uint32_t>(&n - nodes_.data()),
+                   [&](std::uint32_t c) { stack.push_back(c); });
+  }
+}
+
 }  // namespace broadphase

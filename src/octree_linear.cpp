@@ -139,4 +139,15 @@ void LinearOctree::validate() const {
     fail("node pool, free list and key table disagree");
 }
 
+void LinearOctree::visit_cells(CellVisitor visitor) const {
+  std::vector<std::uint32_t> stack{0};
+  while (!stack.empty()) {
+    const Node& n = nodes_[stack.back()];
+    stack.pop_back();
+    visitor(cube_.cell(n.depth, n.ix, n.iy, n.iz), n.depth, n.items.size());
+    for (unsigned o = 0; o < 8; ++o)
+      if ((n.child_mask >> o) & 1u) stack.push_back(table_.find((n.key << 3) | o));
+  }
+}
+
 }  // namespace broadphase

@@ -173,4 +173,15 @@ void LooseOctree::validate() const {
     fail("node pool, free list and key table disagree");
 }
 
+void LooseOctree::visit_cells(CellVisitor visitor) const {
+  std::vector<std::uint32_t> stack{0};
+  while (!stack.empty()) {
+    const Node& n = nodes_[stack.back()];
+    stack.pop_back();
+    visitor(cube_.cell(n.depth, n.ix, n.iy, n.iz), n.depth, n.items.size());
+    for (const std::uint32_t c : n.child)
+      if (c != kNoNode) stack.push_back(c);
+  }
+}
+
 }  // namespace broadphase

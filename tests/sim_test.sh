@@ -71,6 +71,27 @@ expect_error "draw naive cells" "naive has no cells" draw --scene "$data/scenes/
 expect_error "draw gif without sim" "gif" draw --scene "$data/scenes/single.scene" --out "$tmp/x.gif" --gif
 expect_error "draw bad extension" "png" draw --scene "$data/scenes/single.scene" --out "$tmp/x.jpg"
 
+# The cells drawn are the structure's as built, options included: the data
+# given to tools/draw.py (--data) differs between two octree splits, and
+# counts as many objects as the scene has for a structure holding each once.
+s="$data/scenes/paper-uneven-400.scene"
+for split in 16 4; do
+  "$cli" draw --scene "$s" --out "$tmp/x.png" --algo "octree:split=$split" --cells --data "$tmp/split$split.json"
+  check "draw --data octree:split=$split" test -s "$tmp/split$split.json"
+done
+cells_of() {  # cells_of FILE: number of cells, objects held, kind
+  python3 -c "import json,sys; c=json.load(open(sys.argv[1]))['cells']; print(len(c['boxes']), c['objects_held'], c['kind'])" "$1"
+}
+check "octree splits draw different cells" test "$(cells_of "$tmp/split16.json")" != "$(cells_of "$tmp/split4.json")"
+check "octree cells hold every object once" test "$(cells_of "$tmp/split4.json" | cut -d' ' -f2,3)" = "400 tree"
+"$cli" draw --scene "$s" --out "$tmp/x.png" --algo grid-dense --cells --data "$tmp/grid.json"
+check "grid-dense draws a grid" test "$(cells_of "$tmp/grid.json" | cut -d' ' -f3)" = grid
+"$cli" draw --scene "$s" --out "$tmp/x.png" --algo hgrid --cells --data "$tmp/hgrid.json"
+check "hgrid draws levels" test "$(cells_of "$tmp/hgrid.json" | cut -d' ' -f3)" = hgrid
+expect_error "draw sap cells" "sap has no cells" draw --scene "$s" --out "$tmp/x.png" --algo sap --cells
+expect_error "draw unknown structure" "valid: naive" draw --scene "$s" --out "$tmp/x.png" --algo grid --cells
+expect_error "draw bad option" "split" draw --scene "$s" --out "$tmp/x.png" --algo octree:split=0 --cells
+
 # Pictures when matplotlib is there; a clear refusal when it is not.
 . "$(dirname "$0")/support/have_matplotlib.sh"
 if have_matplotlib; then

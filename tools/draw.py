@@ -116,9 +116,14 @@ def velocity_arrows(ax, d, view):
 # ---------------------------------------------------------------- cells
 
 
+def value_of(cells, b):
+    """A cell's colour value: objects per cell for a grid, else its level."""
+    return b[6] if cells["kind"] == "grid" else b[7]
+
+
 def project_boxes(cells, view):
     ai, bi = VIEWS[view][:2]
-    return [(b[ai], b[bi], b[3 + ai], b[3 + bi], b[6]) for b in cells["boxes"]]
+    return [(b[ai], b[bi], b[3 + ai], b[3 + bi], value_of(cells, b)) for b in cells["boxes"]]
 
 
 def draw_cells_2d(ax, fig, cells, view):
@@ -150,11 +155,12 @@ def draw_cells_2d(ax, fig, cells, view):
         ax.add_collection(PatchCollection(by_value[v], facecolor="none", edgecolor=colour[v],
                                           linewidth=lw, zorder=4 + (0.1 * v if kind != "hgrid" else 0)))
     word = "level" if kind == "hgrid" else "depth"
+    edge = {b[7]: b[3] - b[0] for b in cells["boxes"]}
     handles = []
     for v in values:
         label = "%s %d" % (word, v)
         if kind == "hgrid":
-            label += " (cell %.3g)" % (cells["base"] * 2 ** v)
+            label += " (cell %.3g)" % edge[v]
         handles.append(Line2D([], [], color=colour[v], linewidth=2, label=label))
     return handles
 
@@ -168,17 +174,18 @@ def draw_cells_3d(ax, cells):
         cx = [(b[0] + b[3]) / 2 for b in boxes]
         cy = [(b[1] + b[4]) / 2 for b in boxes]
         cz = [(b[2] + b[5]) / 2 for b in boxes]
-        v = [b[6] for b in boxes]
+        v = [value_of(cells, b) for b in boxes]
         top = max(v) if v else 1
         sc = ax.scatter(cx, cz, cy, c=v, cmap="YlOrRd", s=[8 + 60 * x / top for x in v],
                         marker="s", alpha=0.6, depthshade=False)
         return sc
-    boxes = sorted(boxes, key=lambda b: b[6])[:1500]
+    boxes = sorted(boxes, key=lambda b: value_of(cells, b))[:1500]
     cmap = plt.get_cmap("tab10" if kind == "hgrid" else "viridis")
-    top = max((b[6] for b in boxes), default=1)
+    top = max((value_of(cells, b) for b in boxes), default=1)
     segs, cols = [], []
     for b in boxes:
-        x0, y0, z0, x1, y1, z1, v = b
+        x0, y0, z0, x1, y1, z1 = b[:6]
+        v = value_of(cells, b)
         # Plot axes (x, z, y) so that y is up.
         corners = [(x, z, y) for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)]
         for i in range(8):
@@ -250,6 +257,16 @@ def draw_2d(d):
     if "cells" not in d:
         extra = velocity_arrows(ax, d, view)
     frame_world(ax, d, view)
+    if "cells" in d and d["cells"]["boxes"]:
+        # Show cells that reach past the world (an octree's cube is larger),
+        # up to 30% of the world beyond each wall.
+        L = d["world"]
+        rects = project_boxes(d["cells"], view)
+        lo = max(-0.3 * L, min(min(r[0] for r in rects), min(r[1] for r in rects)))
+        hi = min(1.3 * L, max(max(r[2] for r in rects), max(r[3] for r in rects)))
+        m = 0.03 * L
+        ax.set_xlim(min(-m, lo - m), max(L + m, hi + m))
+        ax.set_ylim(min(-m, lo - m), max(L + m, hi + m))
     legend_objects(ax, extra)
     sub = VIEW_NAMES[view]
     if "cells" in d:

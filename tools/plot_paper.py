@@ -9,6 +9,7 @@ command that runs it keeps stdout for its results. Needs matplotlib.
 """
 import argparse
 import csv
+import json
 import os
 import sys
 from collections import defaultdict
@@ -18,7 +19,23 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-STUDY = ("naive", "octree-paper", "hgrid-paper")
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def lab_data(name):
+    """lab/<name>: beside this script when installed, else in the source tree."""
+    for d in (HERE, os.path.join(HERE, "..", "lab")):
+        path = os.path.join(d, name)
+        if os.path.exists(path):
+            with open(path) as f:
+                return json.load(f)
+    raise SystemExit("plot_paper: cannot find " + name + " beside the script or in ../lab")
+
+
+METRICS = {m["name"]: m for m in lab_data("metrics.json")["metrics"]}
+FAMILIES = lab_data("families.json")["families"]
+MAX_LINES = 8  # lines per panel: more cannot be told apart by colour
+STUDY = tuple(next(f["structures"] for f in FAMILIES if f["name"] == "study"))
 STUDY_DISTS = ("even", "uneven")
 FORMULA = {  # the study's memory, bytes on its 32-bit machine
     "naive": lambda n: 4 + 4 * n,
@@ -157,28 +174,88 @@ def memory_plots(rows, styles, peers, out):
            "bytes per object")
 
 
-def frame_plots(rows, styles, peers, out):
+def panels(names, peers):
+    """[(title, [structures])]: one panel per family (split when it has more
+    than MAX_LINES lines), then the structures of no family, then the peers."""
+    out = []
+    placed = set()
+
+    def add(title, members):
+        members = list(members)
+        chunks = max(1, -(-len(members) // MAX_LINES))
+        for k in range(chunks):
+            part = members[k::chunks]
+            if part:
+                out.append((title + ("" if chunks == 1 else " (%d/%d)" % (k + 1, chunks)), part))
+
+    for fam in FAMILIES:
+        members = [s for s in fam["structures"] if s in names and s not in peers]
+        placed.update(members)
+        add(fam["title"], members)
+    add("other", sorted(s for s in names if s not in placed and s not in peers))
+    add("peers", sorted(s for s in names if s in peers))
+    return out
+
+
+def small_multiples(data, peers, out, name, title, ylabel, reference=None):
+    """One panel per family, the same axes everywhere; in each panel the
+    structure lowest at the panel's largest N is drawn thick and named."""
+    groups = panels(set(data), peers)
+    if not groups:
+        return
+    cols = 2 if len(groups) > 1 else 1
+    rows_n = -(-len(groups) // cols)
+    fig, axes = plt.subplots(rows_n, cols, figsize=(6.2 * cols, 3.6 * rows_n), sharex=True,
+                             sharey=True, squeeze=False)
+    cmap = plt.get_cmap("tab10")
+    overall = None
+    for ax, (panel, members) in zip(axes.flat, groups):
+        top_n = max(max(p[0] for p in data[s]) for s in members)
+        at_top = {s: min(p[1] for p in data[s] if p[0] == top_n)
+                  for s in members if any(p[0] == top_n for p in data[s])}
+        best = min(at_top, key=at_top.get) if at_top else None
+        for i, s in enumerate(members):
+            pts = data[s]
+            thick = s == best
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], color=cmap(i % 10),
+                    linewidth=2.6 if thick else 1.0, marker="o", markersize=3 if thick else 2,
+                    label=("fastest: " + s) if thick else s, zorder=3 if thick else 2)
+        if best is not None:
+            ax.annotate("%.3g" % at_top[best], (top_n, at_top[best]), textcoords="offset points",
+                        xytext=(4, -3), fontsize=7, fontweight="bold")
+            if overall is None or (top_n, -at_top[best]) > (overall[0], -overall[1]):
+                overall = (top_n, at_top[best], best)
+        if reference is not None:
+            ax.axhline(reference, color="gray", linewidth=0.8)
+        ax.set_title(panel, fontsize=9)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.grid(True, which="major", alpha=0.3)
+        ax.legend(fontsize=6, loc="upper left", frameon=False)
+    for ax in axes.flat[len(groups):]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel("number of objects N")
+    for ax in axes[:, 0]:
+        ax.set_ylabel(ylabel)
+    if overall is not None:
+        title += "\nfastest at N = %s: %s (%.3g)" % (f"{overall[0]:,}", overall[2], overall[1])
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    for ext in ("png", "svg"):
+        fig.savefig(os.path.join(out, name + "." + ext), dpi=110)
+    plt.close(fig)
+    print("plot_paper: wrote " + name + ".png/.svg", file=sys.stderr)
+
+
+def frame_plots(rows, peers, out):
+    label = METRICS["frame_time"]["label"]
     for placement in ("even", "uneven"):
         data = series(rows, "frame_time", placement, False)
-        if not data:
-            continue
-        fig, ax = plt.subplots(figsize=(9, 5.2))
-        for s in order(data, peers):
-            pts = data[s]
-            st = dict(styles(s))
-            if s in peers:
-                st.update(color="gray" if len(peers) == 1 else st.get("color"), linewidth=2.0,
-                          linestyle="--")
-            ax.plot([p[0] for p in pts], [p[1] for p in pts],
-                    label=s + (" (peer)" if s in peers else ""), **st)
-        scaled = sorted({r["n"] for r in rows if r["dist"].startswith("scaled")})
-        if scaled:
-            ax.axvline(scaled[0] / 1.5, color="gray", linewidth=0.8, alpha=0.6)
-            ax.text(scaled[0] / 1.45, 0.02, " scaled scenes →", fontsize=7, color="gray",
-                    va="bottom", transform=ax.get_xaxis_transform())
-        finish(fig, ax, out, "frame_time_" + placement,
-               "Frame time (move 20%, update, all pairs), " + placement + " placement",
-               "median ms per frame")
+        if data:
+            small_multiples(data, peers, out, "frame_time_" + placement,
+                            "Frame time (" + METRICS["frame_time"]["what"] + "), " + placement +
+                            " placement", label)
     # Versus peers: each structure's frame time over the fastest peer's.
     if not peers:
         return
@@ -191,16 +268,14 @@ def frame_plots(rows, styles, peers, out):
                     best[n] = med
     if not best:
         return
-    fig, ax = plt.subplots(figsize=(9, 5.2))
-    for s in order(data, peers):
-        pts = [(n, med / best[n]) for n, med, _, _ in data[s] if n in best]
-        if pts:
-            ax.plot([p[0] for p in pts], [p[1] for p in pts],
-                    label=s + (" (peer)" if s in peers else ""), **styles(s))
-    ax.axhline(1.0, color="gray", linewidth=0.8)
-    finish(fig, ax, out, "frame_versus_peers",
-           "Frame time / fastest peer's frame time (even placement; below 1 beats every peer)",
-           "ratio")
+    ratios = {}
+    for s, pts in data.items():
+        r = [(n, med / best[n], 0, 0) for n, med, _, _ in pts if n in best]
+        if r:
+            ratios[s] = r
+    small_multiples(ratios, peers, out, "frame_versus_peers",
+                    "Frame time / the fastest peer's at the same N (even placement; below the grey "
+                    "line beats every peer)", "ratio", reference=1.0)
 
 
 def main():
@@ -230,8 +305,8 @@ def main():
         ("fig3_6_remove_time", "Figure 3.6 (Test 6): time to remove one object (even)",
          "remove_time", "even", "ns per removal"),
     ]
-    for name, title, test, placement, ylabel in figs:
-        line_plot(rows, styles, peers, a.out, name, title, test, placement, ylabel)
+    for name, title, test, placement, _ in figs:
+        line_plot(rows, styles, peers, a.out, name, title, test, placement, METRICS[test]["label"])
     memory_plots(rows, styles, peers, a.out)
     placement_plot(rows, styles, a.out, "fig3_9_query_time_placement",
                    "Figure 3.9: the study's structures, query time, uneven vs even", "query_time",
@@ -239,7 +314,7 @@ def main():
     placement_plot(rows, styles, a.out, "fig3_10_query_tests_placement",
                    "Figure 3.10: the study's structures, tests per query, uneven vs even",
                    "query_tests", "tests per query")
-    frame_plots(rows, styles, peers, a.out)
+    frame_plots(rows, peers, a.out)
     return 0
 
 

@@ -27,219 +27,70 @@ namespace {
 
 using Json = nlohmann::json;
 
-/// One drawable box: [lo x y z, hi x y z, value].
+/// One drawable box: [lo x y z, hi x y z, value] (cells add their level).
 Json box_row(const Aabb& b, double value) {
   return Json::array({b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z, value});
 }
 
 Aabb world_box(const Scene& s) { return {{0, 0, 0}, {s.world, s.world, s.world}}; }
 
-std::map<std::string, std::string> spec_options(const std::string& spec) {
-  std::map<std::string, std::string> out;
-  const std::size_t colon = spec.find(':');
-  if (colon == std::string::npos) return out;
-  std::size_t pos = colon + 1;
-  while (pos <= spec.size()) {
-    std::size_t end = spec.find(',', pos);
-    if (end == std::string::npos) end = spec.size();
-    const std::string kv = spec.substr(pos, end - pos);
-    const std::size_t eq = kv.find('=');
-    if (eq != std::string::npos) out[kv.substr(0, eq)] = kv.substr(eq + 1);
-    pos = end + 1;
-  }
-  return out;
-}
-
-double option_number(const std::map<std::string, std::string>& opts, const std::string& key,
-                     double fallback) {
-  const auto it = opts.find(key);
-  if (it == opts.end()) return fallback;
-  try {
-    std::size_t used = 0;
-    const double v = std::stod(it->second, &used);
-    if (used != it->second.size() || !(v > 0) || !std::isfinite(v)) throw std::invalid_argument("");
-    return v;
-  } catch (const std::exception&) {
-    throw UsageError("--algo: option " + key + "=" + it->second + " is not a positive number");
-  }
-}
-
-double largest_extent(const Scene& s) {
-  double m = 0;
-  for (const Shape& o : s.objects) m = std::max(m, o.max_half());
-  return m;
-}
-
-/// A uniform grid of cell size `cell` over the world, each occupied cell
-/// with the number of objects whose bounds touch it.
-Json grid_cells(const Scene& s, double cell) {
-  const long n = static_cast<long>(std::ceil(s.world / cell));
-  if (n > 200) throw UsageError("--algo: cell size too small to draw (at most 200 cells a side)");
-  std::map<std::array<long, 3>, int> count;
-  for (const Shape& o : s.objects) {
-    const Aabb b = bounds(o);
-    std::array<long, 3> lo{}, hi{};
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = std::clamp(static_cast<long>(std::floor(b.lo[a] / cell)), 0L, n - 1);
-      hi[a] = std::clamp(static_cast<long>(std::floor(b.hi[a] / cell)), 0L, n - 1);
-    }
-    for (long x = lo[0]; x <= hi[0]; ++x)
-      for (long y = lo[1]; y <= hi[1]; ++y)
-        for (long z = lo[2]; z <= hi[2]; ++z) ++count[{x, y, z}];
-  }
-  Json rows = Json::array();
-  for (const auto& [c, k] : count) {
-    const Aabb box{{c[0] * cell, c[1] * cell, c[2] * cell},
-                   {(c[0] + 1) * cell, (c[1] + 1) * cell, (c[2] + 1) * cell}};
-    rows.push_back(box_row(box, k));
-  }
-  char label[160];
-  std::snprintf(label, sizeof label, "uniform grid, cell %.4g: objects per cell", cell);
-  return {{"kind", "grid"}, {"label", label}, {"boxes", rows}};
-}
-
-/// The octree an object-in-the-smallest-enclosing-node octree builds: a
-/// node splits when it holds more than `capacity` objects, down to
-/// `max_depth`; objects that straddle a child boundary stay in the parent.
-Json octree_cells(const Scene& s, int max_depth, int capacity) {
-  Json rows = Json::array();
-  struct Node {
-    Aabb box;
-    int depth;
-    std::vector<std::uint32_t> objects;
-  };
-  std::vector<Node> stack;
-  Node root{world_box(s), 0, {}};
-  for (std::uint32_t i = 0; i < s.size(); ++i) root.objects.push_back(i);
-  stack.push_back(std::move(root));
-  while (!stack.empty()) {
-    Node node = std::move(stack.back());
-    stack.pop_back();
-    std::vector<std::uint32_t> kept;
-    std::array<std::vector<std::uint32_t>, 8> child;
-    const Vec3 mid = (node.box.lo + node.box.hi) * 0.5;
-    const bool split = node.depth<max_depth&& static_cast<int>(node.objects.size())> capacity;
-    for (const std::uint32_t i : node.objects) {
-      const Aabb b = bounds(s.objects[i]);
-      int code = 0;
-      bool fits = split;
-      for (int a = 0; a < 3 && fits; ++a) {
-        if (b.hi[a] <= mid[a]) continue;
-        if (b.lo[a] >= mid[a])
-          code |= 1 << a;
-        else
-          fits = false;
-      }
-      if (fits)
-        child[code].push_back(i);
-      else
-        kept.push_back(i);
-    }
-    rows.push_back(box_row(node.box, node.depth));
-    for (int c = 0; c < 8; ++c) {
-      if (child[c].empty()) continue;
-      Aabb box = node.box;
-      for (int a = 0; a < 3; ++a) (c >> a & 1 ? box.lo[a] : box.hi[a]) = mid[a];
-      stack.push_back({box, node.depth + 1, std::move(child[c])});
-    }
-  }
-  char label[160];
-  std::snprintf(label, sizeof label,
-                "octree nodes (depth <= %d, split above %d objects): colour = depth", max_depth,
-                capacity);
-  return {{"kind", "octree"}, {"label", label}, {"boxes", rows}};
-}
-
-/// A hierarchical grid: cell sizes doubling from the smallest diameter;
-/// each object lives at the first level whose cell is at least its
-/// diameter, in the cell of its centre. Occupied cells, value = level.
-Json hgrid_cells(const Scene& s) {
-  double smallest = s.world;
-  for (const Shape& o : s.objects)
-    if (o.max_half() > 0) smallest = std::min(smallest, 2 * o.max_half());
-  const double base = std::max(smallest, s.world / 1024);
-  std::map<std::array<long, 4>, int> cells;
-  for (const Shape& o : s.objects) {
-    int level = 0;
-    double cell = base;
-    while (cell < 2 * o.max_half() && level < 30) {
-      cell *= 2;
-      ++level;
-    }
-    std::array<long, 4> key{level, 0, 0, 0};
-    for (int a = 0; a < 3; ++a) key[a + 1] = static_cast<long>(std::floor(o.center[a] / cell));
-    ++cells[key];
-  }
-  Json rows = Json::array();
-  for (const auto& [k, count] : cells) {
-    const double cell = base * std::ldexp(1.0, static_cast<int>(k[0]));
-    const Aabb box{{k[1] * cell, k[2] * cell, k[3] * cell},
-                   {(k[1] + 1) * cell, (k[2] + 1) * cell, (k[3] + 1) * cell}};
-    rows.push_back(box_row(box, static_cast<double>(k[0])));
-  }
-  char label[160];
-  std::snprintf(label, sizeof label,
-                "hierarchical grid, level 0 cell %.3g doubling: occupied cells, colour = level",
-                base);
-  return {{"kind", "hgrid"}, {"label", label}, {"boxes", rows}, {"base", base}};
-}
-
-/// The nodes of a bounding-volume tree built top-down by median split on
-/// the longest axis of the centres, to depth 4.
-Json tree_cells(const Scene& s) {
-  Json rows = Json::array();
-  std::vector<std::uint32_t> ids(s.size());
-  for (std::uint32_t i = 0; i < s.size(); ++i) ids[i] = i;
-  struct Range {
-    std::size_t lo, hi;
-    int depth;
-  };
-  std::vector<Range> stack{{0, ids.size(), 0}};
-  while (!stack.empty()) {
-    const Range r = stack.back();
-    stack.pop_back();
-    if (r.lo >= r.hi) continue;
-    Aabb box = bounds(s.objects[ids[r.lo]]);
-    Aabb centres{s.objects[ids[r.lo]].center, s.objects[ids[r.lo]].center};
-    for (std::size_t i = r.lo; i < r.hi; ++i) {
-      box = box.merged(bounds(s.objects[ids[i]]));
-      centres = centres.merged({s.objects[ids[i]].center, s.objects[ids[i]].center});
-    }
-    rows.push_back(box_row(box, r.depth));
-    if (r.depth >= 4 || r.hi - r.lo <= 2) continue;
-    const Vec3 ext = centres.hi - centres.lo;
-    const int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
-    const std::size_t mid = (r.lo + r.hi) / 2;
-    std::nth_element(ids.begin() + static_cast<long>(r.lo), ids.begin() + static_cast<long>(mid),
-                     ids.begin() + static_cast<long>(r.hi), [&](std::uint32_t a, std::uint32_t b) {
-                       return s.objects[a].center[axis] < s.objects[b].center[axis];
-                     });
-    stack.push_back({r.lo, mid, r.depth + 1});
-    stack.push_back({mid, r.hi, r.depth + 1});
-  }
-  return {{"kind", "tree"},
-          {"label", "bounding-volume tree (median split, depth <= 4): colour = depth"},
-          {"boxes", rows}};
-}
-
+/// The cells or nodes of `spec` as the structure builds them over the
+/// scene's objects (AnyBroadPhase::visit_cells). The picture's kind follows
+/// from what the structure reports: one level is a grid (colour: objects per
+/// cell); a single cell at the lowest level is the root of a tree (colour:
+/// depth); several cells at every level are a hierarchy of grids (colour:
+/// level).
 Json cells_for(const Scene& s, const std::string& spec) {
-  const std::string name = spec.substr(0, spec.find(':'));
-  const auto opts = spec_options(spec);
-  const auto has = [&](const char* w) { return name.find(w) != std::string::npos; };
-  if (has("octree"))
-    return octree_cells(s, static_cast<int>(option_number(opts, "depth", 4)),
-                        static_cast<int>(option_number(opts, "capacity", 8)));
-  if (has("hgrid") || has("hier") || has("multi")) return hgrid_cells(s);
-  if (has("grid") || has("hash")) {
-    // By default a cell fits the largest object, and the cells tile the world.
-    const double widest = std::max(2 * largest_extent(s), s.world / 64);
-    const double fallback = s.world / std::max(1.0, std::floor(s.world / widest));
-    return grid_cells(s, option_number(opts, "cell", fallback));
+  Config c;
+  c.world = world_box(s);
+  c.expected_objects = s.size();
+  std::unique_ptr<AnyBroadPhase> bp;
+  try {
+    bp = registry().make(spec, c);
+  } catch (const std::exception& e) {
+    throw UsageError(std::string("--algo: ") + e.what());
   }
-  if (has("tree") || has("bvh") || has("kd")) return tree_cells(s);
-  if (name == "naive") throw UsageError("--cells: naive has no cells to draw: it tests every pair");
-  throw UsageError("--cells: no cell picture for '" + name +
-                   "' (names containing grid, hash, hgrid, octree, tree, bvh or kd can be drawn)");
+  for (std::uint32_t i = 0; i < s.size(); ++i)
+    bp->insert(s.objects[i], i, s.is_moving(i) ? Motion::dynamic : Motion::fixed);
+
+  constexpr std::size_t kMaxBoxes = 200000;  // what matplotlib draws in a few seconds
+  Json rows = Json::array();
+  std::map<int, std::size_t> per_level;
+  std::size_t held = 0;
+  const bool has = bp->visit_cells([&](const Aabb& box, int level, std::size_t objects) {
+    if (rows.size() == kMaxBoxes) return;
+    ++per_level[level];
+    held += objects;
+    rows.push_back(box_row(box, static_cast<double>(objects)));
+    rows.back().push_back(level);
+  });
+  const std::string name = spec.substr(0, spec.find(':'));
+  if (!has)
+    throw UsageError("--cells: " + name +
+                     " has no cells or nodes to draw (it keeps its objects in lists or sorted "
+                     "axes, or is another library's)");
+  if (rows.size() == kMaxBoxes)
+    throw UsageError("--cells: " + spec + " reports more than " + std::to_string(kMaxBoxes) +
+                     " cells: too many to draw");
+  const char* kind = per_level.size() <= 1            ? "grid"
+                     : per_level.begin()->second == 1 ? "tree"
+                                                      : "hgrid";
+  char label[240];
+  if (std::string(kind) == "grid") {
+    const double edge = rows.empty() ? 0 : rows[0][3].get<double>() - rows[0][0].get<double>();
+    std::snprintf(label, sizeof label,
+                  "%s as built: %zu occupied cells of edge %.3g, colour = objects per cell",
+                  spec.c_str(), rows.size(), edge);
+  } else if (std::string(kind) == "tree") {
+    std::snprintf(label, sizeof label, "%s as built: %zu nodes, depth %d to %d, colour = depth",
+                  spec.c_str(), rows.size(), per_level.begin()->first, per_level.rbegin()->first);
+  } else {
+    std::snprintf(label, sizeof label,
+                  "%s as built: %zu occupied cells on %zu levels, colour = level", spec.c_str(),
+                  rows.size(), per_level.size());
+  }
+  return {
+      {"kind", kind}, {"label", label}, {"spec", spec}, {"objects_held", held}, {"boxes", rows}};
 }
 
 Json objects_json(const Scene& s) {
@@ -335,9 +186,9 @@ void draw(const DrawOptions& o) {
   j["objects"] = objects_json(scene);
   if (o.cells) j["cells"] = cells_for(scene, o.algo);
   if (o.sim_frames > 0) {
-    // The broad phase only finds pairs; the trajectories are the same on
-    // every exact structure, so the cells' name need not be a real one.
-    const std::string bp = registry().find(o.algo.substr(0, o.algo.find(':'))) ? o.algo : "naive";
+    // The broad phase only finds pairs: the trajectories are the same on
+    // every exact structure.
+    const std::string& bp = o.algo;
     Json runs = Json::array();
     if (o.compare) {
       runs.push_back(sim_run(scene, bp, Ccd::off, o.restitution, o.sim_frames));
@@ -349,6 +200,11 @@ void draw(const DrawOptions& o) {
     j["sim"] = {{"frames", o.sim_frames}, {"compare", o.compare}, {"runs", runs}};
   }
 
+  if (!o.data.empty()) {
+    std::ofstream f(o.data);
+    if (!(f << j.dump())) throw std::runtime_error("draw: cannot write " + o.data);
+    return;
+  }
   const std::filesystem::path data = std::filesystem::temp_directory_path() /
                                      ("broadphase-draw-" + std::to_string(::getpid()) + ".json");
   {
@@ -374,8 +230,8 @@ void add_draw_command(CLI::App& app) {
   cmd->add_option("--out", o->out, "Picture to write: .png or .svg (.gif with --gif)")->required();
   cmd->add_option("--view", o->view, "side (x, y: y is up) | top (x, z) | 3d")->default_val("side");
   cmd->add_option("--algo", o->algo,
-                  "Structure whose cells --cells draws (grid:cell=C, hgrid, octree:depth=D, "
-                  "tree); also the broad phase of --sim when it is registered")
+                  "Structure (with options: octree:split=16) whose cells or nodes --cells "
+                  "draws as it builds them over the scene; also the broad phase of --sim")
       ->default_val("naive");
   cmd->add_flag("--cells", o->cells, "Overlay the cells or nodes of --algo");
   cmd->add_option("--sim", o->sim_frames, "Simulate FRAMES steps and draw a strip of them")
@@ -389,6 +245,9 @@ void add_draw_command(CLI::App& app) {
       ->default_val(1)
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--title", o->title, "Title of the picture (a default names the scene)");
+  cmd->add_option("--data", o->data,
+                  "Write what would be drawn as JSON to this file instead of drawing it "
+                  "(render it later with tools/draw.py FILE)");
   cmd->callback([o] { draw(*o); });
 }
 

@@ -32,6 +32,7 @@ struct DrawOptions {
   std::string ccd = "off";
   double restitution = 1;
   std::string title;
+  std::string data;  ///< when set: write the drawing's JSON here instead of rendering it
 };
 
 /// Renders one picture through tools/draw.py. Throws UsageError for bad

@@ -127,6 +127,9 @@ class AabbTree {
   /// Checks links, boxes (each parent holds its children, each leaf holds
   /// its object's box), leaf counts, heights, child order, the free list.
   void validate() const;
+  /// Reports every node: its box (a leaf's box is its object's fattened box),
+  /// its depth, the objects it holds (1 for a leaf, 0 inside). O(nodes).
+  void visit_cells(CellVisitor visitor) const;
 
  private:
   static constexpr std::uint32_t kNull = 0xffffffffu;

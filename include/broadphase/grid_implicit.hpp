@@ -104,6 +104,9 @@ class GridImplicit {
 
   /// Checks bounds, ranges, and every bit of every slab.
   void validate() const;
+  /// Reports every cell (level 0) that the bounds of some object touch, with
+  /// their number. O(cells touched log cells).
+  void visit_cells(CellVisitor visitor) const;
 
  private:
   // The candidates of range r in word w: AND over axes of the OR of slabs.

@@ -168,6 +168,10 @@ class GridStatic {
   /// Checks bounds, ranges, both tables entry by entry, the overflow list
   /// and that the pair cache holds exactly the overlapping fixed pairs.
   void validate() const;
+  /// Reports every occupied cell (level 0) with the objects whose bounds touch
+  /// it, fixed and dynamic alike. Overflow objects are in no cell.
+  /// O(entries log cells).
+  void visit_cells(CellVisitor visitor) const;
 
   /// Objects covering more cells than this go to the overflow list.
   static constexpr double kMaxCells = 64;

@@ -115,6 +115,10 @@ class HGrid {
 
   /// Checks levels, cells, the hash table, the lists and the counts.
   void validate() const;
+  /// Reports every occupied cell: its box, its level k (edge 2^k), the objects
+  /// whose centre it holds (an object may reach half an edge beyond). Overflow
+  /// objects are in no cell. O(cells).
+  void visit_cells(CellVisitor visitor) const;
 
   /// The finest level (cells of 2^-100).
   static constexpr int kMinLevel = -100;

@@ -72,6 +72,9 @@ class KdTree {
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Checks positions, exact refitted boxes, links and the free list.
   void validate() const;
+  /// Reports every node: its box (fitted to the objects below it), its depth,
+  /// the objects it holds (leaves only). O(nodes).
+  void visit_cells(CellVisitor visitor) const;
 
   /// Rebuilds the tree from scratch with the surface area heuristic.
   void rebuild();

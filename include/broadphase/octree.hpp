@@ -79,6 +79,9 @@ class Octree {
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Checks placement, positions, subtree counts, merging and the free list.
   void validate() const;
+  /// Reports every node with objects below it: its cell, its depth, the objects
+  /// it holds itself. O(nodes).
+  void visit_cells(CellVisitor visitor) const;
 
   /// Nodes in use (for the lab).
   std::size_t node_count() const { return nodes_.size() - 8 * free_blocks_.size(); }

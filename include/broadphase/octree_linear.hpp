@@ -67,6 +67,8 @@ class LinearOctree {
   /// Checks placement, positions, child masks, the key table and that no
   /// empty leaf survives.
   void validate() const;
+  /// Reports every node: its cell, its depth, the objects it holds. O(nodes).
+  void visit_cells(CellVisitor visitor) const;
 
   /// Nodes in use (for the lab).
   std::size_t node_count() const { return table_.size(); }

@@ -67,6 +67,9 @@ class LooseOctree {
   /// Checks placement, positions, loose boxes, links, the key table and
   /// that no empty leaf survives.
   void validate() const;
+  /// Reports every node: its cell (not the loose box around it; an object may
+  /// reach into the margin), its depth, the objects it holds. O(nodes).
+  void visit_cells(CellVisitor visitor) const;
 
   /// Nodes in use (for the lab).
   std::size_t node_count() const { return nodes_.size() - free_.size(); }

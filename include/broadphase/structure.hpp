@@ -142,6 +142,14 @@ class FunctionRef<R(Args...)> {
   R (*call_)(void*, Args...);
 };
 
+/// Receives one cell or node of a structure, for pictures and checks:
+/// its box, its level (the depth in a tree, the level in a hierarchy of
+/// grids, 0 in a single grid) and how many objects it holds itself (an
+/// object a grid enters into several cells counts in each; inner nodes of a
+/// tree that hold none are reported too, with 0). Objects a structure keeps
+/// outside every cell (an overflow list) are in no cell.
+using CellVisitor = FunctionRef<void(const Aabb& box, int level, std::size_t objects)>;
+
 /// The type-erased face of a structure: one virtual call per operation or
 /// query, never per node. Used by the CLI, the lab and the tests to handle
 /// all structures alike. Same thread-safety as the structure it wraps.
@@ -175,6 +183,12 @@ class AnyBroadPhase {
   /// Checks the structure's invariants; throws std::logic_error naming the
   /// first one that fails.
   virtual void validate() const = 0;
+  /// Reports the structure's cells or nodes as built (`visit_cells` of the
+  /// structure, when it has one); false, visiting nothing, when it has none.
+  virtual bool visit_cells(CellVisitor visitor) const {
+    (void)visitor;
+    return false;
+  }
 };
 
 /// Wraps a concrete structure behind AnyBroadPhase.
@@ -216,6 +230,14 @@ class Erased final : public AnyBroadPhase {
   Shape shape(Handle h) const override { return s_.shape(h); }
   std::uint64_t user_data(Handle h) const override { return s_.user_data(h); }
   void validate() const override { s_.validate(); }
+  bool visit_cells(CellVisitor v) const override {
+    if constexpr (requires { s_.visit_cells(v); }) {
+      s_.visit_cells(v);
+      return true;
+    } else {
+      return false;
+    }
+  }
 
   S& get() { return s_; }
   const S& get() const { return s_; }

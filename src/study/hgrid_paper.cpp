@@ -1,8 +1,10 @@
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <broadphase/study/hgrid_paper.hpp>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <stdexcept>
 #include <string>
 
@@ -269,6 +271,24 @@ void HGridPaper::validate() const {
     }
   }
   if (chained != in_table_) throw std::logic_error("hgrid-paper: objects missing from the chains");
+}
+
+void HGridPaper::visit_cells(CellVisitor visitor) const {
+  std::map<std::array<std::int64_t, 4>, std::size_t> count;
+  for (std::uint32_t i = 0; i < store_.slot_count(); ++i) {
+    if (!store_.slots().alive(i) || entry_[i].level == 0) continue;
+    const Entry& e = entry_[i];
+    ++count[{e.level, e.cell[0], e.cell[1], e.cell[2]}];
+  }
+  for (const auto& [k, n] : count) {
+    const double side = side_[static_cast<std::size_t>(k[0])];
+    Aabb box;
+    for (int a = 0; a < 3; ++a) {
+      box.lo[a] = origin_[a] + static_cast<double>(k[a + 1]) * side;
+      box.hi[a] = origin_[a] + static_cast<double>(k[a + 1] + 1) * side;
+    }
+    visitor(box, static_cast<int>(k[0]), n);
+  }
 }
 
 }  // namespace broadphase

@@ -183,4 +183,19 @@ void OctreePaper::validate() const {
     throw std::logic_error("octree-paper: the lists do not hold every live object once");
 }
 
+void OctreePaper::visit_cells(CellVisitor visitor) const {
+  for (std::uint32_t node = 0; node < kNodeCount; ++node) {
+    if (subtree_count_[node] == 0 && node != 0) continue;
+    const NodeCell c = decode(node);
+    const double side = std::ldexp(1.0, kFinest - c.level) / scale_;
+    const int xyz[3] = {c.x, c.y, c.z};
+    Aabb box;
+    for (int a = 0; a < 3; ++a) {
+      box.lo[a] = origin_[a] + xyz[a] * side;
+      box.hi[a] = origin_[a] + (xyz[a] + 1) * side;
+    }
+    visitor(box, c.level, lists_[node].size());
+  }
+}
+
 }  // namespace broadphase

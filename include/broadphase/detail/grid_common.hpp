@@ -142,6 +142,16 @@ class CellMap {
     return r;
   }
   double cell() const { return cell_; }
+  /// The box of cell `k` (for pictures: border cells of a bounded map also
+  /// hold what the clamp folds into them).
+  Aabb box(const CellKey& k) const {
+    Aabb b;
+    for (int a = 0; a < 3; ++a) {
+      b.lo[a] = origin_[a] + k.c[a] * cell_;
+      b.hi[a] = origin_[a] + (k.c[a] + 1.0) * cell_;
+    }
+    return b;
+  }
 
  private:
   static Vec3 finite_origin(const Vec3& o) {

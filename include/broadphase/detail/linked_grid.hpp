@@ -7,6 +7,7 @@
 #pragma once
 
 #include <bit>
+#include <broadphase/detail/cell_tally.hpp>
 #include <broadphase/detail/grid_common.hpp>
 #include <broadphase/registry.hpp>
 #include <broadphase/structure.hpp>
@@ -180,6 +181,16 @@ class LinkedGrid {
       }
     }
     if (links != link_count_) throw std::logic_error(n + ": link count");
+  }
+
+  /// Reports every occupied cell (level 0) with the objects its list holds,
+  /// read from the lists. Overflow objects are in no cell. O(links log cells).
+  void visit_cells(CellVisitor visitor) const {
+    CellTally tally;
+    for (const std::uint32_t head : heads_)
+      for (std::uint32_t m = head; m != kNone; m = next_[m])
+        tally.add(0, key_of(range_[m >> 3], m & 7u));
+    tally.report([&](int, const CellKey& k) { return map_.box(k); }, visitor);
   }
 
  private:

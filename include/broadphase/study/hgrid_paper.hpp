@@ -86,6 +86,10 @@ class HGridPaper {
   /// prescribes, that chains have no cycles and that the counts agree.
   /// Throws std::logic_error.
   void validate() const;
+  /// Reports every occupied cell: its box, its level (1: the finest), the
+  /// objects whose centre it holds (an object reaches at most half a cell
+  /// beyond). Oversize objects are in no cell. O(objects log cells).
+  void visit_cells(CellVisitor visitor) const;
 
   /// The number of levels (level 1 is the coarsest).
   int levels() const { return levels_; }

@@ -84,6 +84,9 @@ class OctreePaper {
   /// bounds prescribe, and that the subtree counts agree with the lists.
   /// Throws std::logic_error.
   void validate() const;
+  /// Reports every node with objects below it: its cube, its level, the
+  /// objects it holds itself. O(nodes).
+  void visit_cells(CellVisitor visitor) const;
 
   /// The node an object of shape `s` belongs in. O(1).
   std::uint32_t node_of(const Shape& s) const;
