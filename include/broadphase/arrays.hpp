@@ -20,6 +20,7 @@
 #pragma once
 
 #include <broadphase/geometry.hpp>
+#include <broadphase/handle.hpp>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
