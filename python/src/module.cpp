@@ -174,6 +174,15 @@ struct KindArray {
   std::ptrdiff_t stride = 1;
 };
 
+void check_kinds(const KindArray& k, std::size_t n) {
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint8_t v = k.data[static_cast<std::ptrdiff_t>(i) * k.stride];
+    if (v > 1)
+      throw BadInput("kinds[" + std::to_string(i) + "] is " + std::to_string(v) +
+                     " (0 is a sphere, 1 a box)");
+  }
+}
+
 KindArray kind_array(const py::buffer& b, std::size_t n) {
   KindArray k;
   k.info = std::make_shared<py::buffer_info>(b.request());
@@ -184,12 +193,7 @@ KindArray kind_array(const py::buffer& b, std::size_t n) {
     throw BadInput("kinds: expected shape (" + std::to_string(n) + ",), got " + shape_text(info));
   k.data = static_cast<const std::uint8_t*>(info.ptr);
   k.stride = info.strides[0];
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint8_t v = k.data[static_cast<std::ptrdiff_t>(i) * k.stride];
-    if (v > 1)
-      throw BadInput("kinds[" + std::to_string(i) + "] is " + std::to_string(v) +
-                     " (0 is a sphere, 1 a box)");
-  }
+  check_kinds(k, n);
   return k;
 }
 
@@ -534,6 +538,7 @@ class IndexCore {
       check_values(o.centers, "centers", false);
       if (o.radii) check_values(*o.radii, "radii", true);
       if (o.half) check_values(*o.half, "half_extents", true);
+      if (o.kinds) check_kinds(*o.kinds, o.objects.count);
     }
     if (ids.is_none()) {
       refresh_lean(bp::Changes::everything());
@@ -819,17 +824,23 @@ class IndexCore {
       dirty_ = true;
       return;
     }
-    own();
+    // Every new shape is made and checked before anything changes, so a
+    // refused update leaves the index as it was.
+    std::vector<bp::Shape> shapes(ids.size());
     std::vector<std::uint32_t> slots(ids.size());
     {
       py::gil_scoped_release nogil;
+      const bp::Objects& now = lean_objects();
       for (std::size_t k = 0; k < ids.size(); ++k) {
-        const std::uint32_t s = slot_of_id_[ids[k]];
-        const bp::Shape sh = moved_shape(owned_shape(s), o, k, keep);
-        if (!bp::is_valid(sh)) throw BadInput(kind_mismatch(ids[k]));
-        set_shape(s, sh);
-        slots[k] = s;
+        slots[k] = slot_of_id_[ids[k]];
+        shapes[k] = moved_shape(now.shape(slots[k]), o, k, keep);
+        if (!bp::is_valid(shapes[k])) throw BadInput(kind_mismatch(ids[k]));
       }
+    }
+    own();
+    {
+      py::gil_scoped_release nogil;
+      for (std::size_t k = 0; k < ids.size(); ++k) set_shape(slots[k], shapes[k]);
       std::sort(slots.begin(), slots.end());
       slots.erase(std::unique(slots.begin(), slots.end()), slots.end());
     }
@@ -1043,8 +1054,8 @@ class IndexCore {
   std::vector<std::uint32_t> id_of_slot_;  // lean: slot -> id
   std::vector<std::uint32_t> slot_of_id_;  // id -> slot (lean) or kGone when removed
   std::uint32_t next_id_ = 0;
-  std::size_t live_ = 0;
-  bool identity_ = true;  // lean: slot == id for every object
+  std::atomic<std::size_t> live_{0};  // read by len() without the in-use counter
+  bool identity_ = true;              // lean: slot == id for every object
 
   // lean
   std::unique_ptr<bp::PairTracker> tracker_;

@@ -159,3 +159,18 @@ def test_returned_array_owns_its_memory():
     p = broadphase.sphere_pairs(np.zeros((3, 3)), 1.0)
     assert p.flags.writeable and p.flags.c_contiguous and p.dtype == np.int64
     assert p.base is not None  # the module's buffer, kept alive by the array
+
+
+def test_a_refused_update_changes_nothing():
+    c = np.array([[0, 0, 0], [1.5, 0, 0], [2.5, 0, 0]], float)
+    r = np.array([1.0, 0, 0])
+    h = np.array([[0, 0, 0], [0.5, 0.5, 0.5], [0.5, 0.5, 0.5]])
+    for structure in (None, "aabb-tree"):
+        ix = broadphase.Index(c, r, h, [0, 1, 1], structure=structure)
+        before = as_set(ix.pairs())
+        with pytest.raises(ValueError, match="object 1: a sphere takes radii, a box half_extents"):
+            ix.update([0, 1], [[9.0, 9, 9], [9.0, 9, 9]], radii=[1.0, 1.0])
+        assert as_set(ix.pairs()) == before == {(0, 1), (1, 2)}
+        assert ix.borrowing == (structure is None)
+        ix.update([2], [[2.5, 0, 0]])  # a later change sees object 0 where it was
+        assert as_set(ix.pairs()) == {(0, 1), (1, 2)}
