@@ -11,16 +11,19 @@ from conftest import as_set
 
 
 class Counter(threading.Thread):
-    """Counts in Python as fast as it can: it only advances while it holds the GIL."""
+    """Runs Python code as fast as it can (it only advances while it holds the
+    GIL) and notes the time every thousand steps."""
 
     def __init__(self):
         super().__init__(daemon=True)
-        self.count = 0
+        self.stamps = []
         self.stop = False
 
     def run(self):
         while not self.stop:
-            self.count += 1
+            for _ in range(1000):
+                pass
+            self.stamps.append(time.perf_counter())
 
 
 def long_index(rng, min_seconds=0.3):
@@ -42,17 +45,18 @@ def test_a_python_thread_runs_during_a_long_call(rng):
     counter.start()
     time.sleep(0.05)
     ix = broadphase.Index(c, 0.001, structure="naive")
-    before = counter.count
-    t = time.perf_counter()
+    t0 = time.perf_counter()
     ix.pairs()  # the pairs are found in this call
-    seconds = time.perf_counter() - t
-    during = counter.count - before
+    t1 = time.perf_counter()
     counter.stop = True
     counter.join()
-    print(f"the counter advanced {during} times during a {seconds:.2f} s call")
-    # Holding the GIL, the call would leave the counter a few switch intervals
-    # at most; released, the counter runs all along.
-    assert during > 100000
+    # A call that held the GIL would let the counter run only at its start and
+    # end (a switch interval each, 5 ms); released, the counter runs all along,
+    # so it notes times in the middle half of the call too.
+    lo, hi = t0 + (t1 - t0) / 4, t1 - (t1 - t0) / 4
+    middle = sum(lo <= s <= hi for s in counter.stamps)
+    print(f"the counter noted {middle} times in the middle half of a {t1 - t0:.2f} s call")
+    assert middle >= 5
 
 
 def test_queries_run_concurrently_with_the_same_answers(rng):
