@@ -81,6 +81,13 @@ def test_float32_strided_fortran_readonly_read_in_place(rng):
         assert as_set(broadphase.sphere_pairs(arr, radii)) == w
         ix = broadphase.Index(arr, radii)
         assert ix.borrowing and as_set(ix.pairs()) == w
+    # negative strides (a reversed view) and zero strides (a broadcast radius)
+    rev, rrev = c64[::-1], r64[::-1]
+    assert reads_in_place(rev) and rev.strides[0] < 0
+    assert as_set(broadphase.sphere_pairs(rev, rrev)) == as_set(oracle_pairs(rev, rrev))
+    rb = np.broadcast_to(np.float64(0.03), (500,))
+    assert reads_in_place(rb) and rb.strides == (0,)
+    assert as_set(broadphase.sphere_pairs(c64, rb)) == as_set(oracle_pairs(c64, np.full(500, 0.03)))
     # float32 centres with float64 radii mix freely
     assert as_set(broadphase.sphere_pairs(c32, r32.astype(np.float64))) == want32
 
