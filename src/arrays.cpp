@@ -122,14 +122,14 @@ ArrayCallStats one_shot(const Source& src, bool bipartite, const PairSink& sink,
   Emitter emit(sink, options.sorted, stats);
   const auto na = static_cast<std::uint32_t>(src.na);
   run_in_order<PairChunk>(
-      src.n, thread_count(options.threads),
+      grid.probe_count(), thread_count(options.threads),
       [&](std::size_t begin, std::size_t end, PairChunk& out) {
         out.pairs.clear();
         out.tests = 0;
         for (std::size_t k = begin; k < end; ++k) {
-          const auto i = static_cast<std::uint32_t>(k);
+          const std::uint32_t i = grid.probe_object(k);
           const Shape si = src.shape(i);
-          grid.probe(i, boxes[i], [&](std::uint32_t j) {
+          grid.probe(i, grid.probe_box(k), [&](std::uint32_t j) {
             if (bipartite && ((i < na) == (j < na))) return;
             ++out.tests;
             if (!overlaps(si, src.shape(j))) return;
@@ -240,16 +240,25 @@ std::vector<std::uint32_t> query(const Objects& objects, const Shape& shape) {
 // ---------------------------------------------------------------------------
 // PairTracker
 
+// Candidate entries: the partner's index, and in the top bit whether the
+// pair overlapped at the last call (valid while neither object changes).
+constexpr std::uint32_t kOverlapBit = 0x80000000u;
+constexpr std::uint32_t kIndexMask = 0x7FFFFFFFu;
+constexpr std::size_t kMaxTracked = kIndexMask;
+
 struct PairTracker::Impl {
   ArrayOptions options;
   bool built = false;
+  bool fresh = false;  // rebuilt and not yet tested: every candidate is tested
   std::size_t count = 0;
   // Per object: its bounds at the last rebuild, fattened by the skin. While
   // every object's bounds stay inside its fat box, every overlapping pair is
   // among the candidates (pairs of overlapping fat boxes).
   std::vector<AabbF> fat;
-  // Candidates as lists per probing object (CSR): partners of object i are
-  // partner[offset[i] .. offset[i + 1]).
+  // Candidates in rows, one row per object in the grid's probe order (so
+  // that a row's neighbours in memory are its neighbours in space): row k
+  // belongs to object owner[k] and holds partner[offset[k] .. offset[k+1]).
+  std::vector<std::uint32_t> owner;
   std::vector<std::uint32_t> offset;
   std::vector<std::uint32_t> partner;
 
@@ -292,18 +301,21 @@ void PairTracker::Impl::rebuild(const Objects& o) {
     std::vector<std::uint32_t> counts;
     std::vector<std::uint32_t> partners;
   };
-  offset.assign(n + 1, 0);
+  const std::size_t rows = grid.probe_count();
+  owner.resize(rows);
+  offset.assign(rows + 1, 0);
   partner.clear();
   std::size_t filled = 0;
   run_in_order<Lists>(
-      n, thread_count(options.threads),
+      rows, thread_count(options.threads),
       [&](std::size_t begin, std::size_t end, Lists& out) {
         out.counts.clear();
         out.partners.clear();
         for (std::size_t k = begin; k < end; ++k) {
           const std::size_t before = out.partners.size();
-          const auto i = static_cast<std::uint32_t>(k);
-          grid.probe(i, fat[i], [&](std::uint32_t j) { out.partners.push_back(j); });
+          const std::uint32_t i = grid.probe_object(k);
+          owner[k] = i;
+          grid.probe(i, grid.probe_box(k), [&](std::uint32_t j) { out.partners.push_back(j); });
           out.counts.push_back(static_cast<std::uint32_t>(out.partners.size() - before));
         }
       },
@@ -318,6 +330,7 @@ void PairTracker::Impl::rebuild(const Objects& o) {
   partner.shrink_to_fit();
   count = n;
   built = true;
+  fresh = true;
 }
 
 PairTracker::PairTracker(const ArrayOptions& options) : impl_(std::make_unique<Impl>()) {
@@ -332,6 +345,11 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   Impl& im = *impl_;
   // Everything that can throw on bad input runs before the tracker changes.
   check_objects(objects);
+  if (objects.count > kMaxTracked)
+    throw InvalidObjects("objects: " + std::to_string(objects.count) +
+                             " objects, more than a tracker can name (" +
+                             std::to_string(kMaxTracked) + ")",
+                         SIZE_MAX);
   if (!changes.all)
     for (std::uint32_t k : changes.indices)
       if (k >= objects.count)
@@ -358,26 +376,54 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
     stats.rebuilt = true;
   }
 
+  // Which objects changed: a pair of unchanged objects keeps the answer of
+  // the last call (its bit), so only pairs with a changed object are tested.
+  const bool test_all = changes.all || im.fresh;
+  std::vector<std::uint64_t> changed;
+  if (!test_all) {
+    changed.assign((objects.count + 63) / 64, 0);
+    for (std::uint32_t k : changes.indices) changed[k >> 6] |= std::uint64_t{1} << (k & 63);
+  }
+  auto is_changed = [&](std::uint32_t k) { return (changed[k >> 6] >> (k & 63)) & 1; };
+  // Until every row is done (a sink may stop early or throw), the bits are
+  // not to be trusted.
+  im.fresh = true;
+
   Emitter emit(sink, im.options.sorted, stats);
   run_in_order<PairChunk>(
-      objects.count, thread_count(im.options.threads),
+      im.owner.size(), thread_count(im.options.threads),
       [&](std::size_t begin, std::size_t end, PairChunk& out) {
         out.pairs.clear();
         out.tests = 0;
         for (std::size_t k = begin; k < end; ++k) {
-          const auto i = static_cast<std::uint32_t>(k);
-          const std::uint32_t s = im.offset[i], e = im.offset[i + 1];
+          const std::uint32_t s = im.offset[k], e = im.offset[k + 1];
           if (s == e) continue;
-          const Shape si = objects.shape(i);
+          const std::uint32_t i = im.owner[k];
+          const bool i_changed = test_all || is_changed(i);
+          Shape si;
+          bool si_read = false;
           for (std::uint32_t p = s; p < e; ++p) {
-            const std::uint32_t j = im.partner[p];
-            ++out.tests;
-            if (overlaps(si, objects.shape(j))) out.pairs.push_back(ordered(i, j));
+            std::uint32_t& entry = im.partner[p];
+            const std::uint32_t j = entry & kIndexMask;
+            bool hit;
+            if (i_changed || is_changed(j)) {
+              if (!si_read) {
+                si = objects.shape(i);
+                si_read = true;
+              }
+              ++out.tests;
+              hit = overlaps(si, objects.shape(j));
+              entry = j | (hit ? kOverlapBit : 0);
+            } else {
+              hit = (entry & kOverlapBit) != 0;
+            }
+            if (hit) out.pairs.push_back(ordered(i, j));
           }
         }
       },
       [&](PairChunk& c) { return emit.deliver(c); });
   emit.finish();
+  im.fresh = stats.stopped;
   return stats;
 }
 
@@ -389,8 +435,8 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, std::vector<Index
 std::size_t PairTracker::memory_bytes() const {
   const Impl& im = *impl_;
   return sizeof(Impl) + im.fat.capacity() * sizeof(AabbF) +
-         im.offset.capacity() * sizeof(std::uint32_t) +
-         im.partner.capacity() * sizeof(std::uint32_t);
+         (im.owner.capacity() + im.offset.capacity() + im.partner.capacity()) *
+             sizeof(std::uint32_t);
 }
 
 void PairTracker::clear() {
@@ -406,20 +452,30 @@ void PairTracker::validate(const Objects& objects) const {
   if (im.count != objects.count) fail("count differs from the last call's objects");
   const std::size_t n = im.count;
   if (im.fat.size() != n) fail("one fat box per object");
-  if (im.offset.size() != n + 1 || im.offset[0] != 0 || im.offset[n] != im.partner.size())
+  const std::size_t rows = im.owner.size();
+  if (rows != n) fail("one candidate row per object");
+  if (im.offset.size() != rows + 1 || im.offset[0] != 0 || im.offset[rows] != im.partner.size())
     fail("candidate offsets do not span the partner list");
+  std::vector<char> has_row(n, 0);
   std::unordered_set<std::uint64_t> seen;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (im.offset[i] > im.offset[i + 1]) fail("candidate offsets decrease at " + std::to_string(i));
-    if (!im.contained(objects, static_cast<std::uint32_t>(i)))
+  for (std::size_t k = 0; k < rows; ++k) {
+    const std::uint32_t i = im.owner[k];
+    if (i >= n || has_row[i]) fail("row " + std::to_string(k) + " has a bad or repeated owner");
+    has_row[i] = 1;
+    if (im.offset[k] > im.offset[k + 1]) fail("candidate offsets decrease at " + std::to_string(k));
+    if (!im.contained(objects, i))
       fail("object " + std::to_string(i) + " lies outside its fat box");
-    for (std::uint32_t p = im.offset[i]; p < im.offset[i + 1]; ++p) {
-      const std::uint32_t j = im.partner[p];
+    for (std::uint32_t p = im.offset[k]; p < im.offset[k + 1]; ++p) {
+      const std::uint32_t j = im.partner[p] & kIndexMask;
       if (j >= n || j == i) fail("candidate partner out of range at " + std::to_string(i));
-      const IndexPair q = ordered(static_cast<std::uint32_t>(i), j);
+      const IndexPair q = ordered(i, j);
       if (!seen.insert((std::uint64_t(q.i) << 32) | q.j).second)
         fail("candidate pair (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
              ") listed twice");
+      if (!im.fresh &&
+          ((im.partner[p] & kOverlapBit) != 0) != overlaps(objects.shape(i), objects.shape(j)))
+        fail("the overlap bit of (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
+             ") is stale");
     }
   }
   // Completeness: every pair of overlapping fat boxes is a candidate

@@ -6,8 +6,10 @@
 namespace broadphase::detail {
 namespace {
 
-// Levels above the base: 2^40 times the smallest cell covers any spread of
-// sizes a finite float box set can sensibly have; wider objects are "big".
+// Each level's cells are twice those of the one below; an object sits on
+// the finest level whose cell side is at least its widest side, so a probe
+// spans at most 3 cells per axis. Levels above the base: 2^40 times the smallest cell covers any
+// spread of sizes a finite float box set can sensibly have; wider objects are "big".
 constexpr int kMaxLevels = 40;
 
 double widest_side(const AabbF& b) {
@@ -32,8 +34,8 @@ void ArrayGrid::build(std::span<const AabbF> boxes) {
   big_.clear();
   level_of_.assign(n, kBig);
 
-  // The base cell: twice the width of a small object (the 1st percentile of
-  // a sample), so that the finest level fits the small objects and a few
+  // The base cell: the width of a small object (the 1st percentile of a
+  // sample), so that the finest level fits the small objects and a few
   // tiny outliers do not open many empty levels below them.
   std::vector<double> sample;
   const std::size_t step = std::max<std::size_t>(1, n / 4096);
@@ -51,7 +53,7 @@ void ArrayGrid::build(std::span<const AabbF> boxes) {
     }
     if (w > 0 && std::isfinite(w)) {
       int e = 0;
-      std::frexp(2 * w, &e);  // 2w in [2^(e-1), 2^e)
+      std::frexp(w, &e);  // w in [2^(e-1), 2^e)
       base = std::ldexp(1.0, e);
     }
   }
@@ -65,7 +67,9 @@ void ArrayGrid::build(std::span<const AabbF> boxes) {
       big_.push_back(static_cast<std::uint32_t>(i));
       continue;
     }
-    const double w2 = 2 * widest_side(b);
+    // A cell a hair wider than the box (see the probe's bound), so that the
+    // probe's rounding of lo - h can never skip a partner's cell.
+    const double w2 = widest_side(b) * (1 + 0x1p-20);
     int k = 0;
     double h = base;
     while (h < w2 && k < kMaxLevels) {

@@ -2,7 +2,7 @@
 // 32-bit object indices: the index behind the lean path (arrays.hpp).
 //
 // Each object sits once, in the cell of its box's low corner, on the finest
-// level whose cells are at least twice its widest side. A probe from object
+// level whose cells are at least as wide as its widest side. A probe from object
 // i visits its own level (partners j > i only) and every coarser level (any
 // partner), so each pair whose boxes overlap is visited exactly once, from
 // the object on the finer level (or the lower index on the same level).
@@ -38,6 +38,17 @@ class ArrayGrid {
   /// find i themselves.
   template <class Visit>
   void probe(std::uint32_t i, const AabbF& box, Visit&& visit) const;
+
+  /// The probing order: the objects in bucket order (neighbours in space
+  /// close together), then the big ones. Probing in this order reads the
+  /// grid's memory in long runs.
+  std::size_t probe_count() const { return entries_.size() + big_.size(); }
+  std::uint32_t probe_object(std::size_t k) const {
+    return k < entries_.size() ? entries_[k].index : big_[k - entries_.size()];
+  }
+  const AabbF& probe_box(std::size_t k) const {
+    return k < entries_.size() ? entries_[k].box : boxes_[big_[k - entries_.size()]];
+  }
 
   /// Bytes held (capacities).
   std::size_t memory_bytes() const;
@@ -76,12 +87,14 @@ inline std::int64_t ArrayGrid::cell(double x, double inv) {
 }
 
 inline std::uint32_t ArrayGrid::hash(std::int64_t cx, std::int64_t cy, std::int64_t cz) {
-  std::uint64_t h = static_cast<std::uint64_t>(cx) * 0x9E3779B97F4A7C15ull;
-  h ^= static_cast<std::uint64_t>(cy) * 0xC2B2AE3D27D4EB4Full;
-  h ^= static_cast<std::uint64_t>(cz) * 0x165667B19E3779F9ull;
-  h ^= h >> 29;
-  h *= 0xBF58476D1CE4E5B9ull;
-  return static_cast<std::uint32_t>(h >> 32);
+  // Linear in x: cells next to each other along x share or neighbour a
+  // bucket, so probes made in bucket order read memory close to the last
+  // probe's (measured at scaled-even 102 400: a mixing hash left the probes
+  // waiting on a cache miss per bucket).
+  const std::uint64_t h = static_cast<std::uint64_t>(cx) +
+                          static_cast<std::uint64_t>(cy) * 0x9E3779B1ull +
+                          static_cast<std::uint64_t>(cz) * 0x85EBCA77C2B2AE63ull;
+  return static_cast<std::uint32_t>(h ^ (h >> 32));
 }
 
 template <class Visit>
@@ -96,14 +109,16 @@ void ArrayGrid::probe(std::uint32_t i, const AabbF& box, Visit&& visit) const {
     return;
   }
   // A probe covers at most 3 cells per axis on each level (cells are at
-  // least twice the widest box on them), so at most 27 buckets per level;
+  // least as wide as the widest box on them), so at most 27 buckets per level;
   // the room for 64 leaves a margin for rounding.
   std::uint32_t seen[64];
   for (std::size_t b = li; b < levels_.size(); ++b) {
     const Level& lv = levels_[b];
     if (lv.count == 0) continue;
-    // Object j on level b has its low corner in its cell and hi <= lo + h/2,
-    // so it overlaps `box` only if lo_j in [box.lo - h, box.hi].
+    // Object j on level b has its low corner in its cell and
+    // hi_j <= lo_j + h (1 - 2^-20), so it overlaps `box` only if lo_j lies in
+    // [box.lo - h, box.hi]; rounding box.lo - h moves it by less than that
+    // margin (cells are at least a float ulp of the coordinates wide).
     const std::int64_t x0 = cell(static_cast<double>(box.lo[0]) - lv.h, lv.inv);
     const std::int64_t x1 = cell(box.hi[0], lv.inv);
     const std::int64_t y0 = cell(static_cast<double>(box.lo[1]) - lv.h, lv.inv);
