@@ -66,19 +66,27 @@ def note(msg):
     NOTES.append(msg)
 
 
+CPU = {}  # id of a measurement's result -> median process CPU seconds
+
+
 def measure(fn, runs, budget=20.0):
     """Median seconds of `runs` calls of fn (fewer when a call takes long:
     at least 1, and no more than `budget` seconds in all). Returns
-    (median, runs done, last result)."""
-    times = []
+    (median, runs done, last result). The median CPU time of the process
+    (all its threads) is kept too: on a shared host the wall time carries
+    the other tenants' load, the CPU time much less of it."""
+    times, cpu = [], []
     out = None
     for _ in range(runs):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         out = fn()
         times.append(time.perf_counter() - t)
+        cpu.append(time.process_time() - c)
         if sum(times) > budget:
             break
-    return float(np.median(times)), len(times), out
+    median = float(np.median(times))
+    CPU[median] = float(np.median(cpu))
+    return median, len(times), out
 
 
 def upper(i, j):
@@ -224,23 +232,26 @@ def run_moving(n, frames, rng, rows):
         c[movers] = p
 
     ix = broadphase.Index(c, r)  # borrows c: moved in place below
-    bp_times, kd_times, pair_counts = [], [], []
+    bp_times, kd_times, bp_cpu, kd_cpu, pair_counts = [], [], [], [], []
     for f in range(frames):
         step()
-        t = time.perf_counter()
+        t, u = time.perf_counter(), time.process_time()
         ix.update(movers)
         p = ix.pairs()
         bp_times.append(time.perf_counter() - t)
+        bp_cpu.append(time.process_time() - u)
         pair_counts.append(len(p))
         if cKDTree is not None:
-            t = time.perf_counter()
+            t, u = time.perf_counter(), time.process_time()
             q = kdtree_mono(c, r)
             kd_times.append(time.perf_counter() - t)
+            kd_cpu.append(time.process_time() - u)
             assert len(q) == len(p), (f, len(q), len(p))
     row = {"workload": "moving", "n": n, "param": f"{frames} frames, 20% moving", "pairs": int(np.median(pair_counts)),
-           "broadphase": float(np.median(bp_times)), "broadphase_runs": frames}
+           "broadphase": float(np.median(bp_times)), "broadphase_runs": frames,
+           "broadphase_cpu": float(np.median(bp_cpu))}
     if kd_times:
-        row.update(cKDTree=float(np.median(kd_times)), cKDTree_runs=frames)
+        row.update(cKDTree=float(np.median(kd_times)), cKDTree_runs=frames, cKDTree_cpu=float(np.median(kd_cpu)))
     rows.append(row)
     print(json.dumps(row), flush=True)
 
@@ -294,7 +305,8 @@ def machine():
     if rtree_index is not None:
         v["rtree"] = rtree.__version__
     return {"cpu": cpu, "cores": os.cpu_count(), "os": osname, "commit": commit, "versions": v,
-            "date": datetime.datetime.utcnow().strftime("%Y-%m-%d %H:%M UTC")}
+            "date": datetime.datetime.utcnow().strftime("%Y-%m-%d %H:%M UTC"),
+            "load_at_start": os.getloadavg()[0]}
 
 
 PEERS = ["cKDTree", "sklearn", "ase", "rtree"]
@@ -314,7 +326,10 @@ def markdown(rows, info, args):
            "one thread unless said; the ratio is the peer's time over broadphase's. Every method's "
            "pair count was checked against broadphase's (ASE counts d < cutoff, strictly, and may "
            "differ by a tie).", "",
-           f"Command: `PYTHONPATH=build/python /usr/bin/python3 python/bench/bench.py{' --quick' if args.quick else ''}`", ""]
+           f"Command: `PYTHONPATH=build/python /usr/bin/python3 python/bench/bench.py {' '.join(sys.argv[1:])}`", "",
+           f"Host load (1-minute average) at the start: {info.get('load_at_start', 0):.1f}, at the end: "
+           f"{info.get('load_at_end', 0):.1f}, on {info['cores']} cores. The CPU ratio compares the process "
+           "CPU time of the two calls (medians), which a loaded host distorts less than the wall time.", ""]
     for wl in ["monodisperse", "polydisperse", "moving", "boxes"]:
         sel = [r for r in rows if r["workload"] == wl]
         if not sel:
@@ -323,7 +338,7 @@ def markdown(rows, info, args):
         extra = ["broadphase_2threads"] if any("broadphase_2threads" in r for r in sel) else []
         head = ["N", "case", "pairs", "broadphase"] + (["broadphase, 2 threads"] if extra else [])
         for p in peers:
-            head += [p, f"{p} / broadphase"]
+            head += [p, f"{p} / broadphase", "CPU ratio"]
         if wl == "polydisperse":
             head.append("cKDTree candidates")
         out += [f"## {wl}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -333,9 +348,11 @@ def markdown(rows, info, args):
                 cells.append(ms(r.get("broadphase_2threads")))
             for p in peers:
                 if p in r:
-                    cells += [f"{ms(r[p])} ({r[p + '_runs']})", f"**{r[p] / r['broadphase']:.1f}x**"]
+                    cpu_p, cpu_b = r.get(p + "_cpu"), r.get("broadphase_cpu")
+                    cells += [f"{ms(r[p])} ({r[p + '_runs']})", f"**{r[p] / r['broadphase']:.1f}x**",
+                              f"{cpu_p / cpu_b:.1f}x" if cpu_p and cpu_b else ""]
                 else:
-                    cells += ["skipped", ""]
+                    cells += ["skipped", "", ""]
             if wl == "polydisperse":
                 cells.append(f"{r.get('kdtree_candidates', 0):,}")
             out.append("| " + " | ".join(cells) + " |")
@@ -393,6 +410,10 @@ def main():
     ap.add_argument("--runs", type=int, default=5, help="runs per entry (median)")
     ap.add_argument("--out", default=None, help="results folder (default results/python/<date>)")
     ap.add_argument("--seed", type=int, default=20261125)
+    ap.add_argument("--only", default="mono,poly,moving,boxes",
+                    help="workloads to run, comma-separated (mono, poly, moving, boxes)")
+    ap.add_argument("--mono-sizes", default=None,
+                    help="monodisperse sizes, comma-separated (default 1e4,3e4,1e5,3e5,1e6)")
     args = ap.parse_args()
     root = pathlib.Path(__file__).resolve().parents[2]
     out = pathlib.Path(args.out) if args.out else root / "results" / "python" / datetime.date.today().isoformat()
@@ -404,16 +425,23 @@ def main():
     info = machine()
     print(json.dumps(info), flush=True)
     rows = []
-    if args.quick:
-        run_mono([10000, 30000], args.runs, rng, rows)
-        run_poly(20000, args.runs, rng, rows)
-        run_moving(20000, 20, rng, rows)
-        run_boxes([10000], args.runs, rng, rows)
-    else:
-        run_mono([10000, 30000, 100000, 300000, 1000000], args.runs, rng, rows)
-        run_poly(100000, args.runs, rng, rows)
-        run_moving(100000, 100, rng, rows)
-        run_boxes([10000, 100000], args.runs, rng, rows)
+    only = set(args.only.split(","))
+    mono = [10000, 30000] if args.quick else [10000, 30000, 100000, 300000, 1000000]
+    if args.mono_sizes:
+        mono = [int(float(v)) for v in args.mono_sizes.split(",")]
+    if "mono" in only:
+        run_mono(mono, args.runs, rng, rows)
+    if "poly" in only:
+        run_poly(20000 if args.quick else 100000, args.runs, rng, rows)
+    if "moving" in only:
+        run_moving(20000 if args.quick else 100000, 20 if args.quick else 100, rng, rows)
+    if "boxes" in only:
+        run_boxes([10000] if args.quick else [10000, 100000], args.runs, rng, rows)
+    info["load_at_end"] = os.getloadavg()[0]
+    for r in rows:  # the CPU medians of the entries measured by measure()
+        for k in ["broadphase", "broadphase_2threads"] + PEERS:
+            if k in r and k + "_cpu" not in r and r[k] in CPU:
+                r[k + "_cpu"] = CPU[r[k]]
     (out / "bench.json").write_text(json.dumps({"machine": info, "rows": rows, "notes": NOTES}, indent=1))
     plot(rows, out / "bench.png")
     (out / "bench.md").write_text(markdown(rows, info, args))
