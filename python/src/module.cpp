@@ -271,7 +271,8 @@ void append_pairs(I64Vec& out, std::span<const bp::IndexPair> chunk) {
 }
 
 /// Sorts pairs by (i, j) in O(M + n + sum of row sorts): a counting pass by i,
-/// then each row's few j sorted (a comparison sort of 3 M pairs took 10x longer).
+/// then each row's few j sorted. Measured at 890 000 pairs: 0.02-0.06 s of CPU
+/// over the unsorted copy, against 0.22-0.31 s for numpy.lexsort of the result.
 void sort_pairs(PairVec& pairs, std::size_t n) {
   if (pairs.size() < 2) return;
   std::vector<std::uint32_t> start(n + 1, 0);
