@@ -412,14 +412,23 @@ def main():
     ap.add_argument("--seed", type=int, default=20261125)
     ap.add_argument("--only", default="mono,poly,moving,boxes",
                     help="workloads to run, comma-separated (mono, poly, moving, boxes)")
+    ap.add_argument("--skip", default="", help="peers to leave out, comma-separated (scipy, sklearn, ase, rtree)")
     ap.add_argument("--mono-sizes", default=None,
                     help="monodisperse sizes, comma-separated (default 1e4,3e4,1e5,3e5,1e6)")
     args = ap.parse_args()
     root = pathlib.Path(__file__).resolve().parents[2]
     out = pathlib.Path(args.out) if args.out else root / "results" / "python" / datetime.date.today().isoformat()
     out.mkdir(parents=True, exist_ok=True)
+    global cKDTree, NearestNeighbors, neighbor_list, rtree_index
+    skip = set(filter(None, args.skip.split(",")))
+    for name in skip:
+        note(f"{name} left out of this run (--skip)")
+    cKDTree = None if "scipy" in skip else cKDTree
+    NearestNeighbors = None if "sklearn" in skip else NearestNeighbors
+    neighbor_list = None if "ase" in skip else neighbor_list
+    rtree_index = None if "rtree" in skip else rtree_index
     for name, mod in [("scipy", cKDTree), ("sklearn", NearestNeighbors), ("ase", neighbor_list), ("rtree", rtree_index)]:
-        if mod is None:
+        if mod is None and name not in skip:
             note(f"{name} is not installed: its comparisons are skipped (tools/deps.sh installs it)")
     rng = np.random.default_rng(args.seed)
     info = machine()
