@@ -132,7 +132,8 @@ void add_gen_command(CLI::App& app) {
   auto o = std::make_shared<GenOptions>();
   cmd->add_option("--dist", o->dist,
                   "even | uneven | scaled-even | scaled-uneven (the study); clusters | decades | "
-                  "all-moving | explosion | flat | coincident | outside (stress kinds)")
+                  "all-moving | explosion | flat | coincident | outside (stress kinds); boxes | "
+                  "half-boxes | box-decades | city (box worlds)")
       ->required();
   cmd->add_option("--n", o->n, "Number of objects")
       ->required()
