@@ -26,8 +26,7 @@ array([[0, 1]])
 
 from __future__ import annotations
 
-import threading as _threading
-from typing import Iterator, Optional, Sequence, Tuple, Union
+from typing import Iterator, Optional, Sequence
 
 import numpy as np
 

@@ -7,8 +7,6 @@ import pathlib
 import numpy as np
 import pytest
 
-import broadphase
-
 DATA = pathlib.Path(os.environ.get("BROADPHASE_TEST_DATA",
                                    pathlib.Path(__file__).resolve().parents[2] / "tests" / "data"))
 # Set under the sanitizers, where everything runs several times slower.

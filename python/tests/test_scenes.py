@@ -3,7 +3,6 @@ hashes as the brute-force *.expected files, for the lean index (objects moved
 in place in the borrowed arrays, and new arrays each frame), the one-shot
 call, and every library structure."""
 
-import numpy as np
 import pytest
 
 import broadphase
