@@ -25,6 +25,12 @@ for a in $algos; do
     check "$a on $(basename "$s")" cmp -s "$tmp/out" "$exp"
   done
 done
+# The lean path over arrays (run --arrays) reproduces them too.
+for s in "$data"/scenes/*.scene; do
+  exp=${s%.scene}.expected
+  "$cli" run --scene "$s" --arrays --frames "$(wc -l <"$exp")" >"$tmp/out" 2>"$tmp/err"
+  check "arrays on $(basename "$s")" cmp -s "$tmp/out" "$exp"
+done
 
 # Bad input: a message naming the file and line, a non-zero exit, no crash.
 expect_error() {  # expect_error NAME PATTERN ARGS...

@@ -43,9 +43,11 @@ struct RunOptions {
   std::string algo;
   int frames = 100;
   bool json = false;
+  bool arrays = false;
 };
 
 void run(const RunOptions& o) {
+  if (o.arrays) return run_arrays(o.scene, o.frames, o.json);
   Scene scene = read_scene(o.scene);
   Config config;
   config.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}};
@@ -114,6 +116,9 @@ void add_run_command(CLI::App& app) {
       ->default_val(100)
       ->check(CLI::Range(1, 100000000));
   cmd->add_flag("--json", o->json, "Print one JSON summary instead of one line per frame");
+  cmd->add_flag("--arrays", o->arrays,
+                "Replay through the lean path over arrays (PairTracker, docs/arrays.md) "
+                "instead of a structure; --algo is then ignored");
   cmd->callback([o] { run(*o); });
 }
 
@@ -127,7 +132,8 @@ void add_gen_command(CLI::App& app) {
   auto o = std::make_shared<GenOptions>();
   cmd->add_option("--dist", o->dist,
                   "even | uneven | scaled-even | scaled-uneven (the study); clusters | decades | "
-                  "all-moving | explosion | flat | coincident | outside (stress kinds)")
+                  "all-moving | explosion | flat | coincident | outside (stress kinds); boxes | "
+                  "half-boxes | box-decades | city (box worlds)")
       ->required();
   cmd->add_option("--n", o->n, "Number of objects")
       ->required()

@@ -47,4 +47,8 @@ void add_sim_command(CLI::App& app);     // cmd_sim.cpp
 void add_draw_command(CLI::App& app);    // cmd_draw.cpp
 void add_advise_command(CLI::App& app);  // cmd_advise.cpp
 
+/// `run --arrays`: replays a scene through PairTracker (arrays.hpp) and
+/// prints what `run` prints. Throws SceneError as `run` does.
+void run_arrays(const std::string& scene, int frames, bool json);  // run_arrays.cpp
+
 }  // namespace broadphase::app

@@ -252,6 +252,14 @@ std::string_view to_string(Distribution d) {
       return "coincident";
     case Distribution::outside:
       return "outside";
+    case Distribution::boxes:
+      return "boxes";
+    case Distribution::half_boxes:
+      return "half-boxes";
+    case Distribution::box_decades:
+      return "box-decades";
+    case Distribution::city:
+      return "city";
   }
   return "?";
 }
@@ -372,6 +380,85 @@ Scene generate_stress(Distribution d, std::size_t n, Rng& rng) {
   return s;
 }
 
+// Half-extents of a box whose largest half side is `s`: cubic, long (one
+// side s, the others a tenth of it) or thin (one side a tenth, the others s).
+Vec3 box_shape(double s, Rng& rng) {
+  const int axis = static_cast<int>(rng.below(3));
+  Vec3 h{s, s, s};
+  switch (rng.below(3)) {
+    case 0:  // cubic
+      break;
+    case 1:  // long: a beam along `axis`
+      h = {s / 10, s / 10, s / 10};
+      h[axis] = s;
+      break;
+    default:  // thin: a plate across `axis`
+      h[axis] = s / 10;
+  }
+  return h;
+}
+
+// The box worlds: L = 1000 and the study's speeds, 20% moving, as the
+// other stress kinds; the city's movers are its flying spheres.
+Scene generate_box_world(Distribution d, std::size_t n, Rng& rng) {
+  Scene s;
+  s.world = 1000.0;
+  const double L = s.world;
+  if (d == Distribution::city) {
+    // Buildings fill square lots of side 8 on a lattice, each its whole lot,
+    // so neighbours touch face to face (dyadic values: exact in any
+    // precision); their feet stand on y = 0, the top of the ground box.
+    // 70% buildings (one of them the ground), 30% spheres flying above.
+    const std::size_t flyers = n < 2 ? 0 : (n * 3 + 5) / 10;
+    const std::size_t buildings = n - flyers - (n > 0 ? 1 : 0);
+    const auto side =
+        static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(buildings))));
+    const double extent = 8.0 * static_cast<double>(std::max<std::size_t>(side, 1));
+    if (n > 0) {
+      s.objects.push_back(
+          Shape::box({extent / 2, -0.5, extent / 2}, {extent / 2, 0.5, extent / 2}));
+      s.velocity.push_back({});
+    }
+    for (std::size_t b = 0; b < buildings; ++b) {
+      const double half_height = static_cast<double>(1 + rng.below(40));
+      const double cx = 8.0 * static_cast<double>(b % side) + 4;
+      const double cz = 8.0 * static_cast<double>(b / side) + 4;
+      s.objects.push_back(Shape::box({cx, half_height, cz}, {4, half_height, 4}));
+      s.velocity.push_back({});
+    }
+    for (std::size_t f = 0; f < flyers; ++f) {
+      const Vec3 c{rng.uniform(0, std::max(L, extent)), rng.uniform(50, L),
+                   rng.uniform(0, std::max(L, extent))};
+      s.objects.push_back(Shape::sphere(c, rng.uniform(0.5, 5.0)));
+      s.velocity.push_back(rng.direction() * rng.uniform(0.1, 2.0));
+    }
+    return s;
+  }
+  const std::vector<char> moving = choose(n, (n * 2 + 5) / 10, rng);
+  s.objects.reserve(n);
+  s.velocity.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 c{rng.uniform(0, L), rng.uniform(0, L), rng.uniform(0, L)};
+    Shape shape;
+    switch (d) {
+      case Distribution::boxes:
+        shape = Shape::box(c, box_shape(std::pow(10.0, rng.uniform(-0.6, 1.4)), rng));
+        break;
+      case Distribution::half_boxes:
+        shape = rng.below(2) ? Shape::box(c, box_shape(rng.uniform(0.5, 5.0), rng))
+                             : Shape::sphere(c, rng.uniform(0.5, 5.0));
+        break;
+      default: {  // box_decades
+        const double size = std::pow(10.0, rng.uniform(-2, 2));
+        shape = rng.below(3) == 0 ? Shape::box(c, box_shape(size, rng)) : Shape::sphere(c, size);
+      }
+    }
+    s.objects.push_back(shape);
+    s.velocity.push_back(moving[i] ? rng.direction() * rng.uniform(0.1, 2.0) : Vec3{});
+  }
+  return s;
+}
+
 }  // namespace
 
 Scene generate(Distribution d, std::size_t n, std::uint64_t seed) {
@@ -382,6 +469,11 @@ Scene generate(Distribution d, std::size_t n, std::uint64_t seed) {
     case Distribution::scaled_even:
     case Distribution::scaled_uneven:
       return generate_study(d, n, rng);
+    case Distribution::boxes:
+    case Distribution::half_boxes:
+    case Distribution::box_decades:
+    case Distribution::city:
+      return generate_box_world(d, n, rng);
     default:
       return generate_stress(d, n, rng);
   }

@@ -103,14 +103,19 @@ enum class Distribution {
   flat,           ///< every centre within 1 unit of the ground (y in [0, 1])
   coincident,     ///< a quarter of the objects share one of N/100 centres
   outside,        ///< 10% of the centres outside the world, 1 in 5000 larger than it
+  boxes,          ///< all boxes, thin, long or cubic, largest half side over two decades
+  half_boxes,     ///< half boxes, half spheres, sizes as the stress kinds
+  box_decades,    ///< sizes over four decades (0.01 to 100), a third of them boxes
+  city,           ///< touching buildings on a ground box, spheres flying above them
 };
 
 /// Every distribution, in enum order.
 inline constexpr Distribution kAllDistributions[] = {
-    Distribution::even,          Distribution::uneven,    Distribution::scaled_even,
-    Distribution::scaled_uneven, Distribution::clusters,  Distribution::decades,
-    Distribution::all_moving,    Distribution::explosion, Distribution::flat,
-    Distribution::coincident,    Distribution::outside};
+    Distribution::even,          Distribution::uneven,      Distribution::scaled_even,
+    Distribution::scaled_uneven, Distribution::clusters,    Distribution::decades,
+    Distribution::all_moving,    Distribution::explosion,   Distribution::flat,
+    Distribution::coincident,    Distribution::outside,     Distribution::boxes,
+    Distribution::half_boxes,    Distribution::box_decades, Distribution::city};
 
 /// Parses a distribution name ("even", "scaled-even", "all-moving", ...).
 /// Throws std::invalid_argument listing the valid names.
@@ -144,7 +149,13 @@ class Rng {
 /// kinds keep the density of 6400 objects per km³: L = 1000 * cbrt(N / 6400).
 /// The stress kinds keep L = 1000 and the study's speeds unless their
 /// description says otherwise, with radii uniform in [0.5, 5] so that 20 000
-/// objects are about as crowded as the study's 6400.
+/// objects are about as crowded as the study's 6400. The box worlds: `boxes`
+/// has largest half sides log-uniform in [0.25, 25], each box cubic, long
+/// (the other sides a tenth) or thin (one side a tenth); `half-boxes` sizes
+/// as the stress kinds; `box-decades` sizes log-uniform in [0.01, 100];
+/// `city` lots of side 8 each filled by a building of half height 1..40
+/// standing on a ground box (neighbours and the ground touch exactly), and
+/// 30% spheres (the movers) flying at heights 50 to L.
 Scene generate(Distribution d, std::size_t n, std::uint64_t seed);
 
 }  // namespace broadphase

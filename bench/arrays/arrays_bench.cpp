@@ -1,0 +1,227 @@
+// Measures the lean path (arrays.hpp) on a generated scene held in memory,
+// as a caller would: SoA double columns the caller owns, its movers moved
+// by the replay motion, then one PairTracker call per frame.
+//
+//   arrays_bench DIST N [FRAMES] [--threads T] [--skin S] [--all]
+//                [--compare ALGO] [--seed S]
+//
+// Prints per frame: frame, pairs, hash, the call's ms, rebuilt; then the
+// medians, the tracker's own bytes per object, and the process's VmRSS and
+// VmHWM (kB, from /proc/self/status). `--compare ALGO` replays the same
+// scene through a handle structure (e.g. fast-grid) in the same process,
+// checks that every frame's count and hash agree, and prints its median.
+// `--all` tells the tracker that everything may have changed (it then
+// finds the movers itself) instead of passing the movers' indices.
+#include <algorithm>
+#include <broadphase/arrays.hpp>
+#include <broadphase/lab/replay.hpp>
+#include <broadphase/lab/scene.hpp>
+#include <broadphase/registry.hpp>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
+#include <fstream>
+#include <numeric>
+#include <string>
+#include <vector>
+
+namespace {
+
+using namespace broadphase;
+using Clock = std::chrono::steady_clock;
+
+long status_kb(const char* key) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  const std::size_t len = std::strlen(key);
+  while (std::getline(in, line))
+    if (line.compare(0, len, key) == 0) return std::atol(line.c_str() + len + 1);
+  return -1;
+}
+
+// CPU time of the process in ms: on a shared host the wall clock also
+// counts the time other processes held the cores.
+double cpu_ms() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+// The caller's arrays: structure of arrays, doubles.
+struct Caller {
+  std::vector<double> x, y, z, r, hx, hy, hz, vx, vy, vz;
+  std::vector<std::uint8_t> kind;
+  std::vector<std::uint32_t> movers;
+  double world = 0;
+  bool any_box = false;
+
+  explicit Caller(const Scene& s) : world(s.world) {
+    const std::size_t n = s.size();
+    for (auto* v : {&x, &y, &z, &r, &vx, &vy, &vz}) v->resize(n);
+    for (const Shape& o : s.objects) any_box |= !o.is_sphere();
+    if (any_box) {
+      for (auto* v : {&hx, &hy, &hz}) v->resize(n);
+      kind.resize(n);
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      const Shape& o = s.objects[i];
+      x[i] = o.center.x, y[i] = o.center.y, z[i] = o.center.z, r[i] = o.half.x;
+      vx[i] = s.velocity[i].x, vy[i] = s.velocity[i].y, vz[i] = s.velocity[i].z;
+      if (any_box) {
+        hx[i] = o.half.x, hy[i] = o.half.y, hz[i] = o.half.z;
+        kind[i] = o.is_sphere() ? 0 : 1;
+      }
+      if (s.is_moving(i)) movers.push_back(static_cast<std::uint32_t>(i));
+    }
+  }
+  Objects view() const {
+    Objects o;
+    o.count = x.size();
+    o.x = Column::of(x.data()), o.y = Column::of(y.data()), o.z = Column::of(z.data());
+    o.radius = Column::of(r.data());
+    if (any_box) {
+      o.half_x = Column::of(hx.data()), o.half_y = Column::of(hy.data());
+      o.half_z = Column::of(hz.data());
+      o.kind = kind.data();
+    }
+    return o;
+  }
+  void move() {
+    for (std::uint32_t i : movers) {
+      step_axis(x[i], vx[i], world);
+      step_axis(y[i], vy[i], world);
+      step_axis(z[i], vz[i], world);
+    }
+  }
+  std::size_t bytes() const {
+    // What the tracker reads: centres, radius, and the boxes' columns.
+    return x.size() * (any_box ? 7 * 8 + 1 : 4 * 8);
+  }
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 3) {
+    std::fprintf(stderr,
+                 "usage: arrays_bench DIST N [FRAMES] [--threads T] [--skin S] [--all] "
+                 "[--compare ALGO] [--seed S] [--quiet]\n");
+    return 2;
+  }
+  const Distribution dist = parse_distribution(argv[1]);
+  const std::size_t n = std::strtoull(argv[2], nullptr, 10);
+  int frames = 20;
+  int argi = 3;
+  if (argc > 3 && argv[3][0] != '-') frames = std::atoi(argv[argi++]);
+  ArrayOptions opt;
+  bool tell_all = false, quiet = false;
+  std::string compare;
+  std::uint64_t seed = 1;
+  for (; argi < argc; ++argi) {
+    const std::string a = argv[argi];
+    if (a == "--threads" && argi + 1 < argc)
+      opt.threads = std::atoi(argv[++argi]);
+    else if (a == "--skin" && argi + 1 < argc)
+      opt.skin = std::atof(argv[++argi]);
+    else if (a == "--all")
+      tell_all = true;
+    else if (a == "--quiet")
+      quiet = true;
+    else if (a == "--compare" && argi + 1 < argc)
+      compare = argv[++argi];
+    else if (a == "--seed" && argi + 1 < argc)
+      seed = std::strtoull(argv[++argi], nullptr, 10);
+    else {
+      std::fprintf(stderr, "unknown argument %s\n", a.c_str());
+      return 2;
+    }
+  }
+
+  const auto g0 = Clock::now();
+  Scene scene = generate(dist, n, seed);
+  const double gen_s = std::chrono::duration<double>(Clock::now() - g0).count();
+  Caller caller(scene);
+  std::printf("# %s n=%zu frames=%d threads=%u skin=%g changes=%s generate=%.1fs movers=%zu\n",
+              argv[1], n, frames, opt.threads, opt.skin, tell_all ? "all" : "movers", gen_s,
+              caller.movers.size());
+  const long rss_before = status_kb("VmRSS:");
+
+  std::vector<FrameDigest> digests;
+  std::vector<double> call_ms, move_ms, cpu_call_ms;
+  PairTracker tracker(opt);
+  std::size_t rebuilds = 0;
+  for (int f = 0; f < frames; ++f) {
+    const auto t0 = Clock::now();
+    if (f > 0) caller.move();
+    const auto t1 = Clock::now();
+    const double c1 = cpu_ms();
+    FrameDigest d;
+    const auto stats = tracker.find_pairs(
+        caller.view(),
+        [&](std::span<const IndexPair> c) {
+          for (const IndexPair& p : c) d.add(p.i, p.j);
+          return true;
+        },
+        f == 0 || tell_all ? Changes::everything() : Changes::only(caller.movers));
+    const auto t2 = Clock::now();
+    cpu_call_ms.push_back(cpu_ms() - c1);
+    digests.push_back(d);
+    rebuilds += stats.rebuilt;
+    move_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+    call_ms.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
+    if (!quiet)
+      std::printf("%d %llu %s %.2f ms (cpu %.2f)%s\n", f, static_cast<unsigned long long>(d.pairs),
+                  hex16(d.hash).c_str(), call_ms.back(), cpu_call_ms.back(),
+                  stats.rebuilt ? " rebuilt" : "");
+  }
+  // The first call builds; the frame figure is the median of the others.
+  std::vector<double> later(call_ms.begin() + (frames > 1 ? 1 : 0), call_ms.end());
+  std::vector<double> later_move(move_ms.begin() + (frames > 1 ? 1 : 0), move_ms.end());
+  std::vector<double> later_cpu(cpu_call_ms.begin() + (frames > 1 ? 1 : 0), cpu_call_ms.end());
+  const double own = static_cast<double>(tracker.memory_bytes()) / static_cast<double>(n);
+  std::printf(
+      "arrays: first call %.1f ms, median call %.2f ms (cpu %.2f, mean cpu %.2f), median move "
+      "%.2f ms, frame %.2f ms, rebuilds %zu, own %.1f B/object, caller %.1f B/object, VmRSS %ld kB "
+      "(before tracker "
+      "%ld kB), VmHWM %ld kB\n",
+      call_ms[0], median(later), median(later_cpu),
+      later_cpu.empty() ? 0.0
+                        : std::accumulate(later_cpu.begin(), later_cpu.end(), 0.0) /
+                              static_cast<double>(later_cpu.size()),
+      median(later_move), median(later) + median(later_move), rebuilds, own,
+      static_cast<double>(caller.bytes()) / static_cast<double>(n), status_kb("VmRSS:"), rss_before,
+      status_kb("VmHWM:"));
+
+  if (!compare.empty()) {
+    Scene fresh = generate(dist, n, seed);
+    Config config;
+    config.world = {{0, 0, 0}, {fresh.world, fresh.world, fresh.world}};
+    config.expected_objects = n;
+    auto bp = make_structure(compare, config);
+    Replay replay(*bp, std::move(fresh));
+    std::vector<double> ms, cms;
+    int mismatches = 0;
+    for (int f = 0; f < frames; ++f) {
+      const double c0 = cpu_ms();
+      const FrameResult r = replay.next();
+      if (f > 0) ms.push_back(r.seconds() * 1e3);
+      if (f > 0) cms.push_back(cpu_ms() - c0);
+      if (!(r.digest == digests[static_cast<std::size_t>(f)])) ++mismatches;
+    }
+    std::printf(
+        "%s: median frame %.2f ms (cpu %.2f incl. the motion), memory %.1f B/object, frames "
+        "disagreeing: %d\n",
+        compare.c_str(), median(ms), median(cms),
+        static_cast<double>(bp->memory_bytes()) / static_cast<double>(n), mismatches);
+    if (mismatches) return 1;
+  }
+  return 0;
+}

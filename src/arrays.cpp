@@ -1,0 +1,491 @@
+// The lean path over the caller's arrays (arrays.hpp): a multi-level hashed
+// grid of float boxes built per call (one-shot) or over skin-fattened boxes
+// kept between calls (the tracker), exact tests read from the caller's data.
+#include <algorithm>
+#include <broadphase/arrays.hpp>
+#include <broadphase/handle.hpp>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <thread>
+#include <unordered_set>
+
+#include "detail/array_grid.hpp"
+#include "detail/in_order.hpp"
+
+namespace broadphase {
+namespace {
+
+using detail::ArrayGrid;
+using detail::run_in_order;
+
+// Indices are 32-bit; one value is kept free so that a count fits too.
+constexpr std::size_t kMaxObjects = std::numeric_limits<std::uint32_t>::max();
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+unsigned thread_count(unsigned requested) {
+  if (requested != 0) return requested;
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
+[[noreturn]] void bad(const char* what, std::size_t i, const std::string& why) {
+  throw InvalidObjects(std::string(what) + "[" + std::to_string(i) + "]: " + why, i);
+}
+
+// One set, or two concatenated (the bipartite calls): index k < na is
+// a's object k, the others b's object k - na.
+struct Source {
+  const Objects* a = nullptr;
+  const Objects* b = nullptr;
+  std::size_t na = 0;
+  std::size_t n = 0;
+
+  Shape shape(std::size_t k) const { return k < na ? a->shape(k) : b->shape(k - na); }
+};
+
+std::vector<AabbF> float_bounds(const Source& src) {
+  std::vector<AabbF> boxes(src.n);
+  for (std::size_t k = 0; k < src.n; ++k) boxes[k] = bounds_f(src.shape(k));
+  return boxes;
+}
+
+struct PairChunk {
+  std::vector<IndexPair> pairs;
+  std::uint64_t tests = 0;
+};
+
+// Hands the chunks to the sink (sorted at the end if asked), counting.
+class Emitter {
+ public:
+  Emitter(const PairSink& sink, bool sorted, ArrayCallStats& stats)
+      : sink_(sink), sorted_(sorted), stats_(stats) {}
+
+  bool deliver(PairChunk& c) {
+    stats_.tests += c.tests;
+    stats_.pairs += c.pairs.size();
+    if (sorted_) {
+      all_.insert(all_.end(), c.pairs.begin(), c.pairs.end());
+      return true;
+    }
+    if (c.pairs.empty()) return true;
+    if (!sink_(std::span<const IndexPair>(c.pairs))) {
+      stats_.stopped = true;
+      return false;
+    }
+    return true;
+  }
+  void finish() {
+    if (!sorted_ || stats_.stopped) return;
+    std::sort(all_.begin(), all_.end(), [](const IndexPair& p, const IndexPair& q) {
+      return p.i != q.i ? p.i < q.i : p.j < q.j;
+    });
+    constexpr std::size_t kSlice = 1 << 16;
+    for (std::size_t s = 0; s < all_.size(); s += kSlice) {
+      const std::size_t e = std::min(all_.size(), s + kSlice);
+      if (!sink_(std::span<const IndexPair>(all_.data() + s, e - s))) {
+        stats_.stopped = true;
+        return;
+      }
+    }
+  }
+
+ private:
+  const PairSink& sink_;
+  bool sorted_;
+  ArrayCallStats& stats_;
+  std::vector<IndexPair> all_;
+};
+
+PairSink append_to(std::vector<IndexPair>& out) {
+  return [&out](std::span<const IndexPair> c) {
+    out.insert(out.end(), c.begin(), c.end());
+    return true;
+  };
+}
+
+IndexPair ordered(std::uint32_t p, std::uint32_t q) {
+  return p < q ? IndexPair{p, q} : IndexPair{q, p};
+}
+
+ArrayCallStats one_shot(const Source& src, bool bipartite, const PairSink& sink,
+                        const ArrayOptions& options) {
+  ArrayCallStats stats;
+  const std::vector<AabbF> boxes = float_bounds(src);
+  ArrayGrid grid;
+  grid.build(boxes);
+  Emitter emit(sink, options.sorted, stats);
+  const auto na = static_cast<std::uint32_t>(src.na);
+  run_in_order<PairChunk>(
+      grid.probe_count(), thread_count(options.threads),
+      [&](std::size_t begin, std::size_t end, PairChunk& out) {
+        out.pairs.clear();
+        out.tests = 0;
+        for (std::size_t k = begin; k < end; ++k) {
+          const std::uint32_t i = grid.probe_object(k);
+          const Shape si = src.shape(i);
+          grid.probe(i, grid.probe_box(k), [&](std::uint32_t j) {
+            if (bipartite && ((i < na) == (j < na))) return;
+            ++out.tests;
+            if (!overlaps(si, src.shape(j))) return;
+            if (bipartite)
+              out.pairs.push_back(i < na ? IndexPair{i, j - na} : IndexPair{j, i - na});
+            else
+              out.pairs.push_back(ordered(i, j));
+          });
+        }
+      },
+      [&](PairChunk& c) { return emit.deliver(c); });
+  emit.finish();
+  return stats;
+}
+
+}  // namespace
+
+void check_objects(const Objects& o, const char* what) {
+  if (o.count > kMaxObjects)
+    throw InvalidObjects(std::string(what) + ": " + std::to_string(o.count) +
+                             " objects, more than 32-bit indices can name (" +
+                             std::to_string(kMaxObjects) + ")",
+                         SIZE_MAX);
+  if (o.count == 0) return;
+  auto missing = [&](const char* column) {
+    throw InvalidObjects(std::string(what) + ": column " + column + " is missing", SIZE_MAX);
+  };
+  if (o.x.empty()) missing("x");
+  if (o.y.empty()) missing("y");
+  if (o.z.empty()) missing("z");
+  const bool halves = !o.half_x.empty() && !o.half_y.empty() && !o.half_z.empty();
+  if (o.kind == nullptr && o.radius.empty() && !halves)
+    missing(o.half_x.empty() ? "half_x (or radius)" : (o.half_y.empty() ? "half_y" : "half_z"));
+  static const char* const kAxis[3] = {"x", "y", "z"};
+  static const char* const kHalf[3] = {"half_x", "half_y", "half_z"};
+  const Column* centre[3] = {&o.x, &o.y, &o.z};
+  const Column* half[3] = {&o.half_x, &o.half_y, &o.half_z};
+  for (std::size_t i = 0; i < o.count; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      const double v = centre[a]->at(i);
+      if (!std::isfinite(v)) bad(what, i, std::string(kAxis[a]) + " is " + fmt(v));
+    }
+    bool sphere = !o.radius.empty();
+    if (o.kind != nullptr) {
+      const std::uint8_t k = o.kind[static_cast<std::ptrdiff_t>(i) * o.kind_stride];
+      if (k > 1) bad(what, i, "kind is " + std::to_string(k) + " (0 sphere, 1 box)");
+      sphere = k == 0;
+    }
+    if (sphere) {
+      if (o.radius.empty()) bad(what, i, "is a sphere but the radius column is missing");
+      const double r = o.radius.at(i);
+      if (!std::isfinite(r)) bad(what, i, "radius is " + fmt(r));
+      if (r < 0) bad(what, i, "radius is negative (" + fmt(r) + ")");
+    } else {
+      for (int a = 0; a < 3; ++a) {
+        if (half[a]->empty())
+          bad(what, i, std::string("is a box but the ") + kHalf[a] + " column is missing");
+        const double h = half[a]->at(i);
+        if (!std::isfinite(h)) bad(what, i, std::string(kHalf[a]) + " is " + fmt(h));
+        if (h < 0) bad(what, i, std::string(kHalf[a]) + " is negative (" + fmt(h) + ")");
+      }
+    }
+  }
+}
+
+ArrayCallStats find_pairs(const Objects& objects, const PairSink& sink,
+                          const ArrayOptions& options) {
+  check_objects(objects);
+  Source src{&objects, nullptr, objects.count, objects.count};
+  return one_shot(src, false, sink, options);
+}
+
+ArrayCallStats find_pairs(const Objects& objects, std::vector<IndexPair>& out,
+                          const ArrayOptions& options) {
+  return find_pairs(objects, append_to(out), options);
+}
+
+ArrayCallStats find_pairs(const Objects& a, const Objects& b, const PairSink& sink,
+                          const ArrayOptions& options) {
+  check_objects(a, "a");
+  check_objects(b, "b");
+  if (a.count + b.count > kMaxObjects)
+    throw InvalidObjects("a and b: " + std::to_string(a.count + b.count) +
+                             " objects together, more than 32-bit indices can name",
+                         SIZE_MAX);
+  Source src{&a, &b, a.count, a.count + b.count};
+  return one_shot(src, true, sink, options);
+}
+
+ArrayCallStats find_pairs(const Objects& a, const Objects& b, std::vector<IndexPair>& out,
+                          const ArrayOptions& options) {
+  return find_pairs(a, b, append_to(out), options);
+}
+
+std::vector<std::uint32_t> query(const Objects& objects, const Shape& shape) {
+  require_valid(shape);
+  check_objects(objects);
+  std::vector<std::uint32_t> out;
+  const AabbF qb = bounds_f(shape);
+  for (std::size_t i = 0; i < objects.count; ++i) {
+    const Shape s = objects.shape(i);
+    if (qb.overlaps(bounds_f(s)) && overlaps(shape, s))
+      out.push_back(static_cast<std::uint32_t>(i));
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------
+// PairTracker
+
+// Candidate entries: the partner's index, and in the top bit whether the
+// pair overlapped at the last call (valid while neither object changes).
+constexpr std::uint32_t kOverlapBit = 0x80000000u;
+constexpr std::uint32_t kIndexMask = 0x7FFFFFFFu;
+constexpr std::size_t kMaxTracked = kIndexMask;
+
+struct PairTracker::Impl {
+  ArrayOptions options;
+  bool built = false;
+  bool fresh = false;  // rebuilt and not yet tested: every candidate is tested
+  std::size_t count = 0;
+  // Per object: its bounds at the last rebuild, fattened by the skin. While
+  // every object's bounds stay inside its fat box, every overlapping pair is
+  // among the candidates (pairs of overlapping fat boxes).
+  std::vector<AabbF> fat;
+  // Candidates in rows, one row per object in the grid's probe order (so
+  // that a row's neighbours in memory are its neighbours in space): row k
+  // belongs to object owner[k] and holds partner[offset[k] .. offset[k+1]).
+  std::vector<std::uint32_t> owner;
+  std::vector<std::uint32_t> offset;
+  std::vector<std::uint32_t> partner;
+
+  double margin(const Objects& o) const;
+  void rebuild(const Objects& o);
+  bool contained(const Objects& o, std::uint32_t i) const {
+    const AabbF b = bounds_f(o.shape(i));
+    const AabbF& f = fat[i];
+    return f.lo[0] <= b.lo[0] && f.lo[1] <= b.lo[1] && f.lo[2] <= b.lo[2] && b.hi[0] <= f.hi[0] &&
+           b.hi[1] <= f.hi[1] && b.hi[2] <= f.hi[2];
+  }
+};
+
+// The skin as a distance: `options.skin` times the median largest
+// half-extent (of a sample), so it scales with the objects.
+double PairTracker::Impl::margin(const Objects& o) const {
+  const double rel = options.skin > 0 ? options.skin : 0.25;
+  std::vector<double> sample;
+  const std::size_t step = std::max<std::size_t>(1, o.count / 1024);
+  for (std::size_t i = 0; i < o.count; i += step) sample.push_back(o.shape(i).max_half());
+  if (sample.empty()) return 0;
+  std::nth_element(sample.begin(), sample.begin() + static_cast<std::ptrdiff_t>(sample.size() / 2),
+                   sample.end());
+  const double m = rel * sample[sample.size() / 2];
+  return std::isfinite(m) ? m : 0;
+}
+
+void PairTracker::Impl::rebuild(const Objects& o) {
+  const std::size_t n = o.count;
+  const double m = margin(o);
+  fat.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Aabb b = bounds(o.shape(i));
+    fat[i] = {{round_down(b.lo.x - m), round_down(b.lo.y - m), round_down(b.lo.z - m)},
+              {round_up(b.hi.x + m), round_up(b.hi.y + m), round_up(b.hi.z + m)}};
+  }
+  ArrayGrid grid;
+  grid.build(fat);
+  struct Lists {
+    std::vector<std::uint32_t> counts;
+    std::vector<std::uint32_t> partners;
+  };
+  const std::size_t rows = grid.probe_count();
+  owner.resize(rows);
+  offset.assign(rows + 1, 0);
+  partner.clear();
+  std::size_t filled = 0;
+  run_in_order<Lists>(
+      rows, thread_count(options.threads),
+      [&](std::size_t begin, std::size_t end, Lists& out) {
+        out.counts.clear();
+        out.partners.clear();
+        for (std::size_t k = begin; k < end; ++k) {
+          const std::size_t before = out.partners.size();
+          const std::uint32_t i = grid.probe_object(k);
+          owner[k] = i;
+          grid.probe(i, grid.probe_box(k), [&](std::uint32_t j) { out.partners.push_back(j); });
+          out.counts.push_back(static_cast<std::uint32_t>(out.partners.size() - before));
+        }
+      },
+      [&](Lists& l) {
+        for (std::uint32_t c : l.counts) {
+          offset[filled + 1] = offset[filled] + c;
+          ++filled;
+        }
+        partner.insert(partner.end(), l.partners.begin(), l.partners.end());
+        return true;
+      });
+  partner.shrink_to_fit();
+  count = n;
+  built = true;
+  fresh = true;
+}
+
+PairTracker::PairTracker(const ArrayOptions& options) : impl_(std::make_unique<Impl>()) {
+  impl_->options = options;
+}
+PairTracker::~PairTracker() = default;
+PairTracker::PairTracker(PairTracker&&) noexcept = default;
+PairTracker& PairTracker::operator=(PairTracker&&) noexcept = default;
+
+ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& sink,
+                                       const Changes& changes) {
+  Impl& im = *impl_;
+  // Everything that can throw on bad input runs before the tracker changes.
+  check_objects(objects);
+  if (objects.count > kMaxTracked)
+    throw InvalidObjects("objects: " + std::to_string(objects.count) +
+                             " objects, more than a tracker can name (" +
+                             std::to_string(kMaxTracked) + ")",
+                         SIZE_MAX);
+  if (!changes.all)
+    for (std::uint32_t k : changes.indices)
+      if (k >= objects.count)
+        throw InvalidObjects("changes: index " + std::to_string(k) + " is not below the count " +
+                                 std::to_string(objects.count),
+                             k);
+
+  ArrayCallStats stats;
+  bool rebuild = !im.built || objects.count != im.count;
+  if (!rebuild) {
+    if (changes.all) {
+      for (std::size_t i = 0; i < objects.count && !rebuild; ++i)
+        rebuild = !im.contained(objects, static_cast<std::uint32_t>(i));
+    } else {
+      for (std::uint32_t k : changes.indices)
+        if (!im.contained(objects, k)) {
+          rebuild = true;
+          break;
+        }
+    }
+  }
+  if (rebuild) {
+    im.rebuild(objects);
+    stats.rebuilt = true;
+  }
+
+  // Which objects changed: a pair of unchanged objects keeps the answer of
+  // the last call (its bit), so only pairs with a changed object are tested.
+  const bool test_all = changes.all || im.fresh;
+  std::vector<std::uint64_t> changed;
+  if (!test_all) {
+    changed.assign((objects.count + 63) / 64, 0);
+    for (std::uint32_t k : changes.indices) changed[k >> 6] |= std::uint64_t{1} << (k & 63);
+  }
+  auto is_changed = [&](std::uint32_t k) { return (changed[k >> 6] >> (k & 63)) & 1; };
+  // Until every row is done (a sink may stop early or throw), the bits are
+  // not to be trusted.
+  im.fresh = true;
+
+  Emitter emit(sink, im.options.sorted, stats);
+  run_in_order<PairChunk>(
+      im.owner.size(), thread_count(im.options.threads),
+      [&](std::size_t begin, std::size_t end, PairChunk& out) {
+        out.pairs.clear();
+        out.tests = 0;
+        for (std::size_t k = begin; k < end; ++k) {
+          const std::uint32_t s = im.offset[k], e = im.offset[k + 1];
+          if (s == e) continue;
+          const std::uint32_t i = im.owner[k];
+          const bool i_changed = test_all || is_changed(i);
+          Shape si;
+          bool si_read = false;
+          for (std::uint32_t p = s; p < e; ++p) {
+            std::uint32_t& entry = im.partner[p];
+            const std::uint32_t j = entry & kIndexMask;
+            bool hit;
+            if (i_changed || is_changed(j)) {
+              if (!si_read) {
+                si = objects.shape(i);
+                si_read = true;
+              }
+              ++out.tests;
+              hit = overlaps(si, objects.shape(j));
+              entry = j | (hit ? kOverlapBit : 0);
+            } else {
+              hit = (entry & kOverlapBit) != 0;
+            }
+            if (hit) out.pairs.push_back(ordered(i, j));
+          }
+        }
+      },
+      [&](PairChunk& c) { return emit.deliver(c); });
+  emit.finish();
+  im.fresh = stats.stopped;
+  return stats;
+}
+
+ArrayCallStats PairTracker::find_pairs(const Objects& objects, std::vector<IndexPair>& out,
+                                       const Changes& changes) {
+  return find_pairs(objects, append_to(out), changes);
+}
+
+std::size_t PairTracker::memory_bytes() const {
+  const Impl& im = *impl_;
+  return sizeof(Impl) + im.fat.capacity() * sizeof(AabbF) +
+         (im.owner.capacity() + im.offset.capacity() + im.partner.capacity()) *
+             sizeof(std::uint32_t);
+}
+
+void PairTracker::clear() {
+  const ArrayOptions options = impl_->options;
+  *impl_ = Impl{};
+  impl_->options = options;
+}
+
+void PairTracker::validate(const Objects& objects) const {
+  const Impl& im = *impl_;
+  auto fail = [](const std::string& why) { throw std::logic_error("PairTracker: " + why); };
+  if (!im.built) return;
+  if (im.count != objects.count) fail("count differs from the last call's objects");
+  const std::size_t n = im.count;
+  if (im.fat.size() != n) fail("one fat box per object");
+  const std::size_t rows = im.owner.size();
+  if (rows != n) fail("one candidate row per object");
+  if (im.offset.size() != rows + 1 || im.offset[0] != 0 || im.offset[rows] != im.partner.size())
+    fail("candidate offsets do not span the partner list");
+  std::vector<char> has_row(n, 0);
+  std::unordered_set<std::uint64_t> seen;
+  for (std::size_t k = 0; k < rows; ++k) {
+    const std::uint32_t i = im.owner[k];
+    if (i >= n || has_row[i]) fail("row " + std::to_string(k) + " has a bad or repeated owner");
+    has_row[i] = 1;
+    if (im.offset[k] > im.offset[k + 1]) fail("candidate offsets decrease at " + std::to_string(k));
+    if (!im.contained(objects, i))
+      fail("object " + std::to_string(i) + " lies outside its fat box");
+    for (std::uint32_t p = im.offset[k]; p < im.offset[k + 1]; ++p) {
+      const std::uint32_t j = im.partner[p] & kIndexMask;
+      if (j >= n || j == i) fail("candidate partner out of range at " + std::to_string(i));
+      const IndexPair q = ordered(i, j);
+      if (!seen.insert((std::uint64_t(q.i) << 32) | q.j).second)
+        fail("candidate pair (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
+             ") listed twice");
+      if (!im.fresh &&
+          ((im.partner[p] & kOverlapBit) != 0) != overlaps(objects.shape(i), objects.shape(j)))
+        fail("the overlap bit of (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
+             ") is stale");
+    }
+  }
+  // Completeness: every pair of overlapping fat boxes is a candidate
+  // (quadratic, so checked only on small sets).
+  if (n <= 3000)
+    for (std::uint32_t i = 0; i < n; ++i)
+      for (std::uint32_t j = i + 1; j < n; ++j)
+        if (im.fat[i].overlaps(im.fat[j]) && !seen.count((std::uint64_t(i) << 32) | j))
+          fail("overlapping fat boxes of " + std::to_string(i) + " and " + std::to_string(j) +
+               " are not candidates");
+}
+
+}  // namespace broadphase

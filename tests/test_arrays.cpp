@@ -1,0 +1,580 @@
+// The lean path over the caller's arrays (arrays.hpp) against a brute-force
+// oracle over overlaps(): one-shot, bipartite, query and the tracker, in
+// every layout the interface takes, with random moves, teleports, resizes,
+// appends and removals between the tracker's calls, on 1, 2 and 3 threads.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <broadphase/arrays.hpp>
+#include <broadphase/lab/scene.hpp>
+#include <cmath>
+#include <limits>
+#include <set>
+
+#include "testing.hpp"
+
+namespace broadphase {
+namespace {
+
+// How the caller keeps its objects.
+enum class Layout {
+  aos_double,      // one record of 8 doubles per object (x y z r hx hy hz pad)
+  soa_double,      // one array per column
+  aos_float,       // records of 8 floats
+  soa_float,       // float columns
+  strided_double,  // records of 15 doubles with the values at odd places
+};
+constexpr Layout kLayouts[] = {Layout::aos_double, Layout::soa_double, Layout::aos_float,
+                               Layout::soa_float, Layout::strided_double};
+const char* name(Layout l) {
+  switch (l) {
+    case Layout::aos_double:
+      return "aos_double";
+    case Layout::soa_double:
+      return "soa_double";
+    case Layout::aos_float:
+      return "aos_float";
+    case Layout::soa_float:
+      return "soa_float";
+    case Layout::strided_double:
+      return "strided_double";
+  }
+  return "?";
+}
+bool is_float(Layout l) { return l == Layout::aos_float || l == Layout::soa_float; }
+
+// The caller's memory for a set of shapes in one layout, and its view.
+// `scalar_radius`: every object a sphere of one shared radius (stride 0).
+struct Storage {
+  std::vector<double> d;
+  std::vector<float> f;
+  std::vector<std::uint8_t> kinds;
+  Objects objects;
+
+  Storage(const std::vector<Shape>& shapes, Layout layout, bool scalar_radius = false) {
+    const std::size_t n = shapes.size();
+    bool any_sphere = false, any_box = false;
+    for (const Shape& s : shapes) (s.is_sphere() ? any_sphere : any_box) = true;
+    const bool mixed = any_sphere && any_box;
+    const bool aos = layout == Layout::aos_double || layout == Layout::aos_float ||
+                     layout == Layout::strided_double;
+    const std::size_t rec = layout == Layout::strided_double ? 15 : 8;
+    auto place = [&](std::size_t i, int col) {  // element index of column col of object i
+      if (layout == Layout::strided_double) return i * rec + 1 + 2 * static_cast<std::size_t>(col);
+      return aos ? i * rec + static_cast<std::size_t>(col) : static_cast<std::size_t>(col) * n + i;
+    };
+    const std::size_t total = std::max<std::size_t>(1, n * rec + 16);
+    if (is_float(layout))
+      f.assign(total, 0);
+    else
+      d.assign(total, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Shape& s = shapes[i];
+      const double v[7] = {s.center.x, s.center.y, s.center.z, s.half.x,
+                           s.half.x,   s.half.y,   s.half.z};
+      for (int c = 0; c < 7; ++c) {
+        if (is_float(layout))
+          f[place(i, c)] = static_cast<float>(v[c]);
+        else
+          d[place(i, c)] = v[c];
+      }
+    }
+    objects.count = n;
+    const std::ptrdiff_t stride = aos ? static_cast<std::ptrdiff_t>(rec) : 1;
+    auto column = [&](int c) {
+      if (is_float(layout)) return Column::of(f.data() + place(0, c), stride);
+      return Column::of(d.data() + place(0, c), stride);
+    };
+    objects.x = column(0);
+    objects.y = column(1);
+    objects.z = column(2);
+    if (any_sphere || n == 0) {
+      objects.radius = column(3);
+      if (scalar_radius) objects.radius.stride = 0;
+    }
+    if (any_box) {
+      objects.half_x = column(4);
+      objects.half_y = column(5);
+      objects.half_z = column(6);
+    }
+    if (mixed) {
+      kinds.resize(n);
+      for (std::size_t i = 0; i < n; ++i) kinds[i] = shapes[i].is_sphere() ? 0 : 1;
+      objects.kind = kinds.data();
+    }
+  }
+  Storage(const Storage&) = delete;
+};
+
+bool less(const IndexPair& a, const IndexPair& b) { return a.i != b.i ? a.i < b.i : a.j < b.j; }
+
+std::vector<IndexPair> oracle(const Objects& o) {
+  std::vector<IndexPair> out;
+  for (std::uint32_t i = 0; i < o.count; ++i)
+    for (std::uint32_t j = i + 1; j < o.count; ++j)
+      if (overlaps(o.shape(i), o.shape(j))) out.push_back({i, j});
+  return out;
+}
+
+std::vector<IndexPair> oracle(const Objects& a, const Objects& b) {
+  std::vector<IndexPair> out;
+  for (std::uint32_t i = 0; i < a.count; ++i)
+    for (std::uint32_t j = 0; j < b.count; ++j)
+      if (overlaps(a.shape(i), b.shape(j))) out.push_back({i, j});
+  return out;
+}
+
+std::vector<IndexPair> sorted(std::vector<IndexPair> v) {
+  std::sort(v.begin(), v.end(), less);
+  return v;
+}
+
+// The kinds of random worlds.
+enum class World { spheres, boxes, mixed, touching, coincident, decades, zero };
+constexpr World kWorlds[] = {World::spheres,    World::boxes,   World::mixed, World::touching,
+                             World::coincident, World::decades, World::zero};
+const char* name(World w) {
+  const char* names[] = {"spheres", "boxes", "mixed", "touching", "coincident", "decades", "zero"};
+  return names[static_cast<int>(w)];
+}
+
+Shape random_shape(World w, Rng& rng, double world) {
+  const Vec3 c{rng.uniform(0, world), rng.uniform(0, world), rng.uniform(0, world)};
+  auto box = [&](double s) {
+    return Shape::box(c, {rng.uniform(0, s), rng.uniform(0, s), rng.uniform(0, s)});
+  };
+  switch (w) {
+    case World::spheres:
+      return Shape::sphere(c, rng.uniform(0.5, 5));
+    case World::boxes:
+      return box(5);
+    case World::mixed:
+      return rng.below(2) ? Shape::sphere(c, rng.uniform(0, 5)) : box(5);
+    case World::touching: {
+      // A lattice of spacing 4 with radius 2 or half-extents 2: neighbours
+      // touch exactly (all values are small integers, exact in float too).
+      const Vec3 l{4.0 * static_cast<double>(rng.below(6)), 4.0 * static_cast<double>(rng.below(6)),
+                   4.0 * static_cast<double>(rng.below(6))};
+      return rng.below(2) ? Shape::sphere(l, 2) : Shape::box(l, {2, 2, 2});
+    }
+    case World::coincident: {
+      const Vec3 l{static_cast<double>(rng.below(3)) * 10, 5, 5};
+      return rng.below(3) ? Shape::sphere(l, static_cast<double>(rng.below(3)))
+                          : Shape::box(l, {0, 1, 0.5});
+    }
+    case World::decades: {
+      const double s = std::pow(10.0, rng.uniform(-3, 2.5));
+      return rng.below(2) ? Shape::sphere(c, s) : Shape::box(c, {s, s * 0.1, s * 3});
+    }
+    case World::zero:
+      return rng.below(2) ? Shape::sphere(c, rng.below(4) ? 0.0 : 3.0) : box(rng.below(2) ? 0 : 3);
+  }
+  return Shape::sphere(c, 1);
+}
+
+std::vector<Shape> random_world(World w, std::size_t n, Rng& rng) {
+  const double world = 20.0 * std::cbrt(static_cast<double>(n) / 10.0) + 1;
+  std::vector<Shape> out;
+  for (std::size_t i = 0; i < n; ++i) out.push_back(random_shape(w, rng, world));
+  return out;
+}
+
+TEST(Arrays, OneShotMatchesOracleInEveryLayoutOnEveryThreadCount) {
+  for (std::uint64_t seed = 1; seed <= 6; ++seed) {
+    for (World w : kWorlds) {
+      Rng rng(seed * 1000 + static_cast<std::uint64_t>(w));
+      const std::size_t n = 1 + rng.below(seed % 2 ? 300 : 2500);
+      const std::vector<Shape> shapes = random_world(w, n, rng);
+      for (Layout layout : kLayouts) {
+        SCOPED_TRACE(::testing::Message() << "seed " << seed << " world " << name(w) << " n " << n
+                                          << " layout " << name(layout));
+        Storage st(shapes, layout);
+        const auto want = oracle(st.objects);
+        std::vector<IndexPair> first;
+        for (unsigned threads : {1u, 2u, 3u}) {
+          std::vector<IndexPair> got;
+          ArrayOptions opt;
+          opt.threads = threads;
+          const ArrayCallStats stats = find_pairs(st.objects, got, opt);
+          ASSERT_EQ(stats.pairs, got.size());
+          for (const IndexPair& p : got) ASSERT_LT(p.i, p.j);
+          ASSERT_EQ(sorted(got), want) << "threads " << threads;
+          if (threads == 1)
+            first = got;
+          else
+            ASSERT_EQ(got, first) << "order differs on " << threads << " threads";
+        }
+      }
+    }
+  }
+}
+
+TEST(Arrays, ScalarRadiusAndSortedOutput) {
+  Rng rng(77);
+  std::vector<Shape> shapes;
+  for (int i = 0; i < 2000; ++i)
+    shapes.push_back(
+        Shape::sphere({rng.uniform(0, 60), rng.uniform(0, 60), rng.uniform(0, 60)}, 1.5));
+  for (Layout layout : {Layout::aos_double, Layout::soa_float}) {
+    Storage st(shapes, layout, true);
+    ASSERT_EQ(st.objects.radius.stride, 0);
+    ArrayOptions opt;
+    opt.sorted = true;
+    std::vector<IndexPair> got;
+    find_pairs(st.objects, got, opt);
+    EXPECT_EQ(got, oracle(st.objects)) << name(layout);
+  }
+}
+
+TEST(Arrays, ObjectsFarApartInSize) {
+  // Points and a few objects 10^6 times larger: the big ones on coarse
+  // levels, the points on fine ones; and one object of infinite reach.
+  Rng rng(5);
+  std::vector<Shape> shapes;
+  for (int i = 0; i < 3000; ++i)
+    shapes.push_back(Shape::sphere({rng.uniform(0, 1e3), rng.uniform(0, 1e3), rng.uniform(0, 1e3)},
+                                   rng.uniform(0, 1e-3)));
+  shapes.push_back(Shape::sphere({500, 500, 500}, 300));
+  shapes.push_back(Shape::box({0, 0, 0}, {1e3, 1, 1e3}));
+  shapes.push_back(Shape::sphere({1e30, 0, 0}, 1e30));
+  for (Layout layout : {Layout::aos_float, Layout::soa_double}) {
+    // Doubles only: a sphere beyond the float range, whose predicate overflows.
+    if (layout == Layout::soa_double) shapes.push_back(Shape::sphere({-1e300, 0, 0}, 0x1p600));
+    Storage st(shapes, layout);
+    std::vector<IndexPair> got;
+    find_pairs(st.objects, got);
+    EXPECT_EQ(sorted(got), oracle(st.objects)) << name(layout);
+  }
+}
+
+TEST(Arrays, BipartiteMatchesOracle) {
+  for (std::uint64_t seed = 1; seed <= 8; ++seed) {
+    Rng rng(seed);
+    const World w = kWorlds[seed % std::size(kWorlds)];
+    const auto sa = random_world(w, 1 + rng.below(800), rng);
+    const auto sb = random_world(World::mixed, rng.below(800), rng);
+    SCOPED_TRACE(::testing::Message() << "seed " << seed << " world " << name(w));
+    Storage a(sa, Layout::soa_double);
+    Storage b(sb, Layout::aos_float);
+    const auto want = oracle(a.objects, b.objects);
+    std::vector<IndexPair> first;
+    for (unsigned threads : {1u, 2u, 3u}) {
+      std::vector<IndexPair> got;
+      ArrayOptions opt;
+      opt.threads = threads;
+      find_pairs(a.objects, b.objects, got, opt);
+      ASSERT_EQ(sorted(got), want);
+      if (threads == 1)
+        first = got;
+      else
+        ASSERT_EQ(got, first);
+    }
+  }
+}
+
+TEST(Arrays, QueryMatchesOracle) {
+  Rng rng(11);
+  const auto shapes = random_world(World::decades, 3000, rng);
+  Storage st(shapes, Layout::aos_double);
+  for (int q = 0; q < 200; ++q) {
+    const Shape s = random_shape(q % 2 ? World::mixed : World::decades, rng, 60);
+    std::vector<std::uint32_t> want;
+    for (std::uint32_t i = 0; i < st.objects.count; ++i)
+      if (overlaps(s, st.objects.shape(i))) want.push_back(i);
+    EXPECT_EQ(query(st.objects, s), want) << "query " << q;
+  }
+  EXPECT_THROW(query(st.objects, Shape::sphere({0, 0, 0}, -1)), InvalidShape);
+}
+
+TEST(Arrays, SinkStopsEarlyAndSeesOneOrder) {
+  Rng rng(3);
+  const auto shapes = random_world(World::spheres, 30000, rng);
+  Storage st(shapes, Layout::soa_double);
+  for (unsigned threads : {1u, 3u}) {
+    int chunks = 0;
+    ArrayOptions opt;
+    opt.threads = threads;
+    const auto stats = find_pairs(
+        st.objects,
+        [&](std::span<const IndexPair> c) {
+          EXPECT_FALSE(c.empty());
+          return ++chunks < 2;
+        },
+        opt);
+    EXPECT_TRUE(stats.stopped);
+    EXPECT_EQ(chunks, 2);
+  }
+}
+
+TEST(Arrays, EmptyAndSingle) {
+  std::vector<Shape> none;
+  Storage e(none, Layout::soa_double);
+  std::vector<IndexPair> got;
+  EXPECT_EQ(find_pairs(e.objects, got).pairs, 0u);
+  std::vector<Shape> one{Shape::sphere({1, 2, 3}, 1)};
+  Storage s(one, Layout::soa_double);
+  EXPECT_EQ(find_pairs(s.objects, got).pairs, 0u);
+  PairTracker t;
+  EXPECT_EQ(t.find_pairs(e.objects, got).pairs, 0u);
+  EXPECT_EQ(t.find_pairs(s.objects, got).pairs, 0u);
+  EXPECT_TRUE(got.empty());
+}
+
+// Bad values are refused, naming the object; the tracker is unchanged.
+TEST(Arrays, BadValuesNameTheIndexAndLeaveTheTrackerAsItWas) {
+  Rng rng(21);
+  auto shapes = random_world(World::mixed, 500, rng);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  struct Case {
+    const char* what;
+    std::size_t index;
+    Shape shape;
+    const char* pattern;
+  };
+  const Case cases[] = {
+      {"nan x", 17, Shape::sphere({nan, 1, 1}, 1), "[17]: x is nan"},
+      {"inf z", 3, Shape::box({1, 1, inf}, {1, 1, 1}), "[3]: z is inf"},
+      {"-inf y", 499, Shape::sphere({1, -inf, 1}, 1), "[499]: y is -inf"},
+      {"negative radius", 42, Shape::sphere({1, 1, 1}, -0.5), "[42]: radius is negative"},
+      {"nan radius", 0, Shape::sphere({1, 1, 1}, nan), "[0]: radius is nan"},
+      {"negative half", 250, Shape::box({1, 1, 1}, {1, -1, 1}), "[250]: half_y is negative"},
+      {"inf half", 251, Shape::box({1, 1, 1}, {1, 1, inf}), "[251]: half_z is inf"},
+  };
+  for (Layout layout : {Layout::soa_double, Layout::aos_float}) {
+    Storage good(shapes, layout);
+    PairTracker tracker;
+    std::vector<IndexPair> before;
+    tracker.find_pairs(good.objects, before);
+    const std::size_t bytes = tracker.memory_bytes();
+    for (const Case& c : cases) {
+      SCOPED_TRACE(::testing::Message() << c.what << " " << name(layout));
+      auto bad_shapes = shapes;
+      bad_shapes[c.index] = c.shape;
+      // Spheres and boxes are both present, so every column exists.
+      Storage bad(bad_shapes, layout);
+      for (int call = 0; call < 3; ++call) {
+        try {
+          std::vector<IndexPair> out;
+          if (call == 0) find_pairs(bad.objects, out);
+          if (call == 1) tracker.find_pairs(bad.objects, out);
+          if (call == 2) query(bad.objects, Shape::sphere({0, 0, 0}, 1));
+          ADD_FAILURE() << "no throw on call " << call;
+        } catch (const InvalidObjects& e) {
+          EXPECT_EQ(e.index(), c.index);
+          EXPECT_NE(std::string(e.what()).find(c.pattern), std::string::npos) << e.what();
+        }
+      }
+      EXPECT_EQ(tracker.memory_bytes(), bytes);
+      EXPECT_NO_THROW(tracker.validate(good.objects));
+      std::vector<IndexPair> again;
+      const auto stats = tracker.find_pairs(good.objects, again);
+      EXPECT_FALSE(stats.rebuilt);
+      EXPECT_EQ(again, before);
+    }
+  }
+  // A kind byte that is neither 0 nor 1, a missing column, a bad change index.
+  Storage st(shapes, Layout::soa_double);
+  st.kinds[9] = 7;
+  try {
+    check_objects(st.objects);
+    ADD_FAILURE();
+  } catch (const InvalidObjects& e) {
+    EXPECT_EQ(e.index(), 9u);
+    EXPECT_NE(std::string(e.what()).find("objects[9]: kind is 7"), std::string::npos) << e.what();
+  }
+  st.kinds[9] = 0;
+  Objects no_y = st.objects;
+  no_y.y = {};
+  EXPECT_THROW(check_objects(no_y), InvalidObjects);
+  PairTracker t;
+  std::vector<IndexPair> out;
+  const std::uint32_t far_index[] = {500};
+  EXPECT_THROW(t.find_pairs(st.objects, out, Changes::only(far_index)), InvalidObjects);
+}
+
+// The tracker over random frames: moves, teleports, resizes, kind changes,
+// appends and removals (swap with the last), told everything or only what
+// changed, on 1, 2 and 3 threads in lockstep.
+TEST(Arrays, TrackerMatchesOracleUnderRandomChanges) {
+  for (std::uint64_t seed = 1; seed <= 12; ++seed) {
+    Rng rng(seed * 7919);
+    const World w = kWorlds[seed % std::size(kWorlds)];
+    const Layout layout = kLayouts[seed % std::size(kLayouts)];
+    std::vector<Shape> shapes = random_world(w, 50 + rng.below(700), rng);
+    const double world = 20.0 * std::cbrt(static_cast<double>(shapes.size()) / 10.0) + 1;
+    ArrayOptions opt;
+    opt.skin = seed % 3 == 0 ? 0 : rng.uniform(0.05, 2);
+    PairTracker trackers[3] = {PairTracker(opt), PairTracker(opt), PairTracker(opt)};
+    for (unsigned t = 0; t < 3; ++t) {
+      ArrayOptions o = opt;
+      o.threads = t + 1;
+      trackers[t] = PairTracker(o);
+    }
+    for (int frame = 0; frame < 30; ++frame) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << " world " << name(w) << " layout "
+                                        << name(layout) << " frame " << frame);
+      std::vector<std::uint32_t> changed;
+      const int ops = frame == 0 ? 0 : static_cast<int>(rng.below(40));
+      for (int k = 0; k < ops && !shapes.empty(); ++k) {
+        const auto i = static_cast<std::uint32_t>(rng.below(shapes.size()));
+        switch (rng.below(7)) {
+          case 0:  // teleport
+            shapes[i].center = random_shape(w, rng, world).center;
+            changed.push_back(i);
+            break;
+          case 1: {  // resize (same kind)
+            const Shape s = random_shape(w, rng, world);
+            shapes[i].half = shapes[i].is_sphere() ? Vec3{s.half.x, s.half.x, s.half.x} : s.half;
+            changed.push_back(i);
+            break;
+          }
+          case 2:  // a new shape, maybe of the other kind
+            shapes[i] = random_shape(w, rng, world);
+            changed.push_back(i);
+            break;
+          case 3:  // append
+            shapes.push_back(random_shape(w, rng, world));
+            break;
+          case 4:  // remove by moving the last into its place
+            shapes[i] = shapes.back();
+            shapes.pop_back();
+            if (i < shapes.size()) changed.push_back(i);
+            break;
+          default: {  // a small move
+            const Vec3 d{rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)};
+            shapes[i].center = shapes[i].center + d * rng.uniform(0, 2);
+            changed.push_back(i);
+          }
+        }
+      }
+      // Removals may have shrunk the set below listed indices.
+      std::erase_if(changed, [&](std::uint32_t i) { return i >= shapes.size(); });
+      Storage st(shapes, layout);
+      const auto want = oracle(st.objects);
+      const bool tell_all = rng.below(3) == 0;
+      std::vector<IndexPair> first;
+      for (unsigned t = 0; t < 3; ++t) {
+        std::vector<IndexPair> got;
+        const auto stats = trackers[t].find_pairs(
+            st.objects, got, tell_all ? Changes::everything() : Changes::only(changed));
+        ASSERT_EQ(stats.pairs, got.size());
+        ASSERT_EQ(sorted(got), want) << "threads " << t + 1;
+        if (t == 0) {
+          ASSERT_NO_THROW(trackers[t].validate(st.objects));
+        }
+        if (t == 0)
+          first = got;
+        else
+          ASSERT_EQ(got, first) << "order differs on " << t + 1 << " threads";
+      }
+    }
+  }
+}
+
+// Many frames of small motion: the skin is reused (not every call rebuilds).
+TEST(Arrays, TrackerReusesItsWorkUnderSmallMotion) {
+  Rng rng(8);
+  std::vector<Shape> shapes = random_world(World::spheres, 3000, rng);
+  PairTracker tracker;
+  int rebuilds = 0;
+  for (int frame = 0; frame < 20; ++frame) {
+    for (std::size_t i = 0; i < shapes.size(); i += 5)
+      shapes[i].center.x += 0.001;  // far inside any skin
+    Storage st(shapes, Layout::soa_double);
+    std::vector<IndexPair> got;
+    rebuilds += tracker.find_pairs(st.objects, got).rebuilt ? 1 : 0;
+    ASSERT_EQ(sorted(got), oracle(st.objects)) << "frame " << frame;
+  }
+  EXPECT_EQ(rebuilds, 1);
+  tracker.clear();
+  EXPECT_LT(tracker.memory_bytes(), 1000u);
+}
+
+// Reads a scene's objects in place: SoA columns kept by the test, updated
+// by the contract's motion frame after frame.
+struct SceneArrays {
+  std::vector<double> x, y, z, r, hx, hy, hz;
+  std::vector<std::uint8_t> kind;
+  void load(const Scene& s) {
+    const std::size_t n = s.size();
+    for (auto* v : {&x, &y, &z, &r, &hx, &hy, &hz}) v->resize(n);
+    kind.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Shape& o = s.objects[i];
+      x[i] = o.center.x, y[i] = o.center.y, z[i] = o.center.z;
+      r[i] = o.half.x, hx[i] = o.half.x, hy[i] = o.half.y, hz[i] = o.half.z;
+      kind[i] = o.is_sphere() ? 0 : 1;
+    }
+  }
+  Objects view() const {
+    Objects o;
+    o.count = x.size();
+    o.x = Column::of(x.data()), o.y = Column::of(y.data()), o.z = Column::of(z.data());
+    o.radius = Column::of(r.data());
+    o.half_x = Column::of(hx.data()), o.half_y = Column::of(hy.data());
+    o.half_z = Column::of(hz.data());
+    o.kind = kind.data();
+    return o;
+  }
+};
+
+TEST(Arrays, ReferenceScenesFrameByFrame) {
+  const auto scenes = testing::reference_scenes();
+  ASSERT_GE(scenes.size(), 10u);
+  for (const auto& ref : scenes) {
+    for (int variant = 0; variant < 3; ++variant) {
+      SCOPED_TRACE(::testing::Message() << ref.name << " variant " << variant);
+      Scene scene = read_scene(ref.scene_path);
+      std::vector<std::uint32_t> movers;
+      for (std::uint32_t i = 0; i < scene.size(); ++i)
+        if (scene.is_moving(i)) movers.push_back(i);
+      ArrayOptions opt;
+      opt.threads = variant == 2 ? 3 : 1;
+      PairTracker tracker(opt);
+      SceneArrays arrays;
+      for (std::size_t f = 0; f < ref.expected.size(); ++f) {
+        if (f > 0) step(scene);
+        arrays.load(scene);
+        FrameDigest d;
+        tracker.find_pairs(
+            arrays.view(),
+            [&](std::span<const IndexPair> c) {
+              for (const IndexPair& p : c) d.add(p.i, p.j);
+              return true;
+            },
+            variant == 1 || f == 0 ? Changes::everything() : Changes::only(movers));
+        ASSERT_EQ(d.pairs, ref.expected[f].pairs) << "frame " << f;
+        ASSERT_EQ(hex16(d.hash), hex16(ref.expected[f].hash)) << "frame " << f;
+      }
+    }
+  }
+}
+
+TEST(Arrays, GeneratedScenesMatchBruteForce) {
+  for (Distribution dist : kAllDistributions) {
+    SCOPED_TRACE(to_string(dist));
+    Scene scene = generate(dist, 1500, 4);
+    std::vector<std::uint32_t> movers;
+    for (std::uint32_t i = 0; i < scene.size(); ++i)
+      if (scene.is_moving(i)) movers.push_back(i);
+    PairTracker tracker;
+    SceneArrays arrays;
+    for (int f = 0; f < 8; ++f) {
+      if (f > 0) step(scene);
+      arrays.load(scene);
+      FrameDigest d;
+      tracker.find_pairs(
+          arrays.view(),
+          [&](std::span<const IndexPair> c) {
+            for (const IndexPair& p : c) d.add(p.i, p.j);
+            return true;
+          },
+          f == 0 ? Changes::everything() : Changes::only(movers));
+      ASSERT_EQ(d, testing::brute_force(scene.objects)) << "frame " << f;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace broadphase
