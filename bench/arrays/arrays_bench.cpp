@@ -149,6 +149,7 @@ int main(int argc, char** argv) {
   Scene scene = generate(dist, n, seed);
   const double gen_s = std::chrono::duration<double>(Clock::now() - g0).count();
   Caller caller(scene);
+  scene = Scene{};  // the caller keeps only its arrays
   std::printf("# %s n=%zu frames=%d threads=%u skin=%g changes=%s generate=%.1fs movers=%zu\n",
               argv[1], n, frames, opt.threads, opt.skin, tell_all ? "all" : "movers", gen_s,
               caller.movers.size());

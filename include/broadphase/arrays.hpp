@@ -162,9 +162,12 @@ struct ArrayOptions {
   /// Threads to use; 1 runs on the calling thread, 0 uses every core. The
   /// pairs and their order are the same for every thread count.
   unsigned threads = 1;
-  /// Verlet skin of the tracker, relative to the typical object size: a
-  /// moved object keeps its candidate list while it stays within the skin.
-  /// 0 picks a default from the measured trade-off.
+  /// Verlet skin of the tracker, relative to the typical object size (the
+  /// median largest half-extent at the last rebuild): candidates are kept
+  /// while every object stays within the skin of where it was then. 0 picks
+  /// the default, 0.25 (docs/arrays.md: larger skins rebuild less often but
+  /// keep more candidates; 0.25 stays near 64 bytes per object at
+  /// scaled-even).
   double skin = 0;
   /// Sort the pairs (by i, then j) before handing them over.
   bool sorted = false;

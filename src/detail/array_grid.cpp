@@ -94,6 +94,11 @@ void ArrayGrid::build(std::span<const AabbF> boxes) {
     const std::uint32_t size = lv.count == 0 ? 0 : std::bit_ceil(lv.count);
     lv.first_bucket = buckets;
     lv.mask = size == 0 ? 0 : size - 1;
+    lv.distinct = true;
+    for (int dx = -2; dx <= 2; ++dx)
+      for (int dy = -2; dy <= 2; ++dy)
+        for (int dz = -2; dz <= 2; ++dz)
+          if ((dx || dy || dz) && (hash(dx, dy, dz) & lv.mask) == 0) lv.distinct = false;
     buckets += size;
     levels_.push_back(lv);
   }

@@ -62,8 +62,13 @@ class ArrayGrid {
     std::uint32_t first_bucket = 0;
     std::uint32_t mask = 0;
     std::uint32_t count = 0;
+    // No two cells of a probe's block (offsets up to 2 per axis) share a
+    // bucket, so a probe needs no check for buckets seen twice.
+    bool distinct = false;
   };
   static constexpr std::uint8_t kBig = 0xFF;
+  static constexpr std::uint64_t kHashY = 0x9E3779B1ull;
+  static constexpr std::uint64_t kHashZ = 0x85EBCA77C2B2AE63ull;
 
   static std::int64_t cell(double x, double inv);
   static std::uint32_t hash(std::int64_t cx, std::int64_t cy, std::int64_t cz);
@@ -91,10 +96,11 @@ inline std::uint32_t ArrayGrid::hash(std::int64_t cx, std::int64_t cy, std::int6
   // bucket, so probes made in bucket order read memory close to the last
   // probe's (measured at scaled-even 102 400: a mixing hash left the probes
   // waiting on a cache miss per bucket).
-  const std::uint64_t h = static_cast<std::uint64_t>(cx) +
-                          static_cast<std::uint64_t>(cy) * 0x9E3779B1ull +
-                          static_cast<std::uint64_t>(cz) * 0x85EBCA77C2B2AE63ull;
-  return static_cast<std::uint32_t>(h ^ (h >> 32));
+  // Linear modulo 2^32, so two cells of one probe share a bucket exactly
+  // when their offset maps to 0 under the level's mask (see `distinct`).
+  const std::uint64_t h = static_cast<std::uint64_t>(cx) + static_cast<std::uint64_t>(cy) * kHashY +
+                          static_cast<std::uint64_t>(cz) * kHashZ;
+  return static_cast<std::uint32_t>(h);
 }
 
 template <class Visit>
@@ -126,6 +132,7 @@ void ArrayGrid::probe(std::uint32_t i, const AabbF& box, Visit&& visit) const {
     const std::int64_t z0 = cell(static_cast<double>(box.lo[2]) - lv.h, lv.inv);
     const std::int64_t z1 = cell(box.hi[2], lv.inv);
     int nseen = 0;
+    const bool check_dup = !lv.distinct || x1 - x0 > 2 || y1 - y0 > 2 || z1 - z0 > 2;
     if ((x1 - x0 + 1) * (y1 - y0 + 1) * (z1 - z0 + 1) > 64) std::abort();  // cannot happen
     for (std::int64_t cx = x0; cx <= x1; ++cx) {
       for (std::int64_t cy = y0; cy <= y1; ++cy) {
@@ -134,11 +141,13 @@ void ArrayGrid::probe(std::uint32_t i, const AabbF& box, Visit&& visit) const {
           const std::uint32_t s = start_[bucket];
           const std::uint32_t e = start_[bucket + 1];
           if (s == e) continue;
-          // Two cells of one probe can share a bucket: visit it once.
-          bool dup = false;
-          for (int k = 0; k < nseen; ++k) dup |= seen[k] == bucket;
-          if (dup) continue;
-          seen[nseen++] = bucket;
+          if (check_dup) {
+            // Two cells of one probe can share a bucket: visit it once.
+            bool dup = false;
+            for (int k = 0; k < nseen; ++k) dup |= seen[k] == bucket;
+            if (dup) continue;
+            seen[nseen++] = bucket;
+          }
           for (std::uint32_t k = s; k < e; ++k) {
             const GridEntry& en = entries_[k];
             if (b == li && en.index <= i) continue;
