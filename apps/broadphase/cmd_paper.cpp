@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <map>
 
+#include "cli_checks.hpp"
 #include "commands.hpp"
 #include "lab.hpp"
 #include "paper_measure.hpp"
@@ -528,8 +529,11 @@ void add_paper_command(CLI::App& app) {
                   "Structures to run, comma-separated, with options as name:key=value,... "
                   "(default: every registered structure)");
   auto* max_n =
-      cmd->add_option("--max-n", o->max_n, "Largest number of objects to run (at least 50)");
-  cmd->add_option("--seed", o->seed, "Random seed of the scenes")->default_val(1);
+      cmd->add_option("--max-n", o->max_n, "Largest number of objects to run (at least 50)")
+          ->check(whole_number());
+  cmd->add_option("--seed", o->seed, "Random seed of the scenes")
+      ->default_val(1)
+      ->check(whole_number());
   cmd->add_option("--budget", o->budget,
                   "Seconds the whole run should take at most (default 1200, 35 with --quick); "
                   "structures whose projected time does not fit are skipped at large sizes");
