@@ -56,7 +56,7 @@ CLI::Validator positive_number() {
           return shown(text) + " is not a positive number";
         return {};
       },
-      "POSITIVE");
+      "");
 }
 
 CLI::Validator whole_number() {
@@ -70,7 +70,7 @@ CLI::Validator whole_number() {
           return shown(text) + " is above the largest whole number, 2^64 - 1";
         return {};
       },
-      "UINT");
+      "");
 }
 
 }  // namespace broadphase::app

@@ -585,6 +585,7 @@ void add_paper_command(CLI::App& app) {
   cmd->add_option("--resume", o->resume,
                   "Finish the interrupted run in DIR with its options, without redoing the steps "
                   "it has done (paper-state.json and RUN-INCOMPLETE in DIR say which)")
+      ->type_name("DIR")
       ->excludes(quick, out, algos, max_n, seed, budget, peers);
   cmd->callback([o, max_n] {
     o->max_n_given = max_n->count() > 0;
