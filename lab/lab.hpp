@@ -44,7 +44,9 @@ std::string lab_performance(const LabContext& ctx);         // lab_fast.cpp
 std::string plot_python();
 
 /// Runs the matplotlib script `tools/<script>` with arguments; returns false
-/// (and says why on stderr) when python3 or matplotlib is missing.
+/// (and says why on stderr) when python3 or matplotlib is missing or the
+/// script fails. Throws ChildInterrupted (interrupt.hpp) when the script was
+/// ended by SIGINT or SIGTERM.
 bool run_plot_script(const std::string& script, const std::vector<std::string>& args);
 
 }  // namespace broadphase::app

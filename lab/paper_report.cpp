@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <broadphase/lab/output_file.hpp>
 #include <cmath>
 #include <cstdio>
 #include <ctime>
@@ -395,8 +396,8 @@ void fill_provenance(RunInfo& info) {
 }
 
 void write_csv(const std::filesystem::path& path, const std::vector<Row>& rows) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path.string() + ": cannot write");
+  OutputFile file(path);  // whole or absent, and a failed write says why
+  std::ostream& out = file.stream();
   out << "structure,peer,test,study_test,placement,dist,n,world,unit,median,min,max,q1,q3,reps,"
          "note\n";
   char buf[64];
@@ -411,7 +412,7 @@ void write_csv(const std::filesystem::path& path, const std::vector<Row>& rows) 
         << num(r.stat.q1) << ',' << num(r.stat.q3) << ',' << r.stat.reps << ',' << csv_field(r.note)
         << '\n';
   }
-  if (!out.flush()) throw std::runtime_error(path.string() + ": write failed");
+  file.commit();
 }
 
 void write_json(const std::filesystem::path& path, const PaperResults& res) {
@@ -496,10 +497,7 @@ void write_json(const std::filesystem::path& path, const PaperResults& res) {
   j["comparisons"] = res.comparisons;
   j["mismatches"] = std::move(mism);
   j["figures"] = res.figures;
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path.string() + ": cannot write");
-  out << j.dump(1) << '\n';
-  if (!out.flush()) throw std::runtime_error(path.string() + ": write failed");
+  write_file_atomically(path, j.dump(1) + '\n');
 }
 
 std::string report_markdown(const PaperResults& res) {

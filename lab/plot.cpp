@@ -1,24 +1,12 @@
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 
+#include "interrupt.hpp"
 #include "lab.hpp"
 
 namespace broadphase::app {
-
-namespace {
-std::string quoted(const std::string& s) {
-  std::string out(1, '\'');
-  for (char c : s) {
-    if (c == '\'')
-      out.append("'\\''");
-    else
-      out.push_back(c);
-  }
-  out.push_back('\'');
-  return out;
-}
-}  // namespace
 
 std::string plot_python() {
   static const std::string chosen = [] {
@@ -29,11 +17,8 @@ std::string plot_python() {
     // a python3 earlier on PATH (a virtualenv, pyenv) may not see it.
     candidates.push_back("/usr/bin/python3");
     candidates.push_back("python3");
-    for (const std::string& c : candidates) {
-      std::string probe = quoted(c);
-      probe += " -c 'import matplotlib' >/dev/null 2>&1";
-      if (std::system(probe.c_str()) == 0) return c;
-    }
+    for (const std::string& c : candidates)
+      if (run_process({c, "-c", "import matplotlib"}, true).ok()) return c;
     return std::string();
   }();
   return chosen;
@@ -51,15 +36,16 @@ bool run_plot_script(const std::string& script, const std::vector<std::string>& 
     std::fprintf(stderr, "broadphase: plots skipped: python3-matplotlib is not installed\n");
     return false;
   }
-  std::string cmd = quoted(python);
-  cmd.push_back(' ');
-  cmd += quoted(path.string());
-  for (const std::string& a : args) {
-    cmd.push_back(' ');
-    cmd += quoted(a);
-  }
-  if (std::system(cmd.c_str()) != 0) {
-    std::fprintf(stderr, "broadphase: plot script %s failed\n", script.c_str());
+  std::vector<std::string> argv = {python, path.string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  const ProcessStatus st = run_process(argv);
+  // A script ended by Ctrl-C or SIGTERM was interrupted: not a failure to
+  // report as a missing matplotlib, and not one to continue after.
+  if (st.signal == SIGINT || st.signal == SIGTERM)
+    throw ChildInterrupted("plot script " + script + " was " + st.describe());
+  if (!st.ok()) {
+    std::fprintf(stderr, "broadphase: plot script %s failed: %s\n", script.c_str(),
+                 st.describe().c_str());
     return false;
   }
   return true;

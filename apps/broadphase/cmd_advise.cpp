@@ -138,6 +138,7 @@ void advise(const AdviseOptions& o) {
       j["structures"].push_back(s);
     }
     std::printf("%s\n", j.dump(2).c_str());
+    if (ref == results.size()) throw std::runtime_error("advise: no structure could run the scene");
     return;
   }
   std::printf("scene %s: %zu objects\n\n", o.scene.c_str(), scene.size());
@@ -160,6 +161,7 @@ void advise(const AdviseOptions& o) {
                 results[ref].spec.c_str());
   else
     std::printf("\nno recommendation: no structure finished with agreeing pairs\n");
+  if (ref == results.size()) throw std::runtime_error("advise: no structure could run the scene");
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <array>
+#include <broadphase/lab/output_file.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <broadphase/lab/sim.hpp>
 #include <cmath>
@@ -169,6 +170,7 @@ void draw(const DrawOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--ccd: ") + e.what());
   }
+  check_writable_directory(std::filesystem::path(o.out).parent_path());
   const Scene scene = read_scene(o.scene);
   std::size_t movers = 0;
   for (std::size_t i = 0; i < scene.size(); ++i) movers += scene.is_moving(i) ? 1 : 0;
@@ -180,7 +182,9 @@ void draw(const DrawOptions& o) {
   j["world"] = scene.world;
   j["view"] = o.view;
   j["title"] = o.title;
-  j["out"] = o.out;
+  // The script draws under a temporary name, renamed when it is done.
+  PendingFile picture(o.out);
+  j["out"] = picture.temp().string();
   j["gif"] = o.gif;
   j["algo"] = o.algo;
   j["objects"] = objects_json(scene);
@@ -212,9 +216,17 @@ void draw(const DrawOptions& o) {
     if (!f) throw std::runtime_error("draw: cannot write " + data.string());
     f << j.dump();
   }
-  const bool ok = run_plot_script("draw.py", {data.string()});
+  bool ok = false;
+  try {
+    ok = run_plot_script("draw.py", {data.string()});
+  } catch (...) {
+    std::error_code ignored;
+    std::filesystem::remove(data, ignored);
+    throw;
+  }
   std::error_code ignored;
   std::filesystem::remove(data, ignored);
+  if (ok) picture.commit();
   if (!ok)
     throw std::runtime_error(
         "draw: no picture written: tools/draw.py needs python3 with "

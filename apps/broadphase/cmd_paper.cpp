@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <broadphase/lab/output_file.hpp>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -11,10 +12,13 @@
 #include <filesystem>
 #include <map>
 
+#include "cli_checks.hpp"
 #include "commands.hpp"
+#include "interrupt.hpp"
 #include "lab.hpp"
 #include "paper_measure.hpp"
 #include "paper_report.hpp"
+#include "paper_steps.hpp"
 #include "progress.hpp"
 
 namespace broadphase::app {
@@ -33,7 +37,35 @@ struct PaperOptions {
   std::uint64_t seed = 1;
   double budget = 0;
   bool peers = true;
+  std::string resume;  ///< --resume DIR: the other options come from DIR's state
 };
+
+// The options a resumed run reads back from its state file.
+nlohmann::json options_json(const PaperOptions& o) {
+  return {{"quick", o.quick},
+          {"out", o.out},
+          {"algos", o.algos},
+          {"max_n", o.max_n},
+          {"max_n_given", o.max_n_given},
+          {"seed", o.seed},
+          {"budget", o.budget},
+          {"peers", o.peers}};
+}
+
+void apply_recorded_options(PaperOptions& o, const nlohmann::json& j) {
+  try {
+    j.at("quick").get_to(o.quick);
+    j.at("algos").get_to(o.algos);
+    j.at("max_n").get_to(o.max_n);
+    j.at("max_n_given").get_to(o.max_n_given);
+    j.at("seed").get_to(o.seed);
+    j.at("budget").get_to(o.budget);
+    j.at("peers").get_to(o.peers);
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error(o.resume + ": the recorded options are damaged (" + e.what() + ")");
+  }
+  o.out = o.resume;
+}
 
 struct Selected {
   std::string spec;
@@ -256,8 +288,15 @@ void run_paper(const PaperOptions& o) {
   std::error_code ec;
   fs::create_directories(out_dir, ec);
   if (ec || !fs::is_directory(out_dir))
-    throw UsageError("--out " + out_dir.string() + ": cannot create the directory" +
-                     (ec ? ": " + ec.message() : std::string{}));
+    throw std::runtime_error("--out " + out_dir.string() + ": cannot create the directory" +
+                             (ec ? ": " + ec.message() : std::string(": not a directory")));
+  // Checks that DIR can be written before any work, and records each step
+  // done there, so that an interrupted run can be finished with --resume.
+  PaperSteps steps =
+      o.resume.empty() ? PaperSteps::start(out_dir, options_json(o)) : PaperSteps::resume(out_dir);
+  set_interrupt_note(
+      "broadphase paper: the run in " + out_dir.string() +
+      " is incomplete (see RUN-INCOMPLETE); finish it with: " + steps.resume_command());
 
   ProgressBar bar;
   bar.set_plain_interval(o.quick ? 5 : 15);
@@ -327,7 +366,8 @@ void run_paper(const PaperOptions& o) {
   auto study_elapsed = [&] {
     return std::chrono::duration<double>(Clock::now() - t_study).count();
   };
-  for (std::size_t ni = 0; ni < sizes.size(); ++ni) {
+  const bool study_done = steps.load_study(res);  // --resume: the study's tables
+  for (std::size_t ni = 0; ni < sizes.size() && !study_done; ++ni) {
     const std::size_t n = sizes[ni];
     const bool scaled = ni >= study_sizes.size();
     const int reps = reps_at(n);
@@ -426,9 +466,11 @@ void run_paper(const PaperOptions& o) {
     }
     for (int p = 0; p < 2; ++p) compare(structures, n, scenes[p], digests[p], hits[p], res);
   }
-  info.study_seconds = study_elapsed();
-
-  write_csv(out_dir / "results.csv", res.rows);
+  if (!study_done) {
+    info.study_seconds = study_elapsed();
+    write_csv(out_dir / "results.csv", res.rows);
+    steps.save_study(res);
+  }
 
   // The other families' experiments, each with its share of the budget.
   bool hook_failed = false;
@@ -452,7 +494,7 @@ void run_paper(const PaperOptions& o) {
     };
     ctx.progress("starting", 0);
     try {
-      res.sections.push_back(hooks[k].run(ctx));
+      res.sections.push_back(steps.experiment(name, ctx, hooks[k].run));
     } catch (const std::exception& e) {
       hook_failed = true;
       res.sections.push_back("## " + name +
@@ -464,8 +506,10 @@ void run_paper(const PaperOptions& o) {
 
   // The plot script and its messages write to stderr too: no bar under them.
   bar.clear();
-  info.plots = run_plot_script(
-      "plot_paper.py", {"--csv", (out_dir / "results.csv").string(), "--out", out_dir.string()});
+  info.plots = steps.plots([&](const fs::path& into) {
+    return run_plot_script("plot_paper.py",
+                           {"--csv", (out_dir / "results.csv").string(), "--out", into.string()});
+  });
   if (info.plots) {
     for (const auto& entry : fs::directory_iterator(out_dir)) {
       const std::string f = entry.path().filename().string();
@@ -491,13 +535,11 @@ void run_paper(const PaperOptions& o) {
 
   info.elapsed_seconds = elapsed();
   write_json(out_dir / "results.json", res);
+  write_file_atomically(out_dir / "REPORT.md", report_markdown(res));
   {
-    const fs::path report = out_dir / "REPORT.md";
-    std::FILE* f = std::fopen(report.c_str(), "w");
-    if (f == nullptr) throw std::runtime_error(report.string() + ": cannot write");
-    const std::string md = report_markdown(res);
-    const bool ok = std::fwrite(md.data(), 1, md.size(), f) == md.size();
-    if (std::fclose(f) != 0 || !ok) throw std::runtime_error(report.string() + ": write failed");
+    std::vector<std::string> all_steps{"study", "plots"};
+    for (const Hook& h : hooks) all_steps.emplace_back(h.name);
+    steps.finish(all_steps);
   }
   bar.finish("broadphase paper: done");
 
@@ -521,21 +563,33 @@ void add_paper_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "paper", "Run the study's tests on every structure and write results, figures and REPORT.md");
   auto o = std::make_shared<PaperOptions>();
-  cmd->add_flag("--quick", o->quick,
-                "Small sizes and few repetitions: under a minute (what CI runs)");
-  cmd->add_option("--out", o->out, "Output directory (default results/<date>-<host>/)");
-  cmd->add_option("--algos", o->algos,
-                  "Structures to run, comma-separated, with options as name:key=value,... "
-                  "(default: every registered structure)");
+  auto* quick = cmd->add_flag("--quick", o->quick,
+                              "Small sizes and few repetitions: under a minute (what CI runs)");
+  auto* out = cmd->add_option("--out", o->out, "Output directory (default results/<date>-<host>/)");
+  auto* algos =
+      cmd->add_option("--algos", o->algos,
+                      "Structures to run, comma-separated, with options as name:key=value,... "
+                      "(default: every registered structure)");
   auto* max_n =
-      cmd->add_option("--max-n", o->max_n, "Largest number of objects to run (at least 50)");
-  cmd->add_option("--seed", o->seed, "Random seed of the scenes")->default_val(1);
-  cmd->add_option("--budget", o->budget,
-                  "Seconds the whole run should take at most (default 1200, 35 with --quick); "
-                  "structures whose projected time does not fit are skipped at large sizes");
-  cmd->add_flag("--peers,!--no-peers", o->peers, "Include the peer libraries (default: yes)");
+      cmd->add_option("--max-n", o->max_n, "Largest number of objects to run (at least 50)")
+          ->check(whole_number());
+  auto* seed = cmd->add_option("--seed", o->seed, "Random seed of the scenes")
+                   ->default_val(1)
+                   ->check(whole_number());
+  auto* budget =
+      cmd->add_option("--budget", o->budget,
+                      "Seconds the whole run should take at most (default 1200, 35 with --quick); "
+                      "structures whose projected time does not fit are skipped at large sizes");
+  auto* peers =
+      cmd->add_flag("--peers,!--no-peers", o->peers, "Include the peer libraries (default: yes)");
+  cmd->add_option("--resume", o->resume,
+                  "Finish the interrupted run in DIR with its options, without redoing the steps "
+                  "it has done (paper-state.json and RUN-INCOMPLETE in DIR say which)")
+      ->type_name("DIR")
+      ->excludes(quick, out, algos, max_n, seed, budget, peers);
   cmd->callback([o, max_n] {
     o->max_n_given = max_n->count() > 0;
+    if (!o->resume.empty()) apply_recorded_options(*o, PaperSteps::recorded_options(o->resume));
     run_paper(*o);
   });
 }

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "cli_checks.hpp"
 #include "commands.hpp"
 #include "peers/peers.hpp"
 
@@ -137,8 +138,8 @@ void add_gen_command(CLI::App& app) {
       ->required();
   cmd->add_option("--n", o->n, "Number of objects")
       ->required()
-      ->check(CLI::Range(0ul, 100000000ul));
-  cmd->add_option("--seed", o->seed, "Random seed")->default_val(1);
+      ->check(whole_number() & CLI::Range(0ul, 100000000ul));
+  cmd->add_option("--seed", o->seed, "Random seed")->default_val(1)->check(whole_number());
   cmd->add_option("--out", o->out, "Output scene file")->required();
   cmd->callback([o] {
     Distribution d;

@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <broadphase/lab/scene.hpp>
 #include <broadphase/lab/sim.hpp>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
+#include "cli_checks.hpp"
 #include "commands.hpp"
 
 namespace broadphase::app {
@@ -71,7 +73,23 @@ void run_sim(const SimOptions& o) {
   nlohmann::json series = nlohmann::json::object();
   std::string text = "# frame contacts wall_hits true_contacts missed kinetic_energy\n";
   for (int f = 0; f < o.frames; ++f) {
-    const StepStats st = sim.step();
+    StepStats st;
+    try {
+      st = sim.step();
+    } catch (const InvalidShape&) {
+      // Only the motion can make a valid scene's shape invalid: name the
+      // frame and the object, as `run` does; the steps done are printed.
+      if (!o.json) std::fwrite(text.data(), 1, text.size(), stdout);
+      const Scene& s = sim.scene();
+      for (std::size_t i = 0; i < s.size(); ++i) {
+        const Vec3 c = s.objects[i].center, v = s.velocity[i] * o.dt;
+        if (!is_valid(s.objects[i]) || !std::isfinite(c.x + v.x) || !std::isfinite(c.y + v.y) ||
+            !std::isfinite(c.z + v.z))
+          throw SceneError("frame " + std::to_string(f) + ": object " + std::to_string(i) +
+                           " moves beyond the range of doubles (its motion overflows)");
+      }
+      throw;
+    }
     total.contacts += st.contacts;
     total.wall_hits += st.wall_hits;
     total.true_contacts += st.true_contacts;
@@ -146,7 +164,7 @@ void add_sim_command(CLI::App& app) {
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--dt", o->dt, "Step length in frames (velocities are per frame)")
       ->default_val(1)
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("--ccd", o->ccd, "off | substep | swept")->default_val("off");
   cmd->add_option("--out", o->out, "Write the final positions and velocities as a scene file");
   cmd->add_flag("--json", o->json, "Print one JSON summary instead of one line per step");
@@ -155,14 +173,16 @@ void add_sim_command(CLI::App& app) {
                   "Write the tunneling scene (small fast bullets, thin static targets) to FILE");
   cmd->add_option("--bullets", o->bullets, "Bullets in the tunneling scene")
       ->default_val(200)
-      ->check(CLI::Range(0ul, 10000000ul));
+      ->check(whole_number() & CLI::Range(0ul, 10000000ul));
   cmd->add_flag("--flat", o->flat, "Tunneling scene in one plane (z = 100), for side views");
   cmd->add_option("--make-billiards-scene", o->make_billiards,
                   "Write a flat billiards scene (balls in the plane z = 50) to FILE");
   cmd->add_option("--balls", o->balls, "Balls in the billiards scene")
       ->default_val(30)
-      ->check(CLI::Range(0ul, 100000ul));
-  cmd->add_option("--seed", o->seed, "Seed of the generated scenes")->default_val(1);
+      ->check(whole_number() & CLI::Range(0ul, 100000ul));
+  cmd->add_option("--seed", o->seed, "Seed of the generated scenes")
+      ->default_val(1)
+      ->check(whole_number());
   cmd->callback([o] { run_sim(*o); });
 }
 

@@ -1,3 +1,7 @@
+#include <sys/stat.h>
+
+#include <broadphase/lab/excerpt.hpp>
+#include <broadphase/lab/output_file.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <cerrno>
 #include <charconv>
@@ -62,10 +66,10 @@ class LineReader {
                                                                               : text;
     const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), v);
     if (ec == std::errc::result_out_of_range)
-      fail(std::string(what) + " '" + std::string(text) + "' is out of the range of a double");
+      fail(std::string(what) + " " + excerpt(text) + " is out of the range of a double");
     if (ec != std::errc{} || end != digits.data() + digits.size())
-      fail(std::string(what) + " '" + std::string(text) + "' is not a number");
-    if (!std::isfinite(v)) fail(std::string(what) + " is " + std::string(text) + ", not finite");
+      fail(std::string(what) + " " + excerpt(text) + " is not a number");
+    if (!std::isfinite(v)) fail(std::string(what) + " is " + excerpt(text) + ", not finite");
     return v;
   }
   int line() const { return number_; }
@@ -88,18 +92,20 @@ Scene parse_scene(std::istream& in, const std::string& name) {
   if (!header.empty() && header.back() == '\r') header.pop_back();
   // A UTF-8 byte order mark, as some editors write, is not part of the text.
   if (header.starts_with("\xEF\xBB\xBF")) header.erase(0, 3);
+  if (header.find('\r') != std::string::npos)
+    r.fail("lines end in a lone CR (\\x0d); the format wants LF or CRLF line ends; got " +
+           excerpt(header));
   int version = 0;
   if (header == "broadphase-scene 1")
     version = 1;
   else if (header == "broadphase-scene 2")
     version = 2;
   else
-    r.fail("expected 'broadphase-scene 1' or 'broadphase-scene 2', got '" + header + "'");
+    r.fail("expected 'broadphase-scene 1' or 'broadphase-scene 2', got " + excerpt(header));
   Scene scene;
   auto expect_keyword = [&](const char* key) {
     if (!r.next(f)) r.fail(std::string("missing '") + key + " ...' line");
-    if (f[0] != key)
-      r.fail(std::string("expected '") + key + " ...', got '" + std::string(f[0]) + "'");
+    if (f[0] != key) r.fail(std::string("expected '") + key + " ...', got " + excerpt(f[0]));
     if (f.size() != 2) r.fail(std::string("'") + key + "' takes exactly one value");
   };
   expect_keyword("world");
@@ -110,7 +116,7 @@ Scene parse_scene(std::istream& in, const std::string& name) {
   {
     const auto [end, ec] = std::from_chars(f[1].data(), f[1].data() + f[1].size(), count);
     if (ec != std::errc{} || end != f[1].data() + f[1].size() || count > 0xfffffffeull)
-      r.fail("object count '" + std::string(f[1]) + "' is not a whole number below 2^32");
+      r.fail("object count " + excerpt(f[1]) + " is not a whole number below 2^32");
   }
   scene.objects.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(count, 1u << 24)));
   scene.velocity.reserve(scene.objects.capacity());
@@ -125,8 +131,7 @@ Scene parse_scene(std::istream& in, const std::string& name) {
       else if (f[0] == "box")
         kind = ShapeKind::box;
       else
-        r.fail("expected 'sphere' or 'box' at the start of an object line, got '" +
-               std::string(f[0]) + "'");
+        r.fail("expected 'sphere' or 'box' at the start of an object line, got " + excerpt(f[0]));
       k = 1;
     }
     const std::size_t want = kind == ShapeKind::sphere ? 7 : 9;
@@ -139,13 +144,12 @@ Scene parse_scene(std::istream& in, const std::string& name) {
     for (std::size_t i = 0; i < want; ++i)
       v[i] = r.number(f[k + i], kind == ShapeKind::sphere ? kSphereNames[i] : kBoxNames[i]);
     if (kind == ShapeKind::sphere) {
-      if (v[3] < 0) r.fail("radius " + std::string(f[k + 3]) + " is negative");
+      if (v[3] < 0) r.fail("radius " + excerpt(f[k + 3]) + " is negative");
       scene.objects.push_back(Shape::sphere({v[0], v[1], v[2]}, v[3]));
       scene.velocity.push_back({v[4], v[5], v[6]});
     } else {
       for (int a = 3; a < 6; ++a)
-        if (v[a] < 0)
-          r.fail(std::string(kBoxNames[a]) + " " + std::string(f[k + a]) + " is negative");
+        if (v[a] < 0) r.fail(std::string(kBoxNames[a]) + " " + excerpt(f[k + a]) + " is negative");
       scene.objects.push_back(Shape::box({v[0], v[1], v[2]}, {v[3], v[4], v[5]}));
       scene.velocity.push_back({v[6], v[7], v[8]});
     }
@@ -158,6 +162,10 @@ Scene parse_scene(std::istream& in, const std::string& name) {
 }
 
 Scene read_scene(const std::string& path) {
+  // An ifstream opens a directory and then reads nothing: say what it is.
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
+    throw SceneError(path + ": cannot read: it is a directory, not a scene file");
   std::ifstream in(path);
   if (!in) throw SceneError(path + ": cannot open: " + std::strerror(errno));
   return parse_scene(in, path);
@@ -194,11 +202,9 @@ void write_scene(std::ostream& out, const Scene& scene) {
 }
 
 void write_scene(const std::string& path, const Scene& scene) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path + ": cannot write: " + std::strerror(errno));
-  write_scene(out, scene);
-  out.flush();
-  if (!out) throw std::runtime_error(path + ": write failed");
+  OutputFile out(path);
+  write_scene(out.stream(), scene);
+  out.commit();
 }
 
 void step(Scene& scene) {
