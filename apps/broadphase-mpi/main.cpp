@@ -56,7 +56,7 @@ struct Common {
   std::uint64_t n = 0;
   std::uint64_t per_rank = 0;
   std::uint64_t seed = 1;
-  std::string algo = "sort-sweep";
+  std::string algo = "grid-hashed";
   int frames = 100;
   std::string grid;
   bool bisect = false;
@@ -64,11 +64,12 @@ struct Common {
   double threshold = 1.1;
   int max_ghost_ranks = 4;
   bool json = false;
+  bool skip_local = false;
 };
 
 void add_common(CLI::App* cmd, Common& o) {
   cmd->add_option("--algo", o.algo, "Local structure by name (name:key=value,...)")
-      ->default_val("sort-sweep");
+      ->default_val("grid-hashed");
   cmd->add_option("--frames", o.frames, "Number of frames")
       ->default_val(100)
       ->check(CLI::Range(1, 100000000));
@@ -93,6 +94,7 @@ dist::Options domain_options(const Common& o) {
   d.margin = o.margin;
   d.rebalance_threshold = o.threshold;
   d.max_ghost_ranks = o.max_ghost_ranks;
+  d.local_pairs = !o.skip_local;
   if (o.bisect) {
     if (!o.grid.empty()) throw DistributedError("--grid and --bisect exclude each other");
     d.decomposition = dist::Decomposition::bisection;
@@ -378,6 +380,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0ull, 4294967295ull));
   run_cmd->add_option("--seed", o.seed, "Seed of the generated scene")->default_val(1);
   run_cmd->add_flag("--json", o.json, "One JSON summary (ranks, phases, ghosts, traffic)");
+  run_cmd->add_flag("--skip-local", o.skip_local,
+                    "Measure the decomposition only: ghosts and traffic, no pairs (lab)");
   add_common(run_cmd, o);
 
   CheckOptions c;

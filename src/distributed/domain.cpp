@@ -385,6 +385,7 @@ void Domain::find_pairs(std::span<const std::uint32_t> ids, std::span<const Shap
 
   // Local pairs, kept when this rank's subdomain holds max(lo_a, lo_b).
   const auto t1 = std::chrono::steady_clock::now();
+  if (!options_.local_pairs) return;
   try {
     std::vector<Aabb> box(local.size());
     for (std::size_t i = 0; i < local.size(); ++i) box[i] = bounds(local[i].shape);
