@@ -175,10 +175,8 @@ class Domain {
   template <class T>
   std::vector<T> exchange(std::span<const T> items, std::span<const int> dest) {
     static_assert(std::is_trivially_copyable_v<T>);
-    std::vector<std::byte> bytes =
-        exchange_bytes(items.data(), sizeof(T), items.size(), dest.data());
-    std::vector<T> out(bytes.size() / sizeof(T));
-    if (!bytes.empty()) std::memcpy(out.data(), bytes.data(), bytes.size());
+    std::vector<T> out;
+    exchange_bytes(items.data(), sizeof(T), items.size(), dest.data(), &resize_to<T>, &out);
     return out;
   }
 
@@ -203,8 +201,16 @@ class Domain {
   void agree(const std::string& error) const;
 
  private:
-  std::vector<std::byte> exchange_bytes(const void* data, std::size_t size, std::size_t count,
-                                        const int* dest);
+  // Sends count items of `size` bytes; the result goes to the buffer that
+  // resize(out, bytes) returns (the caller's vector, resized).
+  void exchange_bytes(const void* data, std::size_t size, std::size_t count, const int* dest,
+                      std::byte* (*resize)(void*, std::size_t), void* out);
+  template <class T>
+  static std::byte* resize_to(void* out, std::size_t bytes) {
+    auto& v = *static_cast<std::vector<T>*>(out);
+    v.resize(bytes / sizeof(T));
+    return reinterpret_cast<std::byte*>(v.data());
+  }
 
   MPI_Comm comm_;
   int rank_ = 0, size_ = 1;

@@ -95,9 +95,10 @@ std::vector<int> Domain::destinations(std::span<const Shape> shapes) const {
   return d;
 }
 
-std::vector<std::byte> Domain::exchange_bytes(const void* data, std::size_t size, std::size_t count,
-                                              const int* dest) {
+void Domain::exchange_bytes(const void* data, std::size_t size, std::size_t count, const int* dest,
+                            std::byte* (*resize)(void*, std::size_t), void* out) {
   const auto p = static_cast<std::size_t>(size_);
+  const auto me = static_cast<std::size_t>(rank_);
   std::vector<long long> per(p, 0);
   std::string error;
   for (std::size_t i = 0; i < count; ++i) {
@@ -108,44 +109,52 @@ std::vector<std::byte> Domain::exchange_bytes(const void* data, std::size_t size
     }
     per[static_cast<std::size_t>(dest[i])] += static_cast<long long>(size);
   }
-  for (long long b : per)
-    if (b > INT_MAX) error = "rank " + std::to_string(rank_) + ": more than 2 GB to one rank";
-  agree(error);
-  std::vector<int> send_counts(p), send_displs(p), recv_counts(p), recv_displs(p);
-  for (std::size_t r = 0; r < p; ++r) send_counts[r] = static_cast<int>(per[r]);
   long long at = 0;
+  for (std::size_t r = 0; r < p; ++r) at += r == me ? 0 : per[r];
+  if (at > INT_MAX || per[me] > INT_MAX)
+    error = "rank " + std::to_string(rank_) + ": more than 2 GB to send";
+  agree(error);
+  // What stays on this rank does not go through MPI: it is copied once,
+  // straight to its place in the result (the bulk of a migration, and of the
+  // ghost exchange, which sends each object to its own rank too).
+  std::vector<int> send_counts(p), send_displs(p), recv_counts(p), recv_displs(p);
+  at = 0;
   for (std::size_t r = 0; r < p; ++r) {
+    send_counts[r] = r == me ? 0 : static_cast<int>(per[r]);
     send_displs[r] = static_cast<int>(at);
     at += send_counts[r];
-  }
-  if (at > INT_MAX) error = "rank " + std::to_string(rank_) + ": more than 2 GB to send";
-  agree(error);
-  std::vector<std::byte> send(static_cast<std::size_t>(at));
-  std::vector<int> fill(send_displs);
-  const auto* bytes = static_cast<const std::byte*>(data);
-  for (std::size_t i = 0; i < count; ++i) {
-    const auto r = static_cast<std::size_t>(dest[i]);
-    std::memcpy(send.data() + fill[r], bytes + i * size, size);
-    fill[r] += static_cast<int>(size);
   }
   MPI_Alltoall(send_counts.data(), 1, MPI_INT, recv_counts.data(), 1, MPI_INT, comm_);
   long long total = 0;
   for (std::size_t r = 0; r < p; ++r) {
-    recv_displs[r] = static_cast<int>(total);
-    total += recv_counts[r];
+    recv_displs[r] = static_cast<int>(std::min<long long>(total, INT_MAX));
+    total += r == me ? per[me] : recv_counts[r];
   }
   error.clear();
   if (total > INT_MAX) error = "rank " + std::to_string(rank_) + ": more than 2 GB to receive";
   agree(error);
-  std::vector<std::byte> recv(static_cast<std::size_t>(total));
-  MPI_Alltoallv(send.data(), send_counts.data(), send_displs.data(), MPI_BYTE, recv.data(),
+  std::vector<std::byte> send(static_cast<std::size_t>(at));
+  std::byte* recv = resize(out, static_cast<std::size_t>(total));
+  std::vector<int> fill(send_displs);
+  std::size_t self = static_cast<std::size_t>(recv_displs[me]);
+  const auto* bytes = static_cast<const std::byte*>(data);
+  for (std::size_t i = 0; i < count; ++i) {
+    const auto r = static_cast<std::size_t>(dest[i]);
+    if (r == me) {
+      std::memcpy(recv + self, bytes + i * size, size);
+      self += size;
+    } else {
+      std::memcpy(send.data() + fill[r], bytes + i * size, size);
+      fill[r] += static_cast<int>(size);
+    }
+  }
+  MPI_Alltoallv(send.data(), send_counts.data(), send_displs.data(), MPI_BYTE, recv,
                 recv_counts.data(), recv_displs.data(), MPI_BYTE, comm_);
   for (std::size_t r = 0; r < p; ++r)
-    if (static_cast<int>(r) != rank_ && send_counts[r] > 0) {
+    if (r != me && send_counts[r] > 0) {
       stats_.bytes_sent += static_cast<std::uint64_t>(send_counts[r]);
       ++stats_.messages_sent;
     }
-  return recv;
 }
 
 void Domain::balance(std::span<const Shape> shapes) {
