@@ -9,6 +9,7 @@ packages=(
   libbullet-dev libfcl-dev libode-dev libcgal-dev
   pybind11-dev python3-dev python3-scipy python3-sklearn python3-ase python3-rtree
   python3-pytest
+  libopenmpi-dev openmpi-bin
 )
 sudo=""
 [ "$(id -u)" -eq 0 ] || sudo="sudo"

@@ -1,0 +1,295 @@
+#include "mpi_replay.hpp"
+
+#include <broadphase/lab/generate.hpp>
+#include <chrono>
+#include <cstdlib>
+#include <exception>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace broadphase::mpi_app {
+
+using distributed::agree;
+using distributed::DistributedError;
+
+namespace {
+
+double since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+int rank_of(MPI_Comm comm) {
+  int r = 0;
+  MPI_Comm_rank(comm, &r);
+  return r;
+}
+int size_of(MPI_Comm comm) {
+  int s = 1;
+  MPI_Comm_size(comm, &s);
+  return s;
+}
+
+std::uint64_t block_begin(std::uint64_t n, int rank, int size) {
+  // n < 2^32 and rank < 2^31: the product fits.
+  return n * static_cast<std::uint64_t>(rank) / static_cast<std::uint64_t>(size);
+}
+
+}  // namespace
+
+Share scatter_share(MPI_Comm comm, const Scene& scene) {
+  const int rank = rank_of(comm), size = size_of(comm);
+  Share s;
+  double head[2] = {scene.world, static_cast<double>(scene.size())};
+  MPI_Bcast(head, 2, MPI_DOUBLE, 0, comm);
+  s.world = head[0];
+  s.n = static_cast<std::uint64_t>(head[1]);
+  std::string error;
+  if (s.n > std::numeric_limits<std::uint32_t>::max())
+    error = "the scene has more objects than 32-bit ids can name";
+  if (static_cast<double>(s.n) * sizeof(Body) / size > 2e9)
+    error = "a share of the scene exceeds 2 GB: generate it on the ranks (--gen) instead";
+  agree(comm, error);
+  std::vector<int> counts(static_cast<std::size_t>(size)), displs(counts.size());
+  for (int r = 0; r < size; ++r) {
+    const std::uint64_t b = block_begin(s.n, r, size), e = block_begin(s.n, r + 1, size);
+    counts[static_cast<std::size_t>(r)] = static_cast<int>((e - b) * sizeof(Body));
+    displs[static_cast<std::size_t>(r)] = static_cast<int>(b * sizeof(Body));
+  }
+  std::vector<Body> all;
+  if (rank == 0) {
+    all.resize(s.n);
+    for (std::size_t i = 0; i < s.n; ++i)
+      all[i] = {scene.objects[i], scene.velocity[i], static_cast<std::uint32_t>(i)};
+  }
+  // Byte displacements are ints: the whole scene must stay below 2 GB here.
+  agree(comm, rank == 0 && static_cast<double>(s.n) * sizeof(Body) > 2e9
+                  ? "a scene file above 2 GB of objects cannot be scattered: use --gen"
+                  : "");
+  s.bodies.resize(static_cast<std::size_t>(counts[static_cast<std::size_t>(rank)]) / sizeof(Body));
+  MPI_Scatterv(all.data(), counts.data(), displs.data(), MPI_BYTE, s.bodies.data(),
+               counts[static_cast<std::size_t>(rank)], MPI_BYTE, 0, comm);
+  return s;
+}
+
+Share read_share(MPI_Comm comm, const std::string& path) {
+  Scene scene;
+  std::string error;
+  if (rank_of(comm) == 0) {
+    try {
+      scene = read_scene(path);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+  }
+  agree(comm, error);
+  return scatter_share(comm, scene);
+}
+
+Share generate_share(MPI_Comm comm, Distribution d, std::uint64_t n, std::uint64_t seed) {
+  const int rank = rank_of(comm), size = size_of(comm);
+  Share s;
+  s.n = n;
+  s.world = counter_world(d, n);
+  std::string error;
+  std::vector<Shape> shapes;
+  std::vector<Vec3> velocity;
+  const std::uint64_t b = block_begin(n, rank, size), e = block_begin(n, rank + 1, size);
+  try {
+    if (n > std::numeric_limits<std::uint32_t>::max())
+      throw std::invalid_argument("more objects than 32-bit ids can name");
+    generate_counter_range(d, n, seed, b, e, shapes, velocity);
+  } catch (const std::exception& ex) {
+    error = ex.what();
+  }
+  agree(comm, error);
+  s.bodies.reserve(shapes.size());
+  for (std::size_t i = 0; i < shapes.size(); ++i)
+    s.bodies.push_back({shapes[i], velocity[i], static_cast<std::uint32_t>(b + i)});
+  return s;
+}
+
+MpiReplay::MpiReplay(MPI_Comm comm, Share share, const distributed::Options& options)
+    : n_(share.n),
+      world_(share.world),
+      domain_(comm, Aabb{{0, 0, 0}, {share.world, share.world, share.world}}, options),
+      bodies_(std::move(share.bodies)) {
+  // A test hook: BROADPHASE_MPI_FAIL=RANK:FRAME[:abort] makes that rank
+  // throw at that frame, inside an agreed phase or (abort) outside one.
+  if (const char* f = std::getenv("BROADPHASE_MPI_FAIL")) {
+    const std::string s = f;
+    const auto c1 = s.find(':');
+    if (c1 != std::string::npos) {
+      fail_rank_ = std::atoi(s.substr(0, c1).c_str());
+      fail_frame_ = std::atoi(s.substr(c1 + 1).c_str());
+      fail_abort_ = s.find(":abort") != std::string::npos;
+    }
+  }
+  shapes_.clear();
+  for (const Body& b : bodies_) shapes_.push_back(b.shape);
+  domain_.balance(shapes_);
+  FrameReport unused;
+  migrate(unused);
+}
+
+void MpiReplay::migrate(FrameReport& r) {
+  std::vector<int> dest(bodies_.size());
+  for (std::size_t i = 0; i < bodies_.size(); ++i)
+    dest[i] = domain_.partition().owner(bodies_[i].shape.center);
+  const distributed::Stats before = domain_.stats();
+  bodies_ = domain_.exchange<Body>(bodies_, dest);
+  r.stats.bytes_sent += domain_.stats().bytes_sent - before.bytes_sent;
+  r.stats.messages_sent += domain_.stats().messages_sent - before.messages_sent;
+}
+
+FrameReport MpiReplay::next() {
+  FrameReport r;
+  const int rank = domain_.rank();
+  MPI_Comm comm = domain_.comm();
+  // Motion on the owning rank, as the contract writes it.
+  auto t = std::chrono::steady_clock::now();
+  if (fail_abort_ && rank == fail_rank_ && frame_ == fail_frame_)
+    throw std::runtime_error("rank " + std::to_string(rank) + ": injected failure at frame " +
+                             std::to_string(frame_) + " (outside an agreed phase)");
+  std::string error;
+  std::uint64_t overflow = std::numeric_limits<std::uint64_t>::max();
+  try {
+    if (rank == fail_rank_ && frame_ == fail_frame_)
+      throw std::runtime_error("rank " + std::to_string(rank) + ": injected failure at frame " +
+                               std::to_string(frame_));
+    if (frame_ > 0)
+      for (Body& b : bodies_) {
+        Vec3& v = b.velocity;
+        if (v.x == 0 && v.y == 0 && v.z == 0) continue;
+        for (int a = 0; a < 3; ++a) step_axis(b.shape.center[a], v[a], world_);
+        if (!is_valid(b.shape)) overflow = std::min<std::uint64_t>(overflow, b.id);
+      }
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  agree(comm, error);
+  std::uint64_t first = overflow;
+  MPI_Allreduce(&overflow, &first, 1, MPI_UINT64_T, MPI_MIN, comm);
+  if (first != std::numeric_limits<std::uint64_t>::max())
+    throw DistributedError("frame " + std::to_string(frame_) + ": object " + std::to_string(first) +
+                           " moves beyond the range of doubles (its motion overflows)");
+  r.phases.step = since(t);
+
+  // Migration to the owner of the new centre: an all-to-all, so an object
+  // that jumped past its neighbour still arrives.
+  t = std::chrono::steady_clock::now();
+  if (frame_ > 0) migrate(r);
+  r.phases.migration = since(t);
+
+  t = std::chrono::steady_clock::now();
+  shapes_.clear();
+  for (const Body& b : bodies_) shapes_.push_back(b.shape);
+  if (domain_.rebalance(shapes_)) {
+    r.rebalanced = true;
+    migrate(r);
+    shapes_.clear();
+    for (const Body& b : bodies_) shapes_.push_back(b.shape);
+  }
+  r.phases.balancing = since(t);
+
+  // Every object owned by exactly one rank, inside that rank's subdomain.
+  t = std::chrono::steady_clock::now();
+  ids_.clear();
+  std::uint64_t local[3] = {bodies_.size(), 0, 0}, x = 0;
+  for (const Body& b : bodies_) {
+    ids_.push_back(b.id);
+    local[1] += b.id;
+    x ^= b.id;
+    if (!domain_.partition().holds(rank, b.shape.center)) ++local[2];
+  }
+  std::uint64_t global[3], gx = 0, most = 0;
+  MPI_Allreduce(local, global, 3, MPI_UINT64_T, MPI_SUM, comm);
+  MPI_Allreduce(&x, &gx, 1, MPI_UINT64_T, MPI_BXOR, comm);
+  MPI_Allreduce(&local[0], &most, 1, MPI_UINT64_T, MPI_MAX, comm);
+  std::uint64_t want_sum = n_ == 0 ? 0 : (n_ % 2 == 0 ? (n_ / 2) * (n_ - 1) : n_ * ((n_ - 1) / 2));
+  std::uint64_t want_xor = 0;
+  switch ((n_ - 1) % 4) {  // xor of 0..n-1
+    case 0:
+      want_xor = n_ - 1;
+      break;
+    case 1:
+      want_xor = 1;
+      break;
+    case 2:
+      want_xor = n_;
+      break;
+    default:
+      want_xor = 0;
+      break;
+  }
+  if (n_ == 0) want_xor = 0;
+  if (global[0] != n_ || global[1] != want_sum || gx != want_xor || global[2] != 0)
+    throw DistributedError("frame " + std::to_string(frame_) + ": ownership check failed (" +
+                           std::to_string(global[0]) + " owned of " + std::to_string(n_) + ", " +
+                           std::to_string(global[2]) + " outside their owner's subdomain)");
+  r.owned = local[0];
+  r.max_owned = most;
+  r.phases.reduction = since(t);
+
+  pairs_.clear();
+  domain_.find_pairs(ids_, shapes_, pairs_);
+  const distributed::Stats& s = domain_.stats();
+  r.stats.owned = s.owned;
+  r.stats.ghosts = s.ghosts;
+  r.stats.shared = s.shared;
+  r.stats.local_pairs = s.local_pairs;
+  r.stats.bytes_sent += s.bytes_sent;
+  r.stats.messages_sent += s.messages_sent;
+  r.phases.exchange = s.exchange_seconds;
+  r.phases.local = s.local_seconds;
+
+  t = std::chrono::steady_clock::now();
+  FrameDigest mine;
+  for (const distributed::IdPair& p : pairs_) mine.add(p.a, p.b);
+  std::uint64_t d[2] = {mine.pairs, mine.hash}, sum[2];
+  MPI_Allreduce(d, sum, 2, MPI_UINT64_T, MPI_SUM, comm);
+  r.digest.pairs = sum[0];
+  r.digest.hash = sum[1];
+  r.phases.reduction += since(t);
+  ++frame_;
+  return r;
+}
+
+FrameDigest MpiReplay::digest_through_arrays() {
+  // Struct-of-arrays copies with mixed kinds, as a particle code keeps them.
+  const std::size_t n = bodies_.size();
+  std::vector<double> x(n), y(n), z(n), r(n), hx(n), hy(n), hz(n);
+  std::vector<std::uint8_t> kind(n);
+  std::vector<std::uint32_t> ids(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Shape& s = bodies_[i].shape;
+    x[i] = s.center.x;
+    y[i] = s.center.y;
+    z[i] = s.center.z;
+    r[i] = s.half.x;
+    hx[i] = s.half.x;
+    hy[i] = s.half.y;
+    hz[i] = s.half.z;
+    kind[i] = s.is_sphere() ? 0 : 1;
+    ids[i] = bodies_[i].id;
+  }
+  Objects o;
+  o.count = n;
+  o.x = Column::of(x.data());
+  o.y = Column::of(y.data());
+  o.z = Column::of(z.data());
+  o.radius = Column::of(r.data());
+  o.half_x = Column::of(hx.data());
+  o.half_y = Column::of(hy.data());
+  o.half_z = Column::of(hz.data());
+  o.kind = kind.data();
+  std::vector<distributed::IdPair> pairs;
+  domain_.find_pairs(ids, o, pairs);
+  FrameDigest mine;
+  for (const distributed::IdPair& p : pairs) mine.add(p.a, p.b);
+  std::uint64_t d[2] = {mine.pairs, mine.hash}, sum[2];
+  MPI_Allreduce(d, sum, 2, MPI_UINT64_T, MPI_SUM, domain_.comm());
+  return {sum[0], sum[1]};
+}
+
+}  // namespace broadphase::mpi_app

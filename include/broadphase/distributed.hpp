@@ -1,0 +1,230 @@
+/// \file distributed.hpp
+/// Pair finding over MPI ranks: every overlapping pair of the whole world,
+/// each reported exactly once, on one rank, with the caller's global ids.
+///
+/// Use from a user's own MPI program (plain MPI C API, any communicator):
+/// each rank passes the objects it holds (global ids below 2^32, shapes of
+/// geometry.hpp or a borrowed `Objects` view of arrays.hpp) and gets back
+/// the pairs it is responsible for. Every call is collective: all ranks of
+/// the communicator make the same calls in the same order.
+///
+/// How (docs/distributed.md has the measured figures):
+/// - Space is split into one subdomain per rank, either a Cartesian grid
+///   over the world box or a weighted recursive coordinate bisection of the
+///   objects' centres. Subdomains are half-open boxes; the outermost faces
+///   extend to infinity, so every point of space (objects outside the world
+///   included, and infinite bounds) belongs to exactly one rank.
+/// - Ghosts are sized per object: an object is sent to every rank whose
+///   subdomain, grown by the margin, meets its conservative bounds
+///   (`bounds()` of geometry.hpp). An object that reaches more than
+///   `max_ghost_ranks` ranks goes to a shared list that every rank holds.
+/// - A pair belongs to the rank whose subdomain contains the point
+///   max(lo_a, lo_b) (per axis, of the two objects' bounds). That point lies
+///   in both objects' bounds whenever they overlap, so both objects reach
+///   that rank, and exactly one rank keeps the pair: no message, no
+///   duplicate removal.
+///
+/// Exactness does not depend on which rank holds which object: ownership
+/// (the rank of an object's centre, see `destinations`) only balances work.
+#pragma once
+
+#include <mpi.h>
+
+#include <array>
+#include <broadphase/arrays.hpp>
+#include <broadphase/geometry.hpp>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace broadphase::distributed {
+
+/// Thrown on every rank of the communicator at once, with the same message,
+/// when any rank failed during a collective call (bad input, a structure
+/// that threw, a grid thinner than the margin). Never one rank alone, so a
+/// caller that catches it can go on to MPI_Finalize without a hang.
+class DistributedError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Two global ids whose objects overlap, a < b.
+struct IdPair {
+  std::uint32_t a, b;
+  friend constexpr bool operator==(const IdPair&, const IdPair&) = default;
+};
+
+/// How space is split into subdomains.
+enum class Decomposition : std::uint8_t {
+  grid,       ///< a Cartesian grid of equal boxes over the world box
+  bisection,  ///< weighted recursive coordinate bisection of the centres
+};
+
+/// Options of a Domain. Every field has a default.
+struct Options {
+  /// The structure that finds each rank's local pairs, by registry name
+  /// (registry.hpp; options after a colon). It is rebuilt on every call:
+  /// `grid-hashed` rebuilt fastest of those tried (local pairs of one frame
+  /// at 64 000 objects: grid-hashed 0.79 s, fast-grid 0.82, hgrid 1.12,
+  /// sort-sweep 1.80, on the 2-core VM under a load of 18).
+  std::string algo = "grid-hashed";
+  Decomposition decomposition = Decomposition::grid;
+  /// Grid: ranks per axis. Zero entries are chosen by MPI_Dims_create; the
+  /// product must equal the number of ranks.
+  std::array<int, 3> dims{0, 0, 0};
+  /// Ghost margin in world units: subdomains are grown by it when ghosts
+  /// are chosen, and no subdomain is made thinner than it. Zero is exact.
+  double margin = 0;
+  /// Bisection: `rebalance` rebuilds the cuts when the most loaded rank
+  /// holds more than the mean times this.
+  double rebalance_threshold = 1.1;
+  /// An object whose bounds reach more ranks than this goes to the shared
+  /// list every rank holds, instead of one message per rank.
+  int max_ghost_ranks = 4;
+  /// False: find_pairs exchanges ghosts but finds no pairs (it reports
+  /// none). Measures the decomposition alone (ghosts, traffic) at sizes
+  /// whose pair finding would not fit the time.
+  bool local_pairs = true;
+};
+
+/// The subdomains: a binary tree of axis-aligned cuts whose leaves are the
+/// ranks. A point p goes left at a cut c on axis a when p[a] < c (half-open
+/// boxes). The same tree answers both the owner of a point and the ranks a
+/// box reaches, so the two never disagree.
+class Partition {
+ public:
+  /// A grid of dims[0] x dims[1] x dims[2] equal boxes over `world`; rank
+  /// (ix * dims[1] + iy) * dims[2] + iz holds cell (ix, iy, iz).
+  static Partition grid(const Aabb& world, std::array<int, 3> dims);
+
+  /// The rank whose subdomain holds `p` (any point, infinite coordinates too).
+  int owner(const Vec3& p) const;
+  /// Appends the ranks whose subdomain, grown by `margin`, meets `box`
+  /// (closed box against half-open subdomains).
+  void ranks_meeting(const Aabb& box, double margin, std::vector<int>& out) const;
+  /// Rank r's subdomain; outermost faces are at ±infinity.
+  const Aabb& region(int rank) const { return regions_[static_cast<std::size_t>(rank)]; }
+  int size() const { return static_cast<int>(regions_.size()); }
+  /// True when p lies in rank r's half-open subdomain.
+  bool holds(int rank, const Vec3& p) const;
+
+  /// A node of the tree: a cut (leaf = -1 - rank in `left`).
+  struct Node {
+    int axis = 0;
+    double cut = 0;
+    int left = 0, right = 0;  ///< child node index, or -1 - rank for a leaf
+  };
+  /// Builds a partition from its nodes (root first) and number of ranks.
+  Partition(std::vector<Node> nodes, int ranks);
+  Partition() = default;
+
+ private:
+  std::vector<Node> nodes_;
+  std::vector<Aabb> regions_;
+};
+
+/// What the last collective call did on this rank (for the CLI's --json
+/// and the lab). Bytes and messages count what this rank sent to others.
+struct Stats {
+  std::uint64_t owned = 0;          ///< objects this rank passed
+  std::uint64_t ghosts = 0;         ///< copies received from other ranks
+  std::uint64_t shared = 0;         ///< objects in the shared list (all ranks)
+  std::uint64_t local_pairs = 0;    ///< pairs this rank reported
+  std::uint64_t bytes_sent = 0;     ///< to other ranks
+  std::uint64_t messages_sent = 0;  ///< to other ranks (non-empty sends)
+  double exchange_seconds = 0;      ///< choosing and sending ghosts
+  double local_seconds = 0;         ///< the local structure's build and pairs
+};
+
+/// The decomposition and the collective calls over one communicator.
+class Domain {
+ public:
+  /// Collective. `world` is the box most objects live in (finite,
+  /// non-empty); objects outside it are still handled exactly. Throws
+  /// DistributedError on every rank for bad dims or options.
+  Domain(MPI_Comm comm, const Aabb& world, Options options = {});
+
+  int rank() const { return rank_; }
+  int size() const { return size_; }
+  MPI_Comm comm() const { return comm_; }
+  const Options& options() const { return options_; }
+  const Partition& partition() const { return partition_; }
+  const Aabb& world() const { return world_; }
+
+  /// The rank that should own each object: the one whose subdomain holds
+  /// its centre. Local, no message.
+  std::vector<int> destinations(std::span<const Shape> shapes) const;
+
+  /// Collective. Rebuilds the bisection from the centres of every rank's
+  /// `shapes` (weight one each, so results do not depend on timing noise).
+  /// Deterministic: the same objects give the same cuts whatever rank holds
+  /// them. No effect with a grid decomposition.
+  void balance(std::span<const Shape> shapes);
+  /// Collective. Calls `balance` when the most loaded rank holds more than
+  /// the mean times `rebalance_threshold`; returns true when it did.
+  bool rebalance(std::span<const Shape> shapes);
+
+  /// Collective. Sends `items[i]` to rank `dest[i]` (an all-to-all, so an
+  /// item may go to any rank, not only a neighbour) and returns what this
+  /// rank receives, by source rank, in the senders' order.
+  template <class T>
+  std::vector<T> exchange(std::span<const T> items, std::span<const int> dest) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    std::vector<T> out;
+    exchange_bytes(items.data(), sizeof(T), items.size(), dest.data(), &resize_to<T>, &out);
+    return out;
+  }
+
+  /// Collective. Every overlapping pair among the objects of all ranks,
+  /// the ones this rank is responsible for appended to `out` (a < b).
+  /// Each pair of the world is reported on exactly one rank. Throws
+  /// DistributedError on every rank when any rank's input is invalid (the
+  /// message names the rank and the id) or any rank failed.
+  void find_pairs(std::span<const std::uint32_t> ids, std::span<const Shape> shapes,
+                  std::vector<IdPair>& out);
+  /// The same over a borrowed view of the caller's arrays: object i of
+  /// `objects` has global id `ids[i]`.
+  void find_pairs(std::span<const std::uint32_t> ids, const Objects& objects,
+                  std::vector<IdPair>& out);
+
+  /// What the last find_pairs did on this rank.
+  const Stats& stats() const { return stats_; }
+
+  /// Collective. Throws DistributedError on every rank when any rank passes
+  /// a non-empty `error`; the message is the lowest failing rank's, which
+  /// names that rank. Returns normally when every `error` is empty.
+  void agree(const std::string& error) const;
+
+ private:
+  // Sends count items of `size` bytes; the result goes to the buffer that
+  // resize(out, bytes) returns (the caller's vector, resized).
+  void exchange_bytes(const void* data, std::size_t size, std::size_t count, const int* dest,
+                      std::byte* (*resize)(void*, std::size_t), void* out);
+  template <class T>
+  static std::byte* resize_to(void* out, std::size_t bytes) {
+    auto& v = *static_cast<std::vector<T>*>(out);
+    v.resize(bytes / sizeof(T));
+    return reinterpret_cast<std::byte*>(v.data());
+  }
+
+  MPI_Comm comm_;
+  int rank_ = 0, size_ = 1;
+  Aabb world_;
+  Options options_;
+  Partition partition_;
+  Stats stats_;
+};
+
+/// Collective over `comm`: throws DistributedError on every rank when any
+/// rank passes a non-empty `error` (the lowest failing rank's message).
+void agree(MPI_Comm comm, const std::string& error);
+
+/// Parses "2x2x1" into grid dims (each >= 1). Throws std::invalid_argument.
+std::array<int, 3> parse_dims(const std::string& text);
+
+}  // namespace broadphase::distributed

@@ -1,0 +1,439 @@
+// The collective calls: agreement on errors, the all-to-all exchange, the
+// weighted bisection, and pair finding with ghosts and the ownership rule.
+#include <algorithm>
+#include <broadphase/distributed.hpp>
+#include <broadphase/registry.hpp>
+#include <chrono>
+#include <climits>
+#include <cmath>
+#include <exception>
+#include <string>
+
+namespace broadphase::distributed {
+
+namespace {
+
+double since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// What travels for one object: its shape and global id.
+struct Record {
+  Shape shape;
+  std::uint32_t id;
+};
+
+// Bins of one round of the bisection's histogram search. Eight rounds of 64
+// bins narrow a bracket by 2^48, and the search stops earlier when the
+// bracket holds no two doubles.
+constexpr int kBins = 64;
+constexpr int kRounds = 12;
+
+// Edge j of the bracket [a, b] cut in kBins: one expression everywhere, so
+// the bin of a coordinate and the edges agree exactly.
+double edge(double a, double b, int j) { return j == kBins ? b : a + (b - a) * j / kBins; }
+
+}  // namespace
+
+void agree(MPI_Comm comm, const std::string& error) {
+  int rank = 0, size = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  const int mine = error.empty() ? size : rank;
+  int lowest = size;
+  MPI_Allreduce(&mine, &lowest, 1, MPI_INT, MPI_MIN, comm);
+  if (lowest == size) return;
+  int length = rank == lowest ? static_cast<int>(error.size()) : 0;
+  MPI_Bcast(&length, 1, MPI_INT, lowest, comm);
+  std::string message = rank == lowest ? error : std::string(static_cast<std::size_t>(length), ' ');
+  MPI_Bcast(message.data(), length, MPI_CHAR, lowest, comm);
+  throw DistributedError(message);
+}
+
+void Domain::agree(const std::string& error) const { distributed::agree(comm_, error); }
+
+Domain::Domain(MPI_Comm comm, const Aabb& world, Options options)
+    : comm_(comm), world_(world), options_(std::move(options)) {
+  MPI_Comm_rank(comm_, &rank_);
+  MPI_Comm_size(comm_, &size_);
+  for (int a = 0; a < 3; ++a)
+    if (!std::isfinite(world.lo[a]) || !std::isfinite(world.hi[a]) || !(world.lo[a] < world.hi[a]))
+      throw DistributedError("the world box must be finite and non-empty");
+  if (!(options_.margin >= 0) || !std::isfinite(options_.margin))
+    throw DistributedError("the margin must be finite and >= 0");
+  if (!(options_.rebalance_threshold >= 1))
+    throw DistributedError("the rebalance threshold must be >= 1");
+  if (options_.max_ghost_ranks < 1) throw DistributedError("max_ghost_ranks must be >= 1");
+  std::array<int, 3> dims = options_.dims;
+  if (options_.decomposition == Decomposition::bisection) dims = {0, 0, 0};
+  long given = 1;
+  for (int d : dims) {
+    if (d < 0) throw DistributedError("grid dims must be >= 0");
+    if (d > 0) given *= d;
+  }
+  const bool free_dims = std::count(dims.begin(), dims.end(), 0) > 0;
+  if ((free_dims && size_ % given != 0) || (!free_dims && given != size_))
+    throw DistributedError("a grid of " + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) +
+                           "x" + std::to_string(dims[2]) + " does not fit " +
+                           std::to_string(size_) + " ranks");
+  MPI_Dims_create(size_, 3, dims.data());
+  for (int a = 0; a < 3; ++a) {
+    const double width = (world.hi[a] - world.lo[a]) / dims[static_cast<std::size_t>(a)];
+    if (width < options_.margin)
+      throw DistributedError("a grid of " + std::to_string(dims[0]) + "x" +
+                             std::to_string(dims[1]) + "x" + std::to_string(dims[2]) +
+                             " makes subdomains thinner than the margin " +
+                             std::to_string(options_.margin));
+  }
+  options_.dims = dims;
+  partition_ = Partition::grid(world_, dims);
+}
+
+std::vector<int> Domain::destinations(std::span<const Shape> shapes) const {
+  std::vector<int> d(shapes.size());
+  for (std::size_t i = 0; i < shapes.size(); ++i) d[i] = partition_.owner(shapes[i].center);
+  return d;
+}
+
+void Domain::exchange_bytes(const void* data, std::size_t size, std::size_t count, const int* dest,
+                            std::byte* (*resize)(void*, std::size_t), void* out) {
+  const auto p = static_cast<std::size_t>(size_);
+  const auto me = static_cast<std::size_t>(rank_);
+  std::vector<long long> per(p, 0);
+  std::string error;
+  for (std::size_t i = 0; i < count; ++i) {
+    if (dest[i] < 0 || dest[i] >= size_) {
+      error = "rank " + std::to_string(rank_) + ": exchange to rank " + std::to_string(dest[i]) +
+              ", outside [0, " + std::to_string(size_) + ")";
+      break;
+    }
+    per[static_cast<std::size_t>(dest[i])] += static_cast<long long>(size);
+  }
+  long long at = 0;
+  for (std::size_t r = 0; r < p; ++r) at += r == me ? 0 : per[r];
+  if (at > INT_MAX || per[me] > INT_MAX)
+    error = "rank " + std::to_string(rank_) + ": more than 2 GB to send";
+  agree(error);
+  // What stays on this rank does not go through MPI: it is copied once,
+  // straight to its place in the result (the bulk of a migration, and of the
+  // ghost exchange, which sends each object to its own rank too).
+  std::vector<int> send_counts(p), send_displs(p), recv_counts(p), recv_displs(p);
+  at = 0;
+  for (std::size_t r = 0; r < p; ++r) {
+    send_counts[r] = r == me ? 0 : static_cast<int>(per[r]);
+    send_displs[r] = static_cast<int>(at);
+    at += send_counts[r];
+  }
+  MPI_Alltoall(send_counts.data(), 1, MPI_INT, recv_counts.data(), 1, MPI_INT, comm_);
+  long long total = 0;
+  for (std::size_t r = 0; r < p; ++r) {
+    recv_displs[r] = static_cast<int>(std::min<long long>(total, INT_MAX));
+    total += r == me ? per[me] : recv_counts[r];
+  }
+  error.clear();
+  if (total > INT_MAX) error = "rank " + std::to_string(rank_) + ": more than 2 GB to receive";
+  agree(error);
+  std::vector<std::byte> send(static_cast<std::size_t>(at));
+  std::byte* recv = resize(out, static_cast<std::size_t>(total));
+  std::vector<int> fill(send_displs);
+  std::size_t self = static_cast<std::size_t>(recv_displs[me]);
+  const auto* bytes = static_cast<const std::byte*>(data);
+  for (std::size_t i = 0; i < count; ++i) {
+    const auto r = static_cast<std::size_t>(dest[i]);
+    if (r == me) {
+      std::memcpy(recv + self, bytes + i * size, size);
+      self += size;
+    } else {
+      std::memcpy(send.data() + fill[r], bytes + i * size, size);
+      fill[r] += static_cast<int>(size);
+    }
+  }
+  MPI_Alltoallv(send.data(), send_counts.data(), send_displs.data(), MPI_BYTE, recv,
+                recv_counts.data(), recv_displs.data(), MPI_BYTE, comm_);
+  for (std::size_t r = 0; r < p; ++r)
+    if (r != me && send_counts[r] > 0) {
+      stats_.bytes_sent += static_cast<std::uint64_t>(send_counts[r]);
+      ++stats_.messages_sent;
+    }
+}
+
+void Domain::balance(std::span<const Shape> shapes) {
+  if (options_.decomposition != Decomposition::bisection) return;
+  // Open items of one level of the tree: ranks [r0, r1) in a finite box,
+  // and where their node index goes in the parent.
+  struct Item {
+    int r0, r1;
+    Aabb box;
+    int parent;  // node index, -1 for the root
+    bool right;
+  };
+  std::vector<Partition::Node> nodes;
+  std::vector<Item> level{{0, size_, world_, -1, false}};
+  std::vector<int> item_of(shapes.size(), 0);  // the open item each centre is in, -1: a leaf
+  auto link = [&nodes](const Item& it, int child) {
+    if (it.parent < 0) return;
+    Partition::Node& p = nodes[static_cast<std::size_t>(it.parent)];
+    (it.right ? p.right : p.left) = child;
+  };
+  while (!level.empty()) {
+    // Leaves close at once; the others get a cut each from a joint search.
+    std::vector<Item> open;
+    std::vector<int> renumber(level.size(), -1);
+    for (std::size_t k = 0; k < level.size(); ++k) {
+      if (level[k].r1 - level[k].r0 == 1) {
+        link(level[k], -1 - level[k].r0);
+      } else {
+        renumber[k] = static_cast<int>(open.size());
+        open.push_back(level[k]);
+      }
+    }
+    for (int& it : item_of)
+      if (it >= 0) it = renumber[static_cast<std::size_t>(it)];
+    if (open.empty()) break;
+    const std::size_t m = open.size();
+    std::vector<int> axis(m);
+    std::vector<double> a(m), b(m), cut(m), target(m);
+    std::vector<char> done(m, 0);
+    std::string error;
+    for (std::size_t k = 0; k < m; ++k) {
+      const Aabb& box = open[k].box;
+      int ax = 0;
+      for (int c = 1; c < 3; ++c)
+        if (box.hi[c] - box.lo[c] > box.hi[ax] - box.lo[ax]) ax = c;
+      axis[k] = ax;
+      a[k] = box.lo[ax] + options_.margin;
+      b[k] = box.hi[ax] - options_.margin;
+      if (a[k] > b[k])
+        error = "bisection: " + std::to_string(open[k].r1 - open[k].r0) +
+                " ranks do not fit in a box " + std::to_string(box.hi[ax] - box.lo[ax]) +
+                " wide without a subdomain thinner than the margin " +
+                std::to_string(options_.margin);
+    }
+    if (!error.empty()) throw DistributedError(error);  // the same on every rank
+    // Each round: per item, how many centres lie below a, in each bin of
+    // [a, b), and at or above b; summed over the ranks.
+    const std::size_t width = kBins + 2;
+    std::vector<std::uint64_t> local(m * width), global(m * width);
+    for (int round = 0; round < kRounds; ++round) {
+      std::fill(local.begin(), local.end(), 0);
+      for (std::size_t i = 0; i < shapes.size(); ++i) {
+        const int it = item_of[i];
+        if (it < 0) continue;
+        const auto k = static_cast<std::size_t>(it);
+        const double x = shapes[i].center[axis[k]];
+        std::size_t slot;
+        if (x < a[k]) {
+          slot = 0;
+        } else if (x >= b[k]) {
+          slot = kBins + 1;
+        } else {
+          int j = static_cast<int>((x - a[k]) / (b[k] - a[k]) * kBins);
+          j = std::clamp(j, 0, kBins - 1);
+          while (j > 0 && x < edge(a[k], b[k], j)) --j;
+          while (j < kBins - 1 && x >= edge(a[k], b[k], j + 1)) ++j;
+          slot = static_cast<std::size_t>(j) + 1;
+        }
+        ++local[k * width + slot];
+      }
+      MPI_Allreduce(local.data(), global.data(), static_cast<int>(local.size()), MPI_UINT64_T,
+                    MPI_SUM, comm_);
+      bool all_done = true;
+      for (std::size_t k = 0; k < m; ++k) {
+        if (done[k]) continue;
+        const std::uint64_t* h = &global[k * width];
+        double total = 0;
+        for (std::size_t s = 0; s < width; ++s) total += static_cast<double>(h[s]);
+        const int ranks = open[k].r1 - open[k].r0;
+        target[k] = total * (ranks / 2) / ranks;
+        // below[j]: centres below edge j.
+        double below = static_cast<double>(h[0]);
+        int j = 0;
+        if (below >= target[k]) {
+          cut[k] = a[k];
+          done[k] = 1;
+          continue;
+        }
+        while (j < kBins && below + static_cast<double>(h[j + 1]) < target[k]) {
+          below += static_cast<double>(h[j + 1]);
+          ++j;
+        }
+        if (j == kBins) {
+          cut[k] = b[k];
+          done[k] = 1;
+          continue;
+        }
+        // The target falls in bin j: [edge j, edge j+1).
+        const double lo = edge(a[k], b[k], j), hi = edge(a[k], b[k], j + 1);
+        const double above = below + static_cast<double>(h[j + 1]);
+        if (round == kRounds - 1 || std::nextafter(lo, hi) >= hi) {
+          cut[k] = target[k] - below <= above - target[k] ? lo : hi;
+          done[k] = 1;
+          continue;
+        }
+        a[k] = lo;
+        b[k] = hi;
+        all_done = false;
+      }
+      if (all_done) break;
+    }
+    std::vector<Item> next;
+    for (std::size_t k = 0; k < m; ++k) {
+      const Item& it = open[k];
+      const int index = static_cast<int>(nodes.size());
+      nodes.push_back({axis[k], cut[k], 0, 0});
+      link(it, index);
+      const int half = it.r0 + (it.r1 - it.r0) / 2;
+      Aabb lbox = it.box, rbox = it.box;
+      lbox.hi[axis[k]] = cut[k];
+      rbox.lo[axis[k]] = cut[k];
+      next.push_back({it.r0, half, lbox, index, false});
+      next.push_back({half, it.r1, rbox, index, true});
+    }
+    for (std::size_t i = 0; i < shapes.size(); ++i) {
+      const int it = item_of[i];
+      if (it < 0) continue;
+      const auto k = static_cast<std::size_t>(it);
+      item_of[i] = static_cast<int>(2 * k) + (shapes[i].center[axis[k]] < cut[k] ? 0 : 1);
+    }
+    level = std::move(next);
+  }
+  partition_ = Partition(std::move(nodes), size_);
+}
+
+bool Domain::rebalance(std::span<const Shape> shapes) {
+  if (options_.decomposition != Decomposition::bisection) return false;
+  const std::uint64_t mine = shapes.size();
+  std::uint64_t most = 0, sum = 0;
+  MPI_Allreduce(&mine, &most, 1, MPI_UINT64_T, MPI_MAX, comm_);
+  MPI_Allreduce(&mine, &sum, 1, MPI_UINT64_T, MPI_SUM, comm_);
+  const double mean = static_cast<double>(sum) / size_;
+  // One object above the mean is the best a count can do (8 objects on 8
+  // ranks, objects on one point): no rebuild for that.
+  if (sum == 0 || static_cast<double>(most) <= mean * options_.rebalance_threshold ||
+      static_cast<double>(most) <= mean + 1)
+    return false;
+  balance(shapes);
+  return true;
+}
+
+void Domain::find_pairs(std::span<const std::uint32_t> ids, const Objects& objects,
+                        std::vector<IdPair>& out) {
+  std::vector<Shape> shapes;
+  std::string error;
+  if (ids.size() != objects.count) {
+    error = "rank " + std::to_string(rank_) + ": " + std::to_string(ids.size()) + " ids for " +
+            std::to_string(objects.count) + " objects";
+  } else {
+    shapes.reserve(objects.count);
+    for (std::size_t i = 0; i < objects.count; ++i) shapes.push_back(objects.shape(i));
+  }
+  agree(error);
+  find_pairs(ids, shapes, out);
+}
+
+void Domain::find_pairs(std::span<const std::uint32_t> ids, std::span<const Shape> shapes,
+                        std::vector<IdPair>& out) {
+  stats_ = Stats{};
+  stats_.owned = shapes.size();
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string error;
+  if (ids.size() != shapes.size())
+    error = "rank " + std::to_string(rank_) + ": " + std::to_string(ids.size()) + " ids for " +
+            std::to_string(shapes.size()) + " shapes";
+  for (std::size_t i = 0; error.empty() && i < shapes.size(); ++i)
+    if (!is_valid(shapes[i]))
+      error = "rank " + std::to_string(rank_) + ": object " + std::to_string(ids[i]) +
+              " cannot be placed: its shape is not finite or has a negative extent";
+  agree(error);
+
+  // Ghosts: each object to every rank its bounds reach, or to everyone.
+  std::vector<Record> sent, shared_mine;
+  std::vector<int> dest;
+  sent.reserve(shapes.size() + shapes.size() / 4);
+  dest.reserve(sent.capacity());
+  std::vector<int> reach;
+  for (std::size_t i = 0; i < shapes.size(); ++i) {
+    reach.clear();
+    partition_.ranks_meeting(bounds(shapes[i]), options_.margin, reach);
+    if (static_cast<int>(reach.size()) > options_.max_ghost_ranks) {
+      shared_mine.push_back({shapes[i], ids[i]});
+      continue;
+    }
+    for (int r : reach) {
+      sent.push_back({shapes[i], ids[i]});
+      dest.push_back(r);
+    }
+  }
+  std::vector<Record> local = exchange<Record>(sent, dest);
+  {
+    std::uint64_t from_me = 0;
+    for (int r : dest) from_me += r == rank_ ? 1 : 0;
+    stats_.ghosts = local.size() - from_me;
+  }
+  // The shared list: every rank's big objects to every rank.
+  const int mine = static_cast<int>(shared_mine.size() * sizeof(Record));
+  std::vector<int> counts(static_cast<std::size_t>(size_)), displs(counts.size());
+  MPI_Allgather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_);
+  long long total = 0;
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    displs[r] = static_cast<int>(total);
+    total += counts[r];
+  }
+  agree(total > INT_MAX ? "the shared list of large objects exceeds 2 GB" : "");
+  const std::size_t before = local.size();
+  local.resize(before + static_cast<std::size_t>(total) / sizeof(Record));
+  MPI_Allgatherv(shared_mine.data(), mine, MPI_BYTE, local.data() + before, counts.data(),
+                 displs.data(), MPI_BYTE, comm_);
+  stats_.shared = static_cast<std::uint64_t>(total) / sizeof(Record);
+  stats_.ghosts += stats_.shared - shared_mine.size();
+  if (mine > 0) {
+    stats_.bytes_sent += static_cast<std::uint64_t>(mine) * static_cast<std::uint64_t>(size_ - 1);
+    stats_.messages_sent += static_cast<std::uint64_t>(size_ - 1);
+  }
+  stats_.exchange_seconds = since(t0);
+
+  // Local pairs, kept when this rank's subdomain holds max(lo_a, lo_b).
+  const auto t1 = std::chrono::steady_clock::now();
+  if (!options_.local_pairs) return;
+  try {
+    std::vector<Aabb> box(local.size());
+    for (std::size_t i = 0; i < local.size(); ++i) box[i] = bounds(local[i].shape);
+    Config config;
+    config.world = world_;
+    const Aabb& region = partition_.region(rank_);
+    Aabb clipped;
+    bool usable = true;
+    for (int a = 0; a < 3; ++a) {
+      clipped.lo[a] = std::max(region.lo[a], world_.lo[a]);
+      clipped.hi[a] = std::min(region.hi[a], world_.hi[a]);
+      usable = usable && clipped.lo[a] < clipped.hi[a];
+    }
+    if (usable) config.world = clipped;
+    config.expected_objects = local.size();
+    auto structure = make_structure(options_.algo, config);
+    for (std::size_t i = 0; i < local.size(); ++i) structure->insert(local[i].shape, i);
+    std::vector<HandlePair> pairs;
+    structure->find_pairs(pairs);
+    const std::size_t first = out.size();
+    for (const HandlePair& p : pairs) {
+      const auto i = static_cast<std::size_t>(structure->user_data(p.a));
+      const auto j = static_cast<std::size_t>(structure->user_data(p.b));
+      const Vec3 at{std::max(box[i].lo.x, box[j].lo.x), std::max(box[i].lo.y, box[j].lo.y),
+                    std::max(box[i].lo.z, box[j].lo.z)};
+      if (!partition_.holds(rank_, at)) continue;
+      const std::uint32_t a = local[i].id, b = local[j].id;
+      if (a == b) {
+        error = "object id " + std::to_string(a) + " was passed on more than one rank or twice";
+        break;
+      }
+      out.push_back({std::min(a, b), std::max(a, b)});
+    }
+    stats_.local_pairs = out.size() - first;
+  } catch (const std::exception& e) {
+    error = "rank " + std::to_string(rank_) + ": " + e.what();
+  }
+  stats_.local_seconds = since(t1);
+  agree(error);
+}
+
+}  // namespace broadphase::distributed

@@ -1,0 +1,85 @@
+#!/usr/bin/env bash
+# broadphase-mpi end to end: the same lines as `broadphase run`, the
+# generated mode, --json, and failures that are loud and never hang.
+# Usage: cli_mpi_test.sh MPIRUN BROADPHASE_MPI BROADPHASE DATA_DIR
+set -u
+mpirun=$1
+mpi_cli=$2
+cli=$3
+data=$4
+fail=0
+pass=0
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+
+ok() { pass=$((pass + 1)); }
+no() { fail=$((fail + 1)); echo "FAIL: $*"; }
+mpi() {  # mpi RANKS ARGS...: bounded, so a hang fails instead of blocking
+  local p=$1; shift
+  timeout 120 "$mpirun" --oversubscribe -np "$p" "$mpi_cli" "$@"
+}
+
+# The same lines as one process, on several ranks and structures.
+s=$data/scenes/mixed-400.scene
+"$cli" run --scene "$s" --frames 25 >"$tmp/one"
+for cfg in "2 --bisect --algo fast-grid" "3 --grid 3x1x1 --algo grid-hashed" "4 --grid 2x2x1 --algo naive"; do
+  set -- $cfg
+  p=$1; shift
+  mpi "$p" run --scene "$s" --frames 25 "$@" >"$tmp/many" 2>"$tmp/err"
+  if cmp -s "$tmp/one" "$tmp/many"; then ok; else no "run -np $p $*: $(head -3 "$tmp/err")"; fi
+done
+
+# Generated on the ranks: object i the same whatever the ranks, so the
+# same frames as the written file replayed on one process.
+"$mpi_cli" gen --gen scaled-uneven --n 3000 --seed 7 --out "$tmp/gen.scene"
+"$cli" run --scene "$tmp/gen.scene" --frames 5 >"$tmp/one"
+for p in 1 3; do
+  mpi "$p" run --gen scaled-uneven --n 3000 --seed 7 --frames 5 --bisect >"$tmp/many" 2>"$tmp/err"
+  if cmp -s "$tmp/one" "$tmp/many"; then ok; else no "gen -np $p: $(head -3 "$tmp/err")"; fi
+done
+
+# --json: the fields the lab reads.
+if mpi 2 run --gen scaled-even --per-rank 2000 --frames 3 --json >"$tmp/json" 2>"$tmp/err" &&
+  python3 - "$tmp/json" <<'PY'
+import json, sys
+j = json.load(open(sys.argv[1]))
+for k in ("ranks", "phases", "ghosts_per_rank", "bytes_per_rank_per_frame",
+          "messages_per_rank_per_frame", "load_imbalance_last", "hash_total"):
+    assert k in j, k
+for k in ("local_pairs", "ghost_exchange", "migration", "balancing", "reduction"):
+    assert k in j["phases"], k
+assert j["ranks"] == 2 and len(j["ghosts_per_rank"]) == 2
+PY
+then ok; else no "--json: $(cat "$tmp/err")"; fi
+
+# Failures: every rank exits non-zero, the message printed, no hang.
+expect_fail() {  # expect_fail NAME PATTERN RANKS ARGS...
+  local name=$1 pattern=$2; shift 2
+  mpi "$@" >"$tmp/out" 2>"$tmp/err"
+  local rc=$?
+  if [ $rc -ne 0 ] && [ $rc -ne 124 ] && grep -q -- "$pattern" "$tmp/err"; then ok; else
+    no "$name (exit $rc): $(head -5 "$tmp/err")"
+  fi
+}
+printf 'broadphase-scene 1\nworld 100\nobjects 3\n1 2 3 1 0 0 0\n1 2 x 1 0 0 0\n4 5 6 1 0 0 0\n' >"$tmp/bad.scene"
+expect_fail "bad scene line read by rank 0" "bad.scene:5" 3 run --scene "$tmp/bad.scene"
+expect_fail "missing scene" "nowhere.scene" 2 run --scene "$tmp/nowhere.scene"
+expect_fail "unknown structure" "no-such" 2 run --scene "$s" --algo no-such
+expect_fail "grid that does not fit" "does not fit" 2 run --scene "$s" --grid 3x1x1
+BROADPHASE_MPI_FAIL=1:3 expect_fail "a rank that throws" "injected failure at frame 3" 3 run --scene "$s"
+if [ "$(wc -l <"$tmp/out")" -eq 3 ]; then ok; else no "frames before the failure: $(cat "$tmp/out")"; fi
+BROADPHASE_MPI_FAIL=2:2:abort expect_fail "a rank that throws outside a collective step" \
+  "outside an agreed phase" 3 run --scene "$s"
+# Motion beyond the doubles: the one-process message, after the frames before.
+printf 'broadphase-scene 1\nworld 1e308\nobjects 2\n1e308 1 1 1 1e308 0 0\n5 5 5 1 0 0 0\n' >"$tmp/over.scene"
+"$cli" run --scene "$tmp/over.scene" --frames 3 >"$tmp/one" 2>"$tmp/one_err"
+expect_fail "motion that overflows" "$(sed 's/.*error: //' "$tmp/one_err")" 2 run --scene "$tmp/over.scene" --frames 3
+if cmp -s "$tmp/one" "$tmp/out"; then ok; else no "frames before the overflow differ"; fi
+
+# More ranks than objects.
+mpi 5 run --scene "$data/scenes/touching.scene" --frames 6 --bisect >"$tmp/many" 2>"$tmp/err"
+if cmp -s "$data/scenes/touching.expected" "$tmp/many"; then ok; else no "5 ranks, 8 objects"; fi
+
+echo "cli_mpi_test: $pass passed, $fail failed"
+[ $fail -eq 0 ]

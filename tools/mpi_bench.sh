@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# The lab's MPI section (not part of `broadphase paper`): weak scaling of
+# broadphase-mpi from 1 to 2 ranks beside the machine's ceiling (two
+# independent one-rank runs at once), the decomposition's machine-independent
+# figures for P = 1..16, the targets at 1 024 000 objects per rank, and
+# identical hashes over the rank counts. Writes one JSON file per run into
+# OUT and a summary (summary.md) from tools/mpi_bench_summary.py.
+#
+# Usage: tools/mpi_bench.sh OUT [PER_RANK] [FRAMES]
+#   (defaults 1024000 objects per rank, 3 frames)
+set -eu
+out=$1
+per=${2:-1024000}
+frames=${3:-3}
+bin=${BROADPHASE_MPI:-build/apps/broadphase-mpi/broadphase-mpi}
+mkdir -p "$out"
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+run() {  # run FILE RANKS ARGS...
+  local f=$1 p=$2; shift 2
+  timeout 3000 mpirun --oversubscribe -np "$p" "$bin" run --json "$@" >"$out/$f"
+  echo "$(date -u +%T) $f done" >&2
+}
+uptime >"$out/load.txt"
+
+# Weak scaling: scaled-even on a grid, scaled-uneven on a bisection.
+for kind in scaled-even scaled-uneven; do
+  dec=--bisect
+  [ "$kind" = scaled-even ] && dec="--grid 2x1x1"
+  one=""
+  [ "$kind" = scaled-even ] && one="--grid 1x1x1"
+  run "weak-$kind-p1.json" 1 --gen "$kind" --per-rank "$per" --frames "$frames" $one
+  # The ceiling: the same one-rank run twice at once.
+  run "weak-$kind-pair-a.json" 1 --gen "$kind" --per-rank "$per" --frames "$frames" $one &
+  run "weak-$kind-pair-b.json" 1 --gen "$kind" --per-rank "$per" --frames "$frames" $one
+  wait
+  run "weak-$kind-p2.json" 2 --gen "$kind" --per-rank "$per" --frames "$frames" $dec
+done
+
+# Targets at 1 024 000 per rank, decomposition only (no pairs).
+run "ghosts-scaled-even-p8-2x2x2.json" 8 --gen scaled-even --per-rank 1024000 --frames 1 \
+  --grid 2x2x2 --skip-local
+run "imbalance-scaled-uneven-p8-bisect.json" 8 --gen scaled-uneven --per-rank 1024000 --frames 2 \
+  --bisect --skip-local
+
+# Identical hashes over the rank counts (one scene, full pairs).
+for p in 1 2 3 4 8; do
+  run "hash-p$p.json" "$p" --gen scaled-uneven --n 32000 --frames 3 --bisect
+done
+
+# Figures for P = 1..16 at 32 000 objects per rank, decomposition only.
+for p in $(seq 1 16); do
+  run "figures-even-p$p.json" "$p" --gen scaled-even --per-rank 32000 --frames 2 --skip-local
+  run "figures-uneven-p$p.json" "$p" --gen scaled-uneven --per-rank 32000 --frames 2 --bisect \
+    --skip-local
+done
+uptime >>"$out/load.txt"
+python3 "$(dirname "$0")/mpi_bench_summary.py" "$out" >"$out/summary.md"
