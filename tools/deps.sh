@@ -7,6 +7,7 @@ packages=(
   libcli11-dev nlohmann-json3-dev libgtest-dev libgmock-dev libbenchmark-dev
   python3-matplotlib python3-numpy python3-pil
   libbullet-dev libfcl-dev libode-dev libcgal-dev
+  clang libclang-rt-14-dev
 )
 sudo=""
 [ "$(id -u)" -eq 0 ] || sudo="sudo"
