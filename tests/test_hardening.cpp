@@ -312,9 +312,9 @@ TEST_P(Extremes, HandleNamedTwiceInABatchTakesTheLastMove) {
 // Issue 21, finding 4: options whose arithmetic overflows over ordinary or
 // huge worlds (a cell so small that its inverse is infinite, so large that
 // it is nearly the whole range; octree-loose's looseness over [0, 1e308]^3)
-// converted NaN to integers (undefined behaviour: the sanitizer build of
-// this test reports it). A configuration may be refused; one that is made
-// must stay exact.
+// converted NaN to integers (undefined behaviour, which clang's
+// -fsanitize=float-cast-overflow reports: the fuzzers are built with it).
+// A configuration may be refused; one that is made must stay exact.
 TEST(ExtremeOptions, CellArithmeticThatOverflowsStaysExact) {
   std::vector<Shape> s;
   for (int i = 0; i < 16; ++i)
