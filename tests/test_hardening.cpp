@@ -309,6 +309,37 @@ TEST_P(Extremes, HandleNamedTwiceInABatchTakesTheLastMove) {
   });
 }
 
+// Issue 21, finding 4: options whose arithmetic overflows over ordinary or
+// huge worlds (a cell so small that its inverse is infinite, so large that
+// it is nearly the whole range; octree-loose's looseness over [0, 1e308]^3)
+// converted NaN to integers (undefined behaviour, which clang's
+// -fsanitize=float-cast-overflow reports: the fuzzers are built with it).
+// A configuration may be refused; one that is made must stay exact.
+TEST(ExtremeOptions, CellArithmeticThatOverflowsStaysExact) {
+  std::vector<Shape> s;
+  for (int i = 0; i < 16; ++i)
+    s.push_back(Shape::sphere({i * 1e-311, i * 3.0, i % 2 ? 1e300 : -1e300}, i % 3 ? 1e-311 : 2));
+  s.push_back(Shape::sphere({0, 0, 0}, 1e300));
+  const char* grids[] = {"grid-hashed", "grid-hybrid", "grid-dense", "grid-implicit",
+                         "grid-static"};
+  for (const char* g : grids)
+    for (const char* cell : {":cell=1e-310", ":cell=5e-324", ":cell=1e300"})
+      for (const Aabb& world : {cube(0, 1000), cube(-1e308, 1e308)}) {
+        const std::string spec = std::string(g) + cell;
+        Config config;
+        config.world = world;
+        try {
+          make_structure(spec, config);
+        } catch (const std::invalid_argument&) {
+          continue;  // refused as a configuration: fine
+        }
+        exact_on(spec, world, s, "overflowing cell arithmetic");
+      }
+  for (const char* k : {"octree-loose:k=4.2", "octree-loose:k=8,depth=20", "octree-loose:k=1.1"})
+    for (const Aabb& world : {cube(0, 1e308), cube(-1e308, 1e308), cube(0, 4e-323)})
+      exact_on(k, world, s, "a loose octree over a world of extreme size");
+}
+
 INSTANTIATE_TEST_SUITE_P(All, Extremes, ::testing::ValuesIn(structure_specs()),
                          StructureParamName{});
 

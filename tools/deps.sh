@@ -10,6 +10,7 @@ packages=(
   pybind11-dev python3-dev python3-scipy python3-sklearn python3-ase python3-rtree
   python3-pytest
   libopenmpi-dev openmpi-bin
+  clang libclang-rt-14-dev
 )
 sudo=""
 [ "$(id -u)" -eq 0 ] || sudo="sudo"
