@@ -19,7 +19,8 @@ launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
   -DBROADPHASE_FUZZ=ON -DBROADPHASE_BUILD_TESTS=OFF -DBROADPHASE_BUILD_APPS=OFF \
-  -DBROADPHASE_BUILD_BENCH=OFF -DBROADPHASE_WITH_PEERS=OFF "${launcher[@]}" >/dev/null
+  -DBROADPHASE_BUILD_BENCH=OFF -DBROADPHASE_WITH_PEERS=OFF -DBROADPHASE_BUILD_PYTHON=OFF \
+  -DBROADPHASE_BUILD_MPI=OFF "${launcher[@]}" >/dev/null
 cmake --build "$build" -j "${FUZZ_JOBS:-2}" --target "${targets[@]}"
 # An allocation beyond 512 MB is a finding (ASan's operator new stops the
 # run rather than throw): no input of a few kilobytes should ask for that.
