@@ -50,7 +50,7 @@ constexpr double kMaxMargin = 0.5;
 // 2.7 ms against 2.6-4.7, explosion 5.3-5.9 against 4.6-6.2, noisy).
 constexpr double kMinFrames = 2;
 // Threads at most (option threads=N, and hardware concurrency for N = 0).
-constexpr unsigned kMaxThreads = 64;
+constexpr unsigned kMaxThreads = FastGridOptions::kMaxThreads;
 // Moving entries per share below which work stays on one thread (the
 // default of the option grain=N).
 constexpr std::size_t kMinEntriesPerThread = 2048;
@@ -257,12 +257,18 @@ struct alignas(64) FastGrid::ShareStats {  // on lines of its own: each share wr
   ListTotals lists;              // the share's list lengths, before renewals
 };
 
-FastGrid::FastGrid(const Config& c) : world_(c.world) {
-  OptionReader opt(c, "fast-grid");
-  threads_ = static_cast<unsigned>(opt.integer("threads", 1, 0, kMaxThreads));
-  cell_factor_ = opt.number("cell", 1, 0.5, 64);
-  grain_ = static_cast<std::size_t>(opt.integer("grain", kMinEntriesPerThread, 1, 1 << 24));
-  opt.finish();
+void FastGridOptions::check() const {
+  detail::check_integer("fast-grid", "threads", threads, 0, kMaxThreads);
+  detail::check_number("fast-grid", "cell", cell, 0.5, 64);
+  detail::check_integer("fast-grid", "grain", grain, 1, std::uint64_t{1} << 24);
+}
+
+FastGrid::FastGrid(const Config& c, const FastGridOptions& o)
+    : world_(check_config(c, "fast-grid").world) {
+  o.check();
+  threads_ = o.threads;
+  cell_factor_ = o.cell;
+  grain_ = o.grain;
   if (threads_ == 0) threads_ = std::clamp(std::thread::hardware_concurrency(), 1u, kMaxThreads);
   if (threads_ > 1) pool_ = std::make_unique<detail::WorkerPool>(threads_ - 1);
   if (c.expected_objects > 0) {
@@ -526,6 +532,10 @@ void FastGrid::update(std::span<const Move> moves) {
   if (others)
     for (std::size_t j = 0; j < n; ++j)
       if (target[j] == kOther) move_via_loose(moves[j].handle.index, moves[j].shape);
+  settle();
+}
+
+void FastGrid::settle() {
   rebuild(fixed_dirty_);
   if (!cache_built_) build_fixed_cache();
 }

@@ -5,8 +5,8 @@
 
 #include <algorithm>
 #include <broadphase/fast_grid.hpp>
-#include <broadphase/naive.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/naive.hpp>
 #include <broadphase/sort_sweep.hpp>
 #include <cmath>
 #include <cstdint>
@@ -84,15 +84,15 @@ void on_one_and_two_threads(const Scene& start, F body) {
 }
 
 TEST(FastGrid, RejectsUnknownAndBadOptions) {
-  EXPECT_THROW(FastGrid(with_option("cells", "2")), UnknownStructure);
-  EXPECT_THROW(FastGrid(with_option("threads", "1.5")), UnknownStructure);
-  EXPECT_THROW(FastGrid(with_option("threads", "-1")), UnknownStructure);
+  EXPECT_THROW(FastGrid(with_option("cells", "2")), InvalidConfig);
+  EXPECT_THROW(FastGrid(with_option("threads", "1.5")), InvalidConfig);
+  EXPECT_THROW(FastGrid(with_option("threads", "-1")), InvalidConfig);
   EXPECT_GE(FastGrid(with_option("threads", "0")).threads(), 1u);
   EXPECT_LE(FastGrid(with_option("threads", "0")).threads(), 64u);
-  EXPECT_THROW(FastGrid(with_option("threads", "65")), UnknownStructure);
+  EXPECT_THROW(FastGrid(with_option("threads", "65")), InvalidConfig);
   EXPECT_EQ(FastGrid(with_option("threads", "2")).threads(), 2u);
-  EXPECT_THROW(FastGrid(with_option("grain", "0")), UnknownStructure);
-  EXPECT_THROW(FastGrid(with_option("grain", "2.5")), UnknownStructure);
+  EXPECT_THROW(FastGrid(with_option("grain", "0")), InvalidConfig);
+  EXPECT_THROW(FastGrid(with_option("grain", "2.5")), InvalidConfig);
   EXPECT_NO_THROW(FastGrid(with_option("grain", "1")));
 }
 

@@ -23,7 +23,7 @@ int main(int argc, char** argv) {
   } catch (const broadphase::app::UsageError& e) {
     std::fprintf(stderr, "broadphase: error: %s\n", e.what());
     return 2;
-  } catch (const broadphase::UnknownStructure& e) {
+  } catch (const broadphase::InvalidConfig& e) {
     std::fprintf(stderr, "broadphase: error: %s\n", e.what());
     return 2;
   } catch (const broadphase::SceneError& e) {

@@ -50,8 +50,8 @@
 #pragma once
 
 #include <algorithm>
+#include <broadphase/config_error.hpp>
 #include <broadphase/structure.hpp>
-#include <broadphase/registry.hpp>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -76,6 +76,31 @@ inline void prefetch(const void* p) {
 }
 }  // namespace detail
 
+/// The options of FastGrid (`fast-grid:threads=N,cell=F,grain=N`).
+struct FastGridOptions {
+  /// The most threads: a chunk's mark holds its chunk in 10 bits, which
+  /// more than 128 threads would overflow.
+  static constexpr unsigned kMaxThreads = 64;
+  /// Threads the bulk update and find_pairs split their work over, with the
+  /// same results and pair order for every count, in [0, 64]; 0: the
+  /// hardware concurrency (at most 64). Default 1.
+  unsigned threads = 1;
+  /// A cell's side over its level's reach, in [0.5, 64] (larger: fewer cells
+  /// to visit, more entries per cell). Default 1.
+  double cell = 1;
+  /// Moving objects per thread below which the work stays on fewer threads,
+  /// in [1, 2^24]. Default 2048 (1: every thread takes part from two movers
+  /// on, which tests use to run the threaded paths on small scenes).
+  std::size_t grain = 2048;
+  /// Throws InvalidConfig for a value out of range (NaN, infinite and
+  /// subnormal values are out of range).
+  void check() const;
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static FastGridOptions from(const Config& c);
+};
+
 /// Hierarchical cell grid with a fixed/moving split and cached fixed pairs.
 /// insert, remove, update: amortised O(log n) (O(1) unless a rebuild is
 /// due); bulk update of m objects: O(m) plus a rebuild of the fixed grid,
@@ -84,16 +109,13 @@ inline void prefetch(const void* p) {
 /// need exclusive access.
 class FastGrid {
  public:
-  /// Options: `threads=N` (0..64; 0 = hardware concurrency, at most 64; default 1:
-  /// the bulk update and find_pairs split their work over N threads, with
-  /// the same results and pair order for every N);
-  /// `cell=F` (0.5..64, default 1): a cell's side over its level's reach
-  /// (larger: fewer cells to visit, more entries per cell);
-  /// `grain=N` (1..2^24, default 2048): moving objects per thread below
-  /// which the work stays on fewer threads (1: every thread takes part
-  /// from two movers on, which tests use to run the threaded paths on
-  /// small scenes).
-  explicit FastGrid(const Config& c = {});
+  using Options = FastGridOptions;
+  /// Reads the deprecated Config::options map into FastGridOptions.
+  /// Throws InvalidConfig.
+  explicit FastGrid(const Config& c = {})
+      : FastGrid(without_options(c), FastGridOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o` (FastGridOptions::check).
+  FastGrid(const Config& c, const FastGridOptions& o);
   ~FastGrid();
 
   /// Adds an object (to the loose list). Throws InvalidShape.
@@ -106,6 +128,14 @@ class FastGrid {
   /// Moves many objects and rebuilds the moving grid once. Throws like
   /// update(h, s), before changing anything when a handle or shape is bad.
   void update(std::span<const Move> moves);
+  /// Puts every object inserted or updated one at a time (the loose list)
+  /// into the grids and, when the fixed objects changed, rebuilds the fixed
+  /// grid and the cache of pairs among fixed objects: the step that ends
+  /// every bulk update. Call it once after inserting a scene, before the
+  /// first frame, so that the first find_pairs reads the cache instead of
+  /// scanning the fixed grid (an empty bulk update does the same).
+  /// O(n + fixed pairs) when the fixed set changed, else O(moving + loose).
+  void settle();
 
   /// Visits every object whose shape overlaps `q` exactly.
   template <class V>

@@ -21,9 +21,9 @@
 #pragma once
 
 #include <bit>
-#include <broadphase/structure.hpp>
+#include <broadphase/config_error.hpp>
 #include <broadphase/detail/grid_common.hpp>
-#include <broadphase/registry.hpp>
+#include <broadphase/structure.hpp>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -41,19 +41,18 @@ namespace detail {
 template <bool kHashed, bool kSorted = false>
 class LinkedGrid {
  public:
-  /// Reads `cell=` (and `buckets=` when hashed) from `c`. Throws UnknownStructure.
-  LinkedGrid(const Config& c, const char* name, double cell_scale = 1)
-      : name_(name), world_(c.world), cell_scale_(cell_scale) {
-    OptionReader opt(c, name);
-    const double cell = opt.number("cell", 0, 0, 1e300);
+  /// A grid of cells of edge `cell` (0: automatic), and when hashed of
+  /// `buckets` heads (0: automatic); both already checked by the options
+  /// struct of the structure named `name`. Throws InvalidConfig for a bad `c`.
+  LinkedGrid(const Config& c, const char* name, double cell, std::size_t buckets,
+             double cell_scale = 1)
+      : name_(name), world_(check_config(c, name).world), cell_scale_(cell_scale) {
     if constexpr (kHashed) {
-      const std::int64_t buckets = opt.integer("buckets", 0, 0, std::int64_t{1} << 30);
       forced_buckets_ = buckets > 0;
-      const std::size_t want = forced_buckets_ ? static_cast<std::size_t>(buckets)
-                                               : std::max<std::size_t>(c.expected_objects, 64);
+      const std::size_t want =
+          forced_buckets_ ? buckets : std::max<std::size_t>(c.expected_objects, 64);
       heads_.assign(std::bit_ceil(want), kNone);
     }
-    opt.finish();
     if (cell > 0) {
       trigger_.forced = true;
       set_cell(cell, std::max<std::size_t>(c.expected_objects, 1));
@@ -533,6 +532,20 @@ class LinkedGrid {
 
 }  // namespace detail
 
+/// The options of GridDense (`grid-dense:cell=E`).
+struct GridDenseOptions {
+  /// Cell edge in world units, in [1e-300, 1e300]; 0 (default): chosen from
+  /// the world and the population, and re-chosen as it changes.
+  double cell = 0;
+  /// Throws InvalidConfig for a value out of range (NaN, infinite and
+  /// subnormal values are out of range).
+  void check() const { detail::check_number("grid-dense", "cell", cell, 1e-300, 1e300, true); }
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static GridDenseOptions from(const Config& c);
+};
+
 /// A dense array of cells over Config::world with linked lists of objects.
 /// insert, remove, update: O(1) (amortised: re-grids when the population
 /// doubles or quarters, unless `cell=` is given). query: O(cells covered +
@@ -542,8 +555,14 @@ class LinkedGrid {
 /// concurrently; mutations need exclusive access.
 class GridDense : public detail::LinkedGrid<false> {
  public:
-  /// Reads `cell=`. Throws UnknownStructure for other keys or bad values.
-  explicit GridDense(const Config& c = {}) : LinkedGrid(c, "grid-dense") {}
+  using Options = GridDenseOptions;
+  /// Reads the deprecated Config::options map into GridDenseOptions.
+  /// Throws InvalidConfig.
+  explicit GridDense(const Config& c = {})
+      : GridDense(without_options(c), GridDenseOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o`.
+  GridDense(const Config& c, const GridDenseOptions& o)
+      : LinkedGrid(c, "grid-dense", (o.check(), o.cell), 0) {}
 };
 
 }  // namespace broadphase

@@ -10,10 +10,10 @@
 #pragma once
 
 #include <array>
-#include <broadphase/structure.hpp>
+#include <broadphase/config_error.hpp>
 #include <broadphase/detail/inline_stack.hpp>
 #include <broadphase/detail/node_items.hpp>
-#include <broadphase/registry.hpp>
+#include <broadphase/structure.hpp>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -273,6 +273,19 @@ QueryCost nested_tree_pairs(const Tree& t, const ObjectStore& store, V& visitor)
 
 }  // namespace detail
 
+/// The options of Octree (`octree:split=N`).
+struct OctreeOptions {
+  /// Objects a leaf holds before it splits, in [1, 1000000]. Default 32: the
+  /// frame time falls up to 16 and is flat beyond (docs/octrees.md).
+  std::size_t split = 32;
+  /// Throws InvalidConfig for a value out of range.
+  void check() const;
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static OctreeOptions from(const Config& c);
+};
+
 /// An adaptive octree with objects at the smallest cell that holds them.
 ///
 /// Placement: an object goes down from the root while its conservative box
@@ -293,9 +306,12 @@ class Octree {
  public:
   static constexpr int kMaxDepth = 20;
 
-  /// Options: `split=` (objects a leaf holds before it splits, default 32:
-  /// the frame time falls up to 16 and is flat beyond, docs/octrees.md).
-  explicit Octree(const Config& c = {});
+  using Options = OctreeOptions;
+  /// Reads the deprecated Config::options map into OctreeOptions.
+  /// Throws InvalidConfig.
+  explicit Octree(const Config& c = {}) : Octree(without_options(c), OctreeOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o` (OctreeOptions::check).
+  Octree(const Config& c, const OctreeOptions& o);
 
   /// Adds an object. Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion = Motion::dynamic);

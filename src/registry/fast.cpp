@@ -1,6 +1,20 @@
+#include <broadphase/fast_grid.hpp>
+
 #include "register.hpp"
 
-#include <broadphase/fast_grid.hpp>
+namespace broadphase {
+
+FastGridOptions FastGridOptions::from(const Config& c) {
+  OptionReader r(c, "fast-grid");
+  FastGridOptions o;
+  o.threads = detail::narrow<unsigned>(r.integer("threads", o.threads));
+  o.cell = r.number("cell", o.cell);
+  o.grain = detail::narrow<std::size_t>(r.integer("grain", o.grain));
+  r.finish();
+  return o;
+}
+
+}  // namespace broadphase
 
 namespace broadphase::detail {
 

@@ -25,15 +25,15 @@ constexpr std::uint32_t interleave(int x, int y, int z) {
 
 }  // namespace
 
-OctreePaper::OctreePaper(const Config& c) {
-  OptionReader options(c, "octree-paper");
-  clamp_outside_ = options.choice("outside", "root", {"root", "clamp"}) == "clamp";
-  options.finish();
+OctreePaper::OctreePaper(const Config& c, const OctreePaperOptions& o) {
+  check_config(c, "octree-paper");
+  o.check();
+  clamp_outside_ = o.clamp_outside;
   origin_ = c.world.lo;
   const Vec3 extent = c.world.hi - c.world.lo;
   const double side = std::max(extent.x, std::max(extent.y, extent.z));
   if (!(side > 0) || !std::isfinite(side))
-    throw std::invalid_argument("octree-paper: the world box must be finite and non-empty");
+    throw InvalidConfig("octree-paper: the world box must be finite and non-empty");
   scale_ = kFinestCells / side;
 }
 
