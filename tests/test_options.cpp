@@ -5,12 +5,12 @@
 
 #include <broadphase/aabb_tree.hpp>
 #include <broadphase/broadphase.hpp>
-#include <broadphase/fast_grid.hpp>
 #include <broadphase/grid_dense.hpp>
 #include <broadphase/grid_hashed.hpp>
 #include <broadphase/grid_hybrid.hpp>
 #include <broadphase/grid_implicit.hpp>
 #include <broadphase/grid_static.hpp>
+#include <broadphase/grid_verlet.hpp>
 #include <broadphase/kdtree.hpp>
 #include <broadphase/naive.hpp>
 #include <broadphase/octree.hpp>
@@ -72,10 +72,10 @@ std::vector<DirectCase> bad_direct_options() {
       {"grid-implicit cell=-inf", [&] { GridImplicit(c, {.cell = -kInf}); }},
       {"hgrid-paper levels=0", [&] { HGridPaper(c, {.levels = 0}); }},
       {"hgrid-paper levels=31", [&] { HGridPaper(c, {.levels = 31}); }},
-      {"fast-grid threads=65", [&] { FastGrid(c, {.threads = 65}); }},
-      {"fast-grid cell=0.25", [&] { FastGrid(c, {.cell = 0.25}); }},
-      {"fast-grid cell=NaN", [&] { FastGrid(c, {.cell = kNan}); }},
-      {"fast-grid grain=0", [&] { FastGrid(c, {.grain = 0}); }},
+      {"fast-grid threads=65", [&] { GridVerlet(c, {.threads = 65}); }},
+      {"fast-grid cell=0.25", [&] { GridVerlet(c, {.cell = 0.25}); }},
+      {"fast-grid cell=NaN", [&] { GridVerlet(c, {.cell = kNan}); }},
+      {"fast-grid grain=0", [&] { GridVerlet(c, {.grain = 0}); }},
   };
 }
 
@@ -152,7 +152,7 @@ TEST(Options, EveryStructureRefusesAWorldThatNoSceneCanProduce) {
   Config c;
   c.world = bad_worlds()[0];
   EXPECT_THROW(Octree{c}, InvalidConfig);
-  EXPECT_THROW(FastGrid{c}, InvalidConfig);
+  EXPECT_THROW(GridVerlet{c}, InvalidConfig);
   EXPECT_THROW(GridDense{c}, InvalidConfig);
   EXPECT_THROW(GridImplicit{c}, InvalidConfig);
   EXPECT_THROW(OctreePaper{c}, InvalidConfig);
@@ -178,7 +178,7 @@ TEST(Options, TypedOptionsAndTheMapMayNotBothBeGiven) {
 
 TEST(Options, TypedOptionsTakeEffect) {
   const Config c;
-  EXPECT_EQ(FastGrid(c, {.threads = 3}).threads(), 3u);
+  EXPECT_EQ(GridVerlet(c, {.threads = 3}).threads(), 3u);
   EXPECT_EQ(AabbTree(c, {.order = AabbTreeOrder::near_far}).order(), AabbTree::Order::near_far);
   EXPECT_EQ(AabbTree(c, {.front = AabbTreeFront::basic}).front_mode(), AabbTree::FrontMode::basic);
   // The same split given typed and as text builds the same tree.
@@ -195,8 +195,8 @@ TEST(Options, TypedOptionsTakeEffect) {
 }
 
 TEST(Options, SettleBuildsTheFixedPairCacheAsAnEmptyBulkUpdateDoes) {
-  FastGrid a, b;
-  for (FastGrid* g : {&a, &b}) {
+  GridVerlet a, b;
+  for (GridVerlet* g : {&a, &b}) {
     for (int i = 0; i < 50; ++i)
       g->insert(Shape::sphere({10.0 + i, 10, 10}, 0.8), static_cast<std::uint64_t>(i),
                 Motion::fixed);
