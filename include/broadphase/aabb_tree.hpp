@@ -39,7 +39,7 @@ enum class AabbTreeFront : std::uint8_t { off, basic, deferred };
 struct AabbTreeOptions {
   /// World units around a moving object's box, in [0, 1e30]. Default (empty):
   /// 0.002 x the largest edge of Config::world.
-  std::optional<double> margin;
+  std::optional<double> margin{};
   /// Displacements a refreshed fat box is stretched by, in [0, 1e6]. Default 2.
   double predict = 2;
   /// Which child every traversal descends into first. Default leaves_first.
