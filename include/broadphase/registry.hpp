@@ -55,6 +55,10 @@ class OptionReader {
   double number(const std::string& key, double fallback);
   /// A whole number >= 0, or `fallback` when absent.
   std::uint64_t integer(const std::string& key, std::uint64_t fallback);
+  /// A number in [lo, hi], or `fallback` when absent: for options that have
+  /// no options struct (the peers' adapters); NaN, infinite and subnormal
+  /// values are refused.
+  double number(const std::string& key, double fallback, double lo, double hi);
   /// One of `allowed`, or `fallback` when absent.
   std::string choice(const std::string& key, const std::string& fallback,
                      std::initializer_list<std::string_view> allowed);

@@ -36,6 +36,12 @@ double OptionReader::number(const std::string& key, double fallback) {
   return parse_number(structure_, key, it->second, false);
 }
 
+double OptionReader::number(const std::string& key, double fallback, double lo, double hi) {
+  const double v = number(key, fallback);
+  if (config_.options.count(key) != 0) detail::check_number(structure_, key, v, lo, hi);
+  return v;
+}
+
 std::uint64_t OptionReader::integer(const std::string& key, std::uint64_t fallback) {
   read_.push_back(key);
   const auto it = config_.options.find(key);
