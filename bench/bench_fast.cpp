@@ -2,7 +2,7 @@
 // all pairs), one query, one insert/remove, at one and two threads.
 #include <benchmark/benchmark.h>
 
-#include <broadphase/fast_grid.hpp>
+#include <broadphase/grid_verlet.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <string>
 #include <vector>
@@ -13,7 +13,7 @@ using namespace broadphase;
 
 struct Loaded {
   Scene scene;
-  FastGrid grid;
+  GridVerlet grid;
   std::vector<Handle> handles;
   std::vector<std::size_t> moving;
   std::vector<Move> moves;

@@ -5,23 +5,22 @@
 
 namespace broadphase {
 
-namespace {
-AabbTree::Order parse_order(const std::string& s) {
-  if (s == "none") return AabbTree::Order::none;
-  if (s == "smaller-first") return AabbTree::Order::smaller_first;
-  if (s == "hit-ratio") return AabbTree::Order::hit_ratio;
-  if (s == "near-far") return AabbTree::Order::near_far;
-  return AabbTree::Order::leaves_first;
+void AabbTreeOptions::check() const {
+  if (margin) detail::check_number("aabb-tree", "margin", *margin, 0, 1e30);
+  detail::check_number("aabb-tree", "predict", predict, 0, 1e6);
+  if (order != AabbTreeOrder::none && order != AabbTreeOrder::leaves_first &&
+      order != AabbTreeOrder::smaller_first && order != AabbTreeOrder::hit_ratio &&
+      order != AabbTreeOrder::near_far)
+    throw InvalidConfig("aabb-tree: option 'order' is not an AabbTreeOrder");
+  detail::check_integer("aabb-tree", "max_depth", max_depth, 0, 1000000);
+  if (front != AabbTreeFront::off && front != AabbTreeFront::basic &&
+      front != AabbTreeFront::deferred)
+    throw InvalidConfig("aabb-tree: option 'front' is not an AabbTreeFront");
 }
-AabbTree::FrontMode parse_front(const std::string& s) {
-  if (s == "basic") return AabbTree::FrontMode::basic;
-  if (s == "deferred") return AabbTree::FrontMode::deferred;
-  return AabbTree::FrontMode::off;
-}
-}  // namespace
 
-AabbTree::AabbTree(const Config& c, const std::string& name) {
-  OptionReader r(c, name);
+AabbTree::AabbTree(const Config& c, const AabbTreeOptions& o) {
+  check_config(c, "aabb-tree");
+  o.check();
   double edge = 0;
   for (int a = 0; a < 3; ++a) {
     const double e = c.world.hi[a] - c.world.lo[a];
@@ -30,13 +29,11 @@ AabbTree::AabbTree(const Config& c, const std::string& name) {
       near_axis_ = a;
     }
   }
-  margin_ = r.number("margin", 0.002 * edge, 0, 1e30);
-  order_ = parse_order(r.choice(
-      "order", "leaves-first", {"leaves-first", "smaller-first", "hit-ratio", "near-far", "none"}));
-  predict_ = r.number("predict", 2, 0, 1e6);
-  max_depth_ = static_cast<std::uint32_t>(r.integer("max_depth", 0, 0, 1000000));
-  front_mode_ = parse_front(r.choice("front", "off", {"off", "basic", "deferred"}));
-  r.finish();
+  margin_ = o.margin ? *o.margin : 0.002 * edge;
+  order_ = o.order;
+  predict_ = o.predict;
+  max_depth_ = o.max_depth;
+  front_mode_ = o.front;
   if (c.expected_objects > 0) {
     nodes_.reserve(2 * c.expected_objects);
     leaf_.reserve(c.expected_objects);

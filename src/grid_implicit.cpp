@@ -8,10 +8,14 @@
 
 namespace broadphase {
 
-GridImplicit::GridImplicit(const Config& c) : world_(c.world) {
-  OptionReader opt(c, "grid-implicit");
-  const double cell = opt.number("cell", 0, 0, 1e300);
-  opt.finish();
+void GridImplicitOptions::check() const {
+  detail::check_number("grid-implicit", "cell", cell, 1e-300, 1e300, true);
+}
+
+GridImplicit::GridImplicit(const Config& c, const GridImplicitOptions& o)
+    : world_(check_config(c, "grid-implicit").world) {
+  o.check();
+  const double cell = o.cell;
   trigger_.forced = cell > 0;
   layout(cell > 0 ? cell : detail::initial_cell_size(c),
          std::max<std::size_t>(1, (c.expected_objects + 63) / 64));

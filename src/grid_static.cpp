@@ -27,15 +27,19 @@ std::size_t cell_count(const CellRange& r) { return static_cast<std::size_t>(r.c
 
 }  // namespace
 
-GridStatic::GridStatic(const Config& c) : origin_(c.world.lo) {
-  OptionReader opt(c, "grid-static");
-  const double cell = opt.number("cell", 0, 0, 1e300);
-  const std::string policy = opt.choice("policy", "auto", {"rebuild", "patch", "auto"});
-  cache_fixed_ = opt.choice("fixed", "cache", {"cache", "plain"}) == "cache";
-  opt.finish();
-  policy_ = policy == "rebuild" ? Policy::rebuild
-            : policy == "patch" ? Policy::patch
-                                : Policy::automatic;
+void GridStaticOptions::check() const {
+  detail::check_number("grid-static", "cell", cell, 1e-300, 1e300, true);
+  if (policy != GridStaticPolicy::rebuild && policy != GridStaticPolicy::patch &&
+      policy != GridStaticPolicy::automatic)
+    throw InvalidConfig("grid-static: option 'policy' is not a GridStaticPolicy");
+}
+
+GridStatic::GridStatic(const Config& c, const GridStaticOptions& o)
+    : origin_(check_config(c, "grid-static").world.lo) {
+  o.check();
+  const double cell = o.cell;
+  cache_fixed_ = o.cache_fixed;
+  policy_ = o.policy;
   trigger_.forced = cell > 0;
   map_ = detail::CellMap(origin_, cell > 0 ? cell : detail::initial_cell_size(c));
   const std::size_t buckets = std::bit_ceil(std::max<std::size_t>(4 * c.expected_objects, 64));

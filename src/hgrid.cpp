@@ -11,8 +11,9 @@ namespace broadphase {
 using detail::CellKey;
 using detail::kNone;
 
-HGrid::HGrid(const Config& c) {
-  OptionReader(c, "hgrid").finish();
+HGrid::HGrid(const Config& c, const HGridOptions& o) {
+  check_config(c, "hgrid");
+  o.check();
   table_.assign(std::bit_ceil(std::max<std::size_t>(64, 2 * c.expected_objects)),
                 Cell{0, {}, kNone});
   count_.assign(kMaxLevel - kMinLevel + 1, 0);

@@ -40,13 +40,20 @@ AabbF union_of(std::span<const OctItem> items) {
 
 }  // namespace
 
-KdTree::KdTree(const Config& c) {
-  OptionReader opt(c, "kdtree");
-  const std::string p = opt.choice("rebuild", "decay", {"refit", "decay", "always"});
-  policy_ = p == "refit" ? Policy::refit : (p == "always" ? Policy::always : Policy::decay);
-  decay_ = opt.number("decay", 1.5, 1, 1e6);
-  leaf_size_ = static_cast<std::size_t>(opt.integer("leaf", 8, 1, 1024));
-  opt.finish();
+void KdTreeOptions::check() const {
+  if (rebuild != KdTreePolicy::refit && rebuild != KdTreePolicy::decay &&
+      rebuild != KdTreePolicy::always)
+    throw InvalidConfig("kdtree: option 'rebuild' is not a KdTreePolicy");
+  detail::check_number("kdtree", "decay", decay, 1, 1e6);
+  detail::check_integer("kdtree", "leaf", leaf, 1, 1024);
+}
+
+KdTree::KdTree(const Config& c, const KdTreeOptions& o) {
+  check_config(c, "kdtree");
+  o.check();
+  policy_ = o.rebuild;
+  decay_ = o.decay;
+  leaf_size_ = o.leaf;
   root_ = new_node(kNoNode);
   if (c.expected_objects != 0) index_.reserve(c.expected_objects);
 }

@@ -5,10 +5,12 @@ namespace broadphase {
 
 using detail::kNoNode;
 
-Octree::Octree(const Config& c) : cube_(detail::Cube::around(c.world)) {
-  OptionReader opt(c, "octree");
-  split_ = static_cast<std::size_t>(opt.integer("split", 32, 1, 1000000));
-  opt.finish();
+void OctreeOptions::check() const { detail::check_integer("octree", "split", split, 1, 1000000); }
+
+Octree::Octree(const Config& c, const OctreeOptions& o)
+    : cube_(detail::Cube::around(check_config(c, "octree").world)) {
+  o.check();
+  split_ = o.split;
   nodes_.emplace_back();
   nodes_[0].cell = cube_.cell(0, 0, 0, 0);
   if (c.expected_objects != 0) index_.reserve(c.expected_objects);

@@ -6,10 +6,14 @@ namespace broadphase {
 
 using detail::kNoNode;
 
-LinearOctree::LinearOctree(const Config& c) : cube_(detail::Cube::around(c.world)) {
-  OptionReader opt(c, "octree-linear");
-  max_depth_ = static_cast<int>(opt.integer("depth", 4, 0, 20));
-  opt.finish();
+void LinearOctreeOptions::check() const {
+  detail::check_integer("octree-linear", "depth", static_cast<std::uint64_t>(depth), 0, 20);
+}
+
+LinearOctree::LinearOctree(const Config& c, const LinearOctreeOptions& o)
+    : cube_(detail::Cube::around(check_config(c, "octree-linear").world)) {
+  o.check();
+  max_depth_ = o.depth;
   nodes_.emplace_back();
   table_.insert(1, 0);
   if (c.expected_objects != 0) index_.reserve(c.expected_objects);

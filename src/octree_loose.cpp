@@ -8,12 +8,16 @@ namespace broadphase {
 
 using detail::kNoNode;
 
-LooseOctree::LooseOctree(const Config& c) : cube_(detail::Cube::around(c.world)) {
-  OptionReader opt(c, "octree-loose");
-  const double k = opt.number("k", 2, 1.1, 8);
-  max_depth_ = static_cast<int>(opt.integer("depth", 4, 0, 20));
-  opt.finish();
-  margin_ = (k - 1) / 2 * cube_.side;
+void LooseOctreeOptions::check() const {
+  detail::check_number("octree-loose", "k", k, 1.1, 8);
+  detail::check_integer("octree-loose", "depth", static_cast<std::uint64_t>(depth), 0, 20);
+}
+
+LooseOctree::LooseOctree(const Config& c, const LooseOctreeOptions& o)
+    : cube_(detail::Cube::around(check_config(c, "octree-loose").world)) {
+  o.check();
+  max_depth_ = o.depth;
+  margin_ = (o.k - 1) / 2 * cube_.side;
   nodes_.emplace_back();
   nodes_[0].loose = loose_box(0, 0, 0, 0);
   table_.insert(1, 0);

@@ -17,8 +17,9 @@ float extent_of(float lo, float hi) {
 }
 }  // namespace
 
-Sap::Sap(const Config& c) {
-  OptionReader(c, "sap").finish();
+Sap::Sap(const Config& c, const SapOptions& o) {
+  check_config(c, "sap");
+  o.check();
   if (c.expected_objects > 0) {
     for (auto& e : ep_) e.reserve(2 * c.expected_objects);
     box_.reserve(c.expected_objects);

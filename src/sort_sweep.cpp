@@ -33,8 +33,9 @@ void radix_sort_high(std::vector<std::uint64_t>& v, std::vector<std::uint64_t>& 
 constexpr std::size_t kRadixFrom = 256;  // below this std::sort wins
 }  // namespace
 
-SortSweep::SortSweep(const Config& c) {
-  OptionReader(c, "sort-sweep").finish();
+SortSweep::SortSweep(const Config& c, const SortSweepOptions& o) {
+  check_config(c, "sort-sweep");
+  o.check();
   box_.reserve(c.expected_objects);
   dense_.reserve(c.expected_objects);
 }

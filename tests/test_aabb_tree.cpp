@@ -144,7 +144,7 @@ TEST(AabbTree, InlineStackSpillsWithoutLoss) {
 TEST(AabbTree, RejectsBadOptions) {
   for (const char* spec : {"aabb-tree:order=random", "aabb-tree:front=lazy", "aabb-tree:margin=-1",
                            "aabb-tree:depth=3", "aabb-tree-front:front=maybe"})
-    EXPECT_THROW(make_structure(spec), UnknownStructure) << spec;
+    EXPECT_THROW(make_structure(spec), InvalidConfig) << spec;
 }
 
 }  // namespace

@@ -63,7 +63,7 @@ TEST_P(Differential, RejectsMoreExpectedObjectsThanHandlesCanName) {
   // An impossible size hint is named, not met with bad_alloc.
   Config c;
   c.expected_objects = std::size_t{1} << 40;
-  EXPECT_THROW(make_structure(GetParam(), c), UnknownStructure);
+  EXPECT_THROW(make_structure(GetParam(), c), InvalidConfig);
   c.expected_objects = 1000;
   EXPECT_NO_THROW(make_structure(GetParam(), c));
 }

@@ -1,12 +1,15 @@
-// fast-grid's own invariants and edge cases, beyond the shared differential
-// and reference-scene suites: the fixed-pair cache, the loose list and its
-// rebuild threshold, held-back slots, candidate lists, threads.
+// grid-verlet's (formerly fast-grid's) own invariants and edge cases,
+// beyond the shared differential and reference-scene suites: the fixed-pair
+// cache, the loose list and its rebuild threshold, held-back slots,
+// candidate lists, threads, and the old names.
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <broadphase/fast_grid.hpp>
-#include <broadphase/naive.hpp>
+#include <broadphase/fast_grid.hpp>  // the deprecated names, tested below
+#include <broadphase/grid_verlet.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/naive.hpp>
+#include <broadphase/registry.hpp>
 #include <broadphase/sort_sweep.hpp>
 #include <cmath>
 #include <cstdint>
@@ -36,7 +39,7 @@ IdPairs pairs_of(const S& s) {
 using IdList = std::vector<std::pair<std::uint64_t, std::uint64_t>>;
 
 /// find_pairs' pairs as user data, in the order reported.
-IdList found_in_order(const FastGrid& g) {
+IdList found_in_order(const GridVerlet& g) {
   std::vector<HandlePair> out;
   g.find_pairs(out);
   IdList ids;
@@ -46,7 +49,7 @@ IdList found_in_order(const FastGrid& g) {
 
 /// Inserts every object of `scene` (user data: its index), fixed or moving
 /// as the scene says.
-std::vector<Handle> insert_scene(FastGrid& g, const Scene& scene) {
+std::vector<Handle> insert_scene(GridVerlet& g, const Scene& scene) {
   std::vector<Handle> h;
   for (std::size_t i = 0; i < scene.size(); ++i)
     h.push_back(
@@ -75,7 +78,7 @@ void on_one_and_two_threads(const Scene& start, F body) {
   std::vector<IdPairs> results;
   for (const char* t : {"1", "2"}) {
     Scene scene = start;
-    FastGrid g(with_option("threads", t));
+    GridVerlet g(with_option("threads", t));
     const std::vector<Handle> h = insert_scene(g, scene);
     results.emplace_back();
     body(g, scene, h, t, results.back());
@@ -83,21 +86,21 @@ void on_one_and_two_threads(const Scene& start, F body) {
   EXPECT_EQ(results[0], results[1]);
 }
 
-TEST(FastGrid, RejectsUnknownAndBadOptions) {
-  EXPECT_THROW(FastGrid(with_option("cells", "2")), UnknownStructure);
-  EXPECT_THROW(FastGrid(with_option("threads", "1.5")), UnknownStructure);
-  EXPECT_THROW(FastGrid(with_option("threads", "-1")), UnknownStructure);
-  EXPECT_GE(FastGrid(with_option("threads", "0")).threads(), 1u);
-  EXPECT_LE(FastGrid(with_option("threads", "0")).threads(), 64u);
-  EXPECT_THROW(FastGrid(with_option("threads", "65")), UnknownStructure);
-  EXPECT_EQ(FastGrid(with_option("threads", "2")).threads(), 2u);
-  EXPECT_THROW(FastGrid(with_option("grain", "0")), UnknownStructure);
-  EXPECT_THROW(FastGrid(with_option("grain", "2.5")), UnknownStructure);
-  EXPECT_NO_THROW(FastGrid(with_option("grain", "1")));
+TEST(GridVerlet, RejectsUnknownAndBadOptions) {
+  EXPECT_THROW(GridVerlet(with_option("cells", "2")), InvalidConfig);
+  EXPECT_THROW(GridVerlet(with_option("threads", "1.5")), InvalidConfig);
+  EXPECT_THROW(GridVerlet(with_option("threads", "-1")), InvalidConfig);
+  EXPECT_GE(GridVerlet(with_option("threads", "0")).threads(), 1u);
+  EXPECT_LE(GridVerlet(with_option("threads", "0")).threads(), 64u);
+  EXPECT_THROW(GridVerlet(with_option("threads", "65")), InvalidConfig);
+  EXPECT_EQ(GridVerlet(with_option("threads", "2")).threads(), 2u);
+  EXPECT_THROW(GridVerlet(with_option("grain", "0")), InvalidConfig);
+  EXPECT_THROW(GridVerlet(with_option("grain", "2.5")), InvalidConfig);
+  EXPECT_NO_THROW(GridVerlet(with_option("grain", "1")));
 }
 
-TEST(FastGrid, CachedFixedPairsFollowRemovalAndUpdate) {
-  FastGrid g;
+TEST(GridVerlet, CachedFixedPairsFollowRemovalAndUpdate) {
+  GridVerlet g;
   const Handle a = g.insert(Shape::sphere({0, 0, 0}, 1), 0, Motion::fixed);
   const Handle b = g.insert(Shape::sphere({1.5, 0, 0}, 1), 1, Motion::fixed);
   const Handle c = g.insert(Shape::sphere({3, 0, 0}, 1), 2, Motion::fixed);
@@ -121,8 +124,8 @@ TEST(FastGrid, CachedFixedPairsFollowRemovalAndUpdate) {
   EXPECT_TRUE(g.contains(c));
 }
 
-TEST(FastGrid, HeldSlotsAreNotReusedBeforeARebuild) {
-  FastGrid g;
+TEST(GridVerlet, HeldSlotsAreNotReusedBeforeARebuild) {
+  GridVerlet g;
   std::vector<Handle> h;
   for (int i = 0; i < 10; ++i)
     h.push_back(g.insert(Shape::sphere({i * 10.0, 0, 0}, 6), static_cast<std::uint64_t>(i)));
@@ -141,9 +144,9 @@ TEST(FastGrid, HeldSlotsAreNotReusedBeforeARebuild) {
   EXPECT_EQ(pairs_of(g), expect);
 }
 
-TEST(FastGrid, ManyInsertsStayExactAcrossRebuilds) {
+TEST(GridVerlet, ManyInsertsStayExactAcrossRebuilds) {
   // Crosses the loose-list threshold many times, with fixed and moving objects.
-  FastGrid g;
+  GridVerlet g;
   Naive n;
   Rng rng(7);
   std::vector<std::pair<Handle, Handle>> live;
@@ -165,9 +168,9 @@ TEST(FastGrid, ManyInsertsStayExactAcrossRebuilds) {
   EXPECT_EQ(pairs_of(g), pairs_of(n));
 }
 
-TEST(FastGrid, CandidateListsStayCompleteForFastAndSlowMovers) {
+TEST(GridVerlet, CandidateListsStayCompleteForFastAndSlowMovers) {
   Scene scene = generate(Distribution::even, 1500, 3);
-  FastGrid g;
+  GridVerlet g;
   const std::vector<Handle> h = insert_scene(g, scene);
   std::vector<Move> moves;
   for (int f = 0; f < 12; ++f) {
@@ -184,7 +187,7 @@ TEST(FastGrid, CandidateListsStayCompleteForFastAndSlowMovers) {
   }
 }
 
-TEST(FastGrid, NearListsStayExactWhileMoversComeAndGo) {
+TEST(GridVerlet, NearListsStayExactWhileMoversComeAndGo) {
   // Movers renew their lists at different frames (speeds differ by 40x),
   // some leave and new ones take their slots between frames: every frame
   // must still match the naive oracle, and validate() checks that every two
@@ -195,7 +198,7 @@ TEST(FastGrid, NearListsStayExactWhileMoversComeAndGo) {
     scene.objects[i].center = scene.objects[i].center * 0.3;
     scene.velocity[i] = scene.velocity[i] * (i % 5 == 0 ? 20.0 : 0.5);
   }
-  FastGrid g;
+  GridVerlet g;
   std::vector<Handle> h(scene.size());
   std::vector<bool> alive(scene.size(), true);
   for (std::size_t i = 0; i < scene.size(); ++i) h[i] = g.insert(scene.objects[i], i);
@@ -227,7 +230,7 @@ TEST(FastGrid, NearListsStayExactWhileMoversComeAndGo) {
   EXPECT_GT(seen, 100u) << "the scene should have pairs to find";
 }
 
-TEST(FastGrid, ListPoolsAreReusedInPlace) {
+TEST(GridVerlet, ListPoolsAreReusedInPlace) {
   // Over many frames every mover renews its lists again and again; renewed
   // lists are appended to the pools, and the lists that stay are moved to
   // the front when the pools are full. The pairs must stay exact across
@@ -238,7 +241,7 @@ TEST(FastGrid, ListPoolsAreReusedInPlace) {
     scene.objects[i].center = scene.objects[i].center * 0.3;
     scene.velocity[i] = scene.velocity[i] * 3.0;
   }
-  FastGrid g;
+  GridVerlet g;
   const std::vector<Handle> h = insert_scene(g, scene);
   std::vector<Move> moves;
   std::size_t memory_at_20 = 0;
@@ -258,7 +261,7 @@ TEST(FastGrid, ListPoolsAreReusedInPlace) {
       << "the candidate pools kept growing";
 }
 
-TEST(FastGrid, TwoThreadsStayExactThroughInsertsAndRemoves) {
+TEST(GridVerlet, TwoThreadsStayExactThroughInsertsAndRemoves) {
   // 24 000 objects give 4 800 moving ones: two shares in every split pass
   // (grid builds, list renewals, pair finding). Between frames objects are
   // inserted, removed and moved singly, so rebuilds take loose objects and
@@ -269,7 +272,7 @@ TEST(FastGrid, TwoThreadsStayExactThroughInsertsAndRemoves) {
   c2.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}};
   Config c1 = c2;
   c1.options["threads"] = "1";
-  FastGrid two(c2), one(c1);
+  GridVerlet two(c2), one(c1);
   SortSweep oracle;
   std::vector<Handle> h2 = insert_scene(two, scene), h1 = insert_scene(one, scene), ho;
   for (std::size_t i = 0; i < scene.size(); ++i) ho.push_back(oracle.insert(scene.objects[i], i));
@@ -325,7 +328,7 @@ TEST(FastGrid, TwoThreadsStayExactThroughInsertsAndRemoves) {
   }
 }
 
-TEST(FastGrid, PairsOnThreadsComeWholeAndInOrderEveryTime) {
+TEST(GridVerlet, PairsOnThreadsComeWholeAndInOrderEveryTime) {
   // find_pairs on threads appends the chunks' pairs in order while later
   // chunks are still being found, on whichever thread is free: repeated
   // many times with more threads than cores (so that the threads are
@@ -335,8 +338,8 @@ TEST(FastGrid, PairsOnThreadsComeWholeAndInOrderEveryTime) {
   Scene scene = generate(Distribution::uneven, 12000, 3);
   for (Vec3& v : scene.velocity)
     if (v.x == 0 && v.y == 0 && v.z == 0) v = {0.5, 0, 0};
-  FastGrid one(with_option("threads", "1"));
-  FastGrid four(with_option("threads", "4"));
+  GridVerlet one(with_option("threads", "1"));
+  GridVerlet four(with_option("threads", "4"));
   const std::vector<Handle> h1 = insert_scene(one, scene), h4 = insert_scene(four, scene);
   std::vector<Move> m1, m4;
   for (std::size_t i = 0; i < scene.size(); ++i) {
@@ -350,14 +353,14 @@ TEST(FastGrid, PairsOnThreadsComeWholeAndInOrderEveryTime) {
   for (int k = 0; k < 200; ++k) ASSERT_EQ(found_in_order(four), expect) << "call " << k;
 }
 
-TEST(FastGrid, PairOrderDoesNotDependOnThreads) {
+TEST(GridVerlet, PairOrderDoesNotDependOnThreads) {
   // 32 000 objects give 6400 moving ones: enough for three threads to split
   // both the candidate lists and the pair finding.
   const Scene start = generate(Distribution::scaled_even, 32000, 5);
   std::vector<IdList> orders;
   for (const char* t : {"1", "2", "3"}) {
     Scene scene = start;
-    FastGrid g(with_option("threads", t));
+    GridVerlet g(with_option("threads", t));
     const std::vector<Handle> h = insert_scene(g, scene);
     IdList ids;
     std::vector<Move> moves;
@@ -387,13 +390,14 @@ TEST(FastGrid, PairOrderDoesNotDependOnThreads) {
   EXPECT_EQ(orders[0], orders[2]);
 }
 
-TEST(FastGrid, ParallelBulkUpdateKeepsOrderAndChecks) {
+TEST(GridVerlet, ParallelBulkUpdateKeepsOrderAndChecks) {
   // A bulk update split over two threads: a handle named twice (the later
   // move wins), fixed objects that start moving, and moves that must be
   // refused whole (a stale handle, a NaN) after a valid prefix.
   on_one_and_two_threads(
       generate(Distribution::scaled_even, 32000, 9),
-      [](FastGrid& g, Scene& scene, const std::vector<Handle>& h, const char* t, IdPairs& before) {
+      [](GridVerlet& g, Scene& scene, const std::vector<Handle>& h, const char* t,
+         IdPairs& before) {
         std::vector<Move> moves;
         for (std::size_t i = 0; i < scene.size(); ++i)
           if (scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
@@ -457,7 +461,7 @@ TEST(FastGrid, ParallelBulkUpdateKeepsOrderAndChecks) {
       });
 }
 
-TEST(FastGrid, BulkUpdateNamingEveryMoverTwiceKeepsTheLaterMoves) {
+TEST(GridVerlet, BulkUpdateNamingEveryMoverTwiceKeepsTheLaterMoves) {
   // Every mover named twice, first with a decoy far away, then with its
   // place, in several layouts: all decoys first; blocks of decoys and
   // places taking turns (blocks about as long as a thread's piece of the
@@ -467,7 +471,7 @@ TEST(FastGrid, BulkUpdateNamingEveryMoverTwiceKeepsTheLaterMoves) {
   // with the same pairs as on one thread.
   on_one_and_two_threads(
       generate(Distribution::scaled_even, 32000, 4),
-      [](FastGrid& g, Scene& scene, const std::vector<Handle>& h, const char* t, IdPairs& pairs) {
+      [](GridVerlet& g, Scene& scene, const std::vector<Handle>& h, const char* t, IdPairs& pairs) {
         std::vector<std::size_t> movers;
         for (std::size_t i = 0; i < scene.size(); ++i)
           if (scene.is_moving(i)) movers.push_back(i);
@@ -507,8 +511,8 @@ TEST(FastGrid, BulkUpdateNamingEveryMoverTwiceKeepsTheLaterMoves) {
       });
 }
 
-TEST(FastGrid, UnboundedAndHugeObjects) {
-  FastGrid g;
+TEST(GridVerlet, UnboundedAndHugeObjects) {
+  GridVerlet g;
   const double big = 1e300;
   g.insert(Shape::sphere({big, 0, 0}, 1), 0, Motion::fixed);
   g.insert(Shape::sphere({big, 0, 0}, 0), 1, Motion::fixed);
@@ -531,8 +535,8 @@ TEST(FastGrid, UnboundedAndHugeObjects) {
   EXPECT_GE(hits, 2);
 }
 
-TEST(FastGrid, VisitorCanStopEarly) {
-  FastGrid g;
+TEST(GridVerlet, VisitorCanStopEarly) {
+  GridVerlet g;
   for (int i = 0; i < 50; ++i) g.insert(Shape::sphere({0, 0, 0}, 1), static_cast<std::uint64_t>(i));
   int seen = 0;
   const QueryCost c = g.for_each_pair([&](Handle, Handle) { return ++seen < 5; });
@@ -544,22 +548,22 @@ TEST(FastGrid, VisitorCanStopEarly) {
   EXPECT_EQ(seen, 3);
 }
 
-TEST(FastGrid, MemoryIsReported) {
-  FastGrid g;
+TEST(GridVerlet, MemoryIsReported) {
+  GridVerlet g;
   const std::size_t empty = g.memory_bytes();
   for (int i = 0; i < 1000; ++i)
     g.insert(Shape::sphere({i * 1.0, 0, 0}, 1), static_cast<std::uint64_t>(i));
   EXPECT_GT(g.memory_bytes(), empty + 1000 * sizeof(Shape));
 }
 
-TEST(FastGrid, MemoryAfterABuildDoesNotDependOnHowTheObjectsCameIn) {
+TEST(GridVerlet, MemoryAfterABuildDoesNotDependOnHowTheObjectsCameIn) {
   // Inserted in one go, the objects wait on the loose list (up to an eighth
   // of them) between rebuilds; in small batches, each followed by a bulk
   // update, the list stays short. Once the grids hold them all, the two
   // hold the same memory: the loose list's build-time room is let go.
   const Scene scene = generate(Distribution::even, 20000, 8);
   auto held_after = [&](std::size_t batch) {
-    FastGrid g;
+    GridVerlet g;
     for (std::size_t i = 0; i < scene.size(); ++i) {
       g.insert(scene.objects[i], i, Motion::fixed);
       if ((i + 1) % batch == 0) g.update(std::span<const Move>{});
@@ -572,11 +576,30 @@ TEST(FastGrid, MemoryAfterABuildDoesNotDependOnHowTheObjectsCameIn) {
   EXPECT_NEAR(one_go, batches, 0.02 * batches);
 }
 
-TEST(FastGrid, ConstCallsRunConcurrentlyOnThreads) {
+TEST(GridVerlet, ConstCallsRunConcurrentlyOnThreads) {
   // Enough movers for the pair pass to split over the pool, whose buffers
   // two concurrent calls must not share (run under ThreadSanitizer in CI).
   broadphase::testing::const_calls_on_two_threads("fast-grid:threads=2",
                                                   generate(Distribution::all_moving, 6000, 3));
+}
+
+TEST(GridVerlet, TheOldNamesStillWork) {
+  // `fast-grid` is an alias in the registry, listed as such, and FastGrid a
+  // deprecated alias of the class.
+  const Registry reg = Registry::library();
+  ASSERT_NE(reg.find("fast-grid"), nullptr);
+  EXPECT_EQ(reg.find("fast-grid"), reg.find("grid-verlet"));
+  ASSERT_EQ(reg.aliases().size(), 1u);
+  EXPECT_EQ(reg.aliases()[0].alias, "fast-grid");
+  EXPECT_EQ(reg.aliases()[0].name, "grid-verlet");
+  for (const StructureInfo& e : reg.entries()) EXPECT_NE(e.name, "fast-grid");
+  EXPECT_NO_THROW(make_structure("fast-grid:threads=2"));
+  EXPECT_THROW(make_structure("fast-grid:threads=65"), InvalidConfig);
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
+  FastGrid old(Config{}, FastGridOptions{.threads = 2});
+#pragma GCC diagnostic pop
+  EXPECT_EQ(old.threads(), 2u);
 }
 
 }  // namespace

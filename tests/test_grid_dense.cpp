@@ -100,7 +100,7 @@ TEST(GridDense, UpdatesKeepTheListsConsistent) {
 TEST(GridDense, RejectsUnknownOptionsAndStaleHandles) {
   Config c;
   c.options["buckets"] = "8";
-  EXPECT_THROW(GridDense{c}, UnknownStructure);
+  EXPECT_THROW(GridDense{c}, InvalidConfig);
   GridDense g;
   const Handle h = g.insert(Shape::sphere({1, 1, 1}, 1), 0);
   g.remove(h);

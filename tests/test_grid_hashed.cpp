@@ -77,7 +77,7 @@ TEST(GridHashed, AutomaticCellFollowsThePopulation) {
   const auto large = scattered(1000, 10000, 100, 8);
   for (std::size_t i = 0; i < large.size(); ++i) big.insert(large[i], i);
   EXPECT_GT(big.cell_size(), 50);
-  EXPECT_THROW(GridHashed(Config{{}, 0, {{"cell", "-1"}}}), UnknownStructure);
+  EXPECT_THROW(GridHashed(Config{{}, 0, {{"cell", "-1"}}}), InvalidConfig);
 }
 
 }  // namespace

@@ -94,7 +94,7 @@ TEST(GridStatic, PlainModeIgnoresTheHint) {
   g.insert(Shape::sphere({1, 0, 0}, 2), 1, Motion::fixed);
   EXPECT_EQ(g.cached_pairs(), 0u);
   EXPECT_EQ(pairs_of(g), (Pairs{{0, 1}}));
-  EXPECT_THROW(GridStatic(with({{"policy", "sometimes"}})), UnknownStructure);
+  EXPECT_THROW(GridStatic(with({{"policy", "sometimes"}})), InvalidConfig);
 }
 
 TEST(GridStatic, BulkUpdateChecksEverythingBeforeChangingAnything) {

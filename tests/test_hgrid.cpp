@@ -81,7 +81,7 @@ TEST(HGrid, SameLevelPairsAreReportedOnce) {
   int seen = 0;
   g.for_each_pair([&](Handle, Handle) { ++seen; });
   EXPECT_EQ(seen, 50 * 49 / 2);
-  EXPECT_THROW(HGrid(Config{{}, 0, {{"cell", "3"}}}), UnknownStructure);
+  EXPECT_THROW(HGrid(Config{{}, 0, {{"cell", "3"}}}), InvalidConfig);
 }
 
 }  // namespace

@@ -4,8 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <broadphase/study/hgrid_paper.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/study/hgrid_paper.hpp>
 #include <set>
 #include <utility>
 #include <vector>
@@ -66,11 +66,11 @@ TEST(HGridPaper, LevelCountIsAnOption) {
   for (const char* bad : {"0", "31", "2.5", "x"}) {
     Config b;
     b.options["levels"] = bad;
-    EXPECT_THROW(HGridPaper{b}, UnknownStructure) << bad;
+    EXPECT_THROW(HGridPaper{b}, InvalidConfig) << bad;
   }
   Config unknown;
   unknown.options["cell"] = "2";
-  EXPECT_THROW(HGridPaper{unknown}, UnknownStructure);
+  EXPECT_THROW(HGridPaper{unknown}, InvalidConfig);
 }
 
 TEST(HGridPaper, ObjectsOutsideTheWorldUseCellsBeyondIt) {

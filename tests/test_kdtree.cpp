@@ -143,9 +143,9 @@ TEST(KdTree, FailedBulkUpdateLeavesAValidTree) {
 }
 
 TEST(KdTree, RejectsBadOptions) {
-  EXPECT_THROW(make_structure("kdtree:rebuild=sometimes"), UnknownStructure);
-  EXPECT_THROW(make_structure("kdtree:decay=0.5"), UnknownStructure);
-  EXPECT_THROW(make_structure("kdtree:leaf=0"), UnknownStructure);
+  EXPECT_THROW(make_structure("kdtree:rebuild=sometimes"), InvalidConfig);
+  EXPECT_THROW(make_structure("kdtree:decay=0.5"), InvalidConfig);
+  EXPECT_THROW(make_structure("kdtree:leaf=0"), InvalidConfig);
 }
 
 TEST(KdTree, MatchesNaiveUnderEveryPolicy) {

@@ -2,9 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <broadphase/lab/scene.hpp>
 #include <broadphase/naive.hpp>
 #include <broadphase/registry.hpp>
-#include <broadphase/lab/scene.hpp>
 #include <utility>
 #include <vector>
 
@@ -93,7 +93,7 @@ TEST(Naive, MemoryGrowsWithObjectsAndOptionsAreRejected) {
   EXPECT_GE(n.memory_bytes(), empty + 100 * (8 + sizeof(Shape)));
   Config c;
   c.options["cell"] = "1";
-  EXPECT_THROW(Naive{c}, UnknownStructure);
+  EXPECT_THROW(Naive{c}, InvalidConfig);
 }
 
 TEST(Options, WholeNumberOptionsRefuseFractions) {
@@ -102,7 +102,7 @@ TEST(Options, WholeNumberOptionsRefuseFractions) {
        {"kdtree:leaf=2.5", "octree:split=40.5", "octree-loose:depth=3.5", "octree-linear:depth=3.5",
         "aabb-tree:max_depth=7.5", "grid-hashed:buckets=100.5", "hgrid-paper:levels=2.5",
         "fast-grid:threads=1.5", "fast-grid:grain=2.5"})
-    EXPECT_THROW(make_structure(spec), UnknownStructure) << spec;
+    EXPECT_THROW(make_structure(spec), InvalidConfig) << spec;
   for (const char* spec :
        {"kdtree:leaf=2", "octree:split=40", "octree-loose:depth=3", "octree-linear:depth=3",
         "aabb-tree:max_depth=7", "grid-hashed:buckets=100", "hgrid-paper:levels=2",

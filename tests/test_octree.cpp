@@ -87,8 +87,8 @@ TEST(Octree, UpdateInPlaceKeepsTheNode) {
 }
 
 TEST(Octree, RejectsBadOptions) {
-  EXPECT_THROW(make_structure("octree:split=0"), UnknownStructure);
-  EXPECT_THROW(make_structure("octree:depth=3"), UnknownStructure);
+  EXPECT_THROW(make_structure("octree:split=0"), InvalidConfig);
+  EXPECT_THROW(make_structure("octree:depth=3"), InvalidConfig);
   Config c;
   c.world = {{0, 0, 0}, {-1, 1, 1}};
   EXPECT_THROW(Octree{c}, std::invalid_argument);

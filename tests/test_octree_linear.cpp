@@ -74,8 +74,8 @@ TEST(LinearOctree, OutsideAndStraddlingObjectsStayAtTheRoot) {
 }
 
 TEST(LinearOctree, RejectsBadOptions) {
-  EXPECT_THROW(make_structure("octree-linear:depth=21"), UnknownStructure);
-  EXPECT_THROW(make_structure("octree-linear:k=2"), UnknownStructure);
+  EXPECT_THROW(make_structure("octree-linear:depth=21"), InvalidConfig);
+  EXPECT_THROW(make_structure("octree-linear:k=2"), InvalidConfig);
 }
 
 TEST(LinearOctree, MatchesNaiveAtEveryDepthLimit) {

@@ -65,9 +65,9 @@ TEST(LooseOctree, NeighboursAtTheSameDepthAreFoundOnce) {
 }
 
 TEST(LooseOctree, RejectsBadOptions) {
-  EXPECT_THROW(make_structure("octree-loose:k=1"), UnknownStructure);
-  EXPECT_THROW(make_structure("octree-loose:depth=21"), UnknownStructure);
-  EXPECT_THROW(make_structure("octree-loose:split=3"), UnknownStructure);
+  EXPECT_THROW(make_structure("octree-loose:k=1"), InvalidConfig);
+  EXPECT_THROW(make_structure("octree-loose:depth=21"), InvalidConfig);
+  EXPECT_THROW(make_structure("octree-loose:split=3"), InvalidConfig);
 }
 
 TEST(LooseOctree, MatchesNaiveWithOtherFactorsAndDepths) {

@@ -3,8 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <broadphase/study/octree_paper.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/study/octree_paper.hpp>
 #include <set>
 #include <utility>
 #include <vector>
@@ -203,10 +203,10 @@ TEST(OctreePaper, MemoryCountsTheNodeListsAndTheFixedNodes) {
 TEST(OctreePaper, RejectsOptions) {
   Config c;
   c.options["depth"] = "5";
-  EXPECT_THROW(OctreePaper{c}, UnknownStructure);
+  EXPECT_THROW(OctreePaper{c}, InvalidConfig);
   Config bad;
   bad.options["outside"] = "drop";
-  EXPECT_THROW(OctreePaper{bad}, UnknownStructure);
+  EXPECT_THROW(OctreePaper{bad}, InvalidConfig);
 }
 
 TEST(OctreePaper, ClampPlacesOutsideObjectsByTheirClippedBounds) {

@@ -116,7 +116,7 @@ TEST(Sap, LargeObjectsComeAndGo) {
 TEST(Sap, RejectsOptions) {
   Config c;
   c.options["cell"] = "3";
-  EXPECT_THROW(Sap{c}, UnknownStructure);
+  EXPECT_THROW(Sap{c}, InvalidConfig);
 }
 
 }  // namespace

@@ -67,7 +67,7 @@ void advise(const AdviseOptions& o) {
         throw UsageError("--algos: unknown structure '" + name + "'; valid: " + reg.names());
       try {
         reg.make(s);  // rejects bad options before any timing starts
-      } catch (const UnknownStructure& e) {
+      } catch (const InvalidConfig& e) {
         throw UsageError(std::string("--algos: ") + e.what());
       }
     }

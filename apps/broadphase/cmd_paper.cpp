@@ -113,7 +113,7 @@ std::vector<Selected> select_structures(const PaperOptions& o) {
       throw UsageError("--algos: unknown structure '" + name + "'; valid: " + reg.names());
     try {
       reg.make(spec);  // rejects bad options now rather than an hour into the run
-    } catch (const UnknownStructure& e) {
+    } catch (const InvalidConfig& e) {
       throw UsageError(std::string("--algos: ") + e.what());
     }
     if (std::none_of(out.begin(), out.end(), [&](const Selected& s) { return s.spec == spec; }))

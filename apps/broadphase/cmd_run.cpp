@@ -27,6 +27,8 @@ void add_list_command(CLI::App& app) {
   cmd->callback([] {
     for (const StructureInfo& e : registry().entries())
       std::printf("%-18s %s%s\n", e.name.c_str(), e.peer ? "[peer] " : "", e.description.c_str());
+    for (const StructureAlias& a : registry().aliases())
+      std::printf("%-18s alias of %s (its former name)\n", a.alias.c_str(), a.name.c_str());
   });
 }
 

@@ -58,7 +58,7 @@ int main(int argc, char** argv) {
   } catch (const broadphase::app::UsageError& e) {
     report(e.what());
     return kExitUsage;
-  } catch (const broadphase::UnknownStructure& e) {
+  } catch (const broadphase::InvalidConfig& e) {
     report(e.what());
     return kExitUsage;
   } catch (const broadphase::SceneError& e) {

@@ -9,12 +9,13 @@
 
 #include <array>
 #include <atomic>
+#include <broadphase/config_error.hpp>
 #include <broadphase/detail/inline_stack.hpp>
 #include <broadphase/detail/pair_table.hpp>
-#include <broadphase/registry.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
 #include <mutex>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -27,6 +28,33 @@ struct TraversalStats {
   std::uint64_t brute_pairs = 0;  ///< leaf pairs tested below `max_depth`
   std::uint64_t front_size = 0;   ///< terminal node pairs in the front (front tracking)
   bool front_rebuilt = false;     ///< the front was rebuilt from the root this pass
+};
+
+/// Which child every AabbTree traversal descends into first (option `order`).
+enum class AabbTreeOrder : std::uint8_t { none, leaves_first, smaller_first, hit_ratio, near_far };
+/// Front tracking between an AabbTree's all-pairs passes (option `front`).
+enum class AabbTreeFront : std::uint8_t { off, basic, deferred };
+
+/// The options of AabbTree, as described above its class.
+struct AabbTreeOptions {
+  /// World units around a moving object's box, in [0, 1e30]. Default (empty):
+  /// 0.002 x the largest edge of Config::world.
+  std::optional<double> margin{};
+  /// Displacements a refreshed fat box is stretched by, in [0, 1e6]. Default 2.
+  double predict = 2;
+  /// Which child every traversal descends into first. Default leaves_first.
+  AabbTreeOrder order = AabbTreeOrder::leaves_first;
+  /// Depth below which leaf pairs are tested directly, in [0, 1000000];
+  /// 0 (default): none.
+  std::uint32_t max_depth = 0;
+  /// Front tracking between all-pairs passes. Default off.
+  AabbTreeFront front = AabbTreeFront::off;
+  /// Throws InvalidConfig for a value out of range.
+  void check() const;
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static AabbTreeOptions from(const Config& c);
 };
 
 /// A dynamic AABB tree (BVH).
@@ -66,12 +94,17 @@ struct TraversalStats {
 class AabbTree {
  public:
   /// Which child every traversal descends into first (option `order`).
-  enum class Order : std::uint8_t { none, leaves_first, smaller_first, hit_ratio, near_far };
+  using Order = AabbTreeOrder;
   /// Front tracking between all-pairs passes (option `front`).
-  enum class FrontMode : std::uint8_t { off, basic, deferred };
+  using FrontMode = AabbTreeFront;
 
-  /// Reads the options above; `name` is used in option errors.
-  explicit AabbTree(const Config& c = {}, const std::string& name = "aabb-tree");
+  using Options = AabbTreeOptions;
+  /// Reads the deprecated Config::options map into AabbTreeOptions.
+  /// Throws InvalidConfig.
+  explicit AabbTree(const Config& c = {})
+      : AabbTree(without_options(c), AabbTreeOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o` (AabbTreeOptions::check).
+  AabbTree(const Config& c, const AabbTreeOptions& o);
   AabbTree(const AabbTree&) = delete;
   AabbTree& operator=(const AabbTree&) = delete;
 

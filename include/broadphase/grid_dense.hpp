@@ -24,6 +24,20 @@
 
 namespace broadphase {
 
+/// The options of GridDense (`grid-dense:cell=E`).
+struct GridDenseOptions {
+  /// Cell edge in world units, in [1e-300, 1e300]; 0 (default): chosen from
+  /// the world and the population, and re-chosen as it changes.
+  double cell = 0;
+  /// Throws InvalidConfig for a value out of range (NaN, infinite and
+  /// subnormal values are out of range).
+  void check() const { detail::check_number("grid-dense", "cell", cell, 1e-300, 1e300, true); }
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static GridDenseOptions from(const Config& c);
+};
+
 /// A dense array of cells over Config::world with linked lists of objects.
 /// insert, remove, update: O(1) (amortised: re-grids when the population
 /// doubles or quarters, unless `cell=` is given). query: O(cells covered +
@@ -33,8 +47,14 @@ namespace broadphase {
 /// concurrently; mutations need exclusive access.
 class GridDense : public detail::LinkedGrid<false> {
  public:
-  /// Reads `cell=`. Throws UnknownStructure for other keys or bad values.
-  explicit GridDense(const Config& c = {}) : LinkedGrid(c, "grid-dense") {}
+  using Options = GridDenseOptions;
+  /// Reads the deprecated Config::options map into GridDenseOptions.
+  /// Throws InvalidConfig.
+  explicit GridDense(const Config& c = {})
+      : GridDense(without_options(c), GridDenseOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o`.
+  GridDense(const Config& c, const GridDenseOptions& o)
+      : LinkedGrid(c, "grid-dense", (o.check(), o.cell), 0) {}
 };
 
 }  // namespace broadphase

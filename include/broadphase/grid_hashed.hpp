@@ -14,6 +14,30 @@
 
 namespace broadphase {
 
+/// The options of GridHashed (`grid-hashed:cell=E,buckets=N`).
+struct GridHashedOptions {
+  /// Cell edge in world units, in [1e-300, 1e300]; 0 (default): chosen from
+  /// the world and the population, and re-chosen as it changes.
+  double cell = 0;
+  /// Bucket heads, rounded up to a power of two, in [1, kMaxBuckets]; 0
+  /// (default): as many as objects, doubled as the population grows.
+  std::size_t buckets = 0;
+  /// The most buckets: 2^26 heads are 256 MB, far more than any population a
+  /// handle can name needs (the automatic table holds about one bucket per
+  /// object), and a larger table is a typo, not a tuning.
+  static constexpr std::size_t kMaxBuckets = std::size_t{1} << 26;
+  /// Throws InvalidConfig for a value out of range (NaN, infinite and
+  /// subnormal values are out of range).
+  void check() const {
+    detail::check_number("grid-hashed", "cell", cell, 1e-300, 1e300, true);
+    detail::check_integer("grid-hashed", "buckets", buckets, 0, kMaxBuckets);
+  }
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static GridHashedOptions from(const Config& c);
+};
+
 /// A hashed uniform grid. insert, remove, update: O(1) amortised (the table
 /// doubles when it holds more than two links per bucket, unless `buckets=`
 /// is given; the cell size is re-chosen when the population doubles or
@@ -24,8 +48,14 @@ namespace broadphase {
 /// Const members may run concurrently; mutations need exclusive access.
 class GridHashed : public detail::LinkedGrid<true> {
  public:
-  /// Reads `cell=`, `buckets=`. Throws UnknownStructure for other keys.
-  explicit GridHashed(const Config& c = {}) : LinkedGrid(c, "grid-hashed") {}
+  using Options = GridHashedOptions;
+  /// Reads the deprecated Config::options map into GridHashedOptions.
+  /// Throws InvalidConfig.
+  explicit GridHashed(const Config& c = {})
+      : GridHashed(without_options(c), GridHashedOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o`.
+  GridHashed(const Config& c, const GridHashedOptions& o)
+      : LinkedGrid(c, "grid-hashed", (o.check(), o.cell), o.buckets) {}
 };
 
 }  // namespace broadphase

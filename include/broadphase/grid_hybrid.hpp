@@ -23,6 +23,30 @@
 
 namespace broadphase {
 
+/// The options of GridHybrid (`grid-hybrid:cell=E,buckets=N`).
+struct GridHybridOptions {
+  /// Cell edge in world units, in [1e-300, 1e300]; 0 (default): kCoarseness
+  /// times the size chosen from the world and the population, and re-chosen as it changes.
+  double cell = 0;
+  /// Bucket heads, rounded up to a power of two, in [1, kMaxBuckets]; 0
+  /// (default): as many as objects, doubled as the population grows.
+  std::size_t buckets = 0;
+  /// The most buckets: 2^26 heads are 256 MB, far more than any population a
+  /// handle can name needs (the automatic table holds about one bucket per
+  /// object), and a larger table is a typo, not a tuning.
+  static constexpr std::size_t kMaxBuckets = std::size_t{1} << 26;
+  /// Throws InvalidConfig for a value out of range (NaN, infinite and
+  /// subnormal values are out of range).
+  void check() const {
+    detail::check_number("grid-hybrid", "cell", cell, 1e-300, 1e300, true);
+    detail::check_integer("grid-hybrid", "buckets", buckets, 0, kMaxBuckets);
+  }
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static GridHybridOptions from(const Config& c);
+};
+
 /// A coarse hashed grid with x-sorted cell lists.
 /// insert: O(length of the cell list) to find the sorted position.
 /// remove: O(1). update: O(1) plus the links passed, or a re-insert when
@@ -35,8 +59,14 @@ class GridHybrid : public detail::LinkedGrid<true, true> {
  public:
   /// Cells are this many times the uniform grids' automatic size.
   static constexpr double kCoarseness = 4;
-  /// Reads `cell=`, `buckets=`. Throws UnknownStructure for other keys.
-  explicit GridHybrid(const Config& c = {}) : LinkedGrid(c, "grid-hybrid", kCoarseness) {}
+  using Options = GridHybridOptions;
+  /// Reads the deprecated Config::options map into GridHybridOptions.
+  /// Throws InvalidConfig.
+  explicit GridHybrid(const Config& c = {})
+      : GridHybrid(without_options(c), GridHybridOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o`.
+  GridHybrid(const Config& c, const GridHybridOptions& o)
+      : LinkedGrid(c, "grid-hybrid", (o.check(), o.cell), o.buckets, kCoarseness) {}
 };
 
 }  // namespace broadphase

@@ -18,13 +18,27 @@
 #pragma once
 
 #include <bit>
-#include <broadphase/structure.hpp>
+#include <broadphase/config_error.hpp>
 #include <broadphase/detail/grid_common.hpp>
-#include <broadphase/registry.hpp>
+#include <broadphase/structure.hpp>
 #include <cstdint>
 #include <vector>
 
 namespace broadphase {
+
+/// The options of GridImplicit (`grid-implicit:cell=E`).
+struct GridImplicitOptions {
+  /// Cell edge in world units, in [1e-300, 1e300]; 0 (default): chosen from
+  /// the world and the population.
+  double cell = 0;
+  /// Throws InvalidConfig for a value out of range (NaN, infinite and
+  /// subnormal values are out of range).
+  void check() const;
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static GridImplicitOptions from(const Config& c);
+};
 
 /// A uniform grid stored as per-axis slab bit arrays.
 /// insert, update: O(slabs covered x 1) bit flips (plus, rarely, a re-layout
@@ -39,8 +53,13 @@ class GridImplicit {
   /// Slabs per axis at most.
   static constexpr std::int32_t kMaxSlabs = 1024;
 
-  /// Reads `cell=`. Throws UnknownStructure for other keys or bad values.
-  explicit GridImplicit(const Config& c = {});
+  using Options = GridImplicitOptions;
+  /// Reads the deprecated Config::options map into GridImplicitOptions.
+  /// Throws InvalidConfig.
+  explicit GridImplicit(const Config& c = {})
+      : GridImplicit(without_options(c), GridImplicitOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o` (GridImplicitOptions::check).
+  GridImplicit(const Config& c, const GridImplicitOptions& o);
 
   /// Adds an object. Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion m = Motion::dynamic);

@@ -25,14 +25,36 @@
 /// default) patches when few objects changed cells and rebuilds otherwise.
 #pragma once
 
-#include <broadphase/structure.hpp>
+#include <broadphase/config_error.hpp>
 #include <broadphase/detail/grid_common.hpp>
-#include <broadphase/registry.hpp>
+#include <broadphase/structure.hpp>
 #include <span>
 #include <utility>
 #include <vector>
 
 namespace broadphase {
+
+/// How moved objects reach a GridStatic's dynamic table (option `policy`).
+enum class GridStaticPolicy : std::uint8_t { rebuild, patch, automatic };
+
+/// The options of GridStatic (`grid-static:cell=E,policy=P,fixed=cache|plain`).
+struct GridStaticOptions {
+  /// Cell edge in world units, in [1e-300, 1e300]; 0 (default): chosen from
+  /// the world and the population.
+  double cell = 0;
+  /// How moved objects reach the dynamic table. Default automatic.
+  GridStaticPolicy policy = GridStaticPolicy::automatic;
+  /// Whether the pairs among fixed objects are cached (`fixed=cache`,
+  /// default) or found each pass (`fixed=plain`).
+  bool cache_fixed = true;
+  /// Throws InvalidConfig for a value out of range (NaN, infinite and
+  /// subnormal values are out of range).
+  void check() const;
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static GridStaticOptions from(const Config& c);
+};
 
 /// A uniform grid with contiguous cell contents.
 /// insert: O(1) amortised (a fixed object also finds its fixed neighbours
@@ -47,10 +69,15 @@ namespace broadphase {
 class GridStatic {
  public:
   /// How moved objects reach the dynamic table.
-  enum class Policy : std::uint8_t { rebuild, patch, automatic };
+  using Policy = GridStaticPolicy;
 
-  /// Reads `cell=`, `policy=`, `fixed=`. Throws UnknownStructure for other keys.
-  explicit GridStatic(const Config& c = {});
+  using Options = GridStaticOptions;
+  /// Reads the deprecated Config::options map into GridStaticOptions.
+  /// Throws InvalidConfig.
+  explicit GridStatic(const Config& c = {})
+      : GridStatic(without_options(c), GridStaticOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o` (GridStaticOptions::check).
+  GridStatic(const Config& c, const GridStaticOptions& o);
 
   /// Adds an object; `Motion::fixed` puts it in the fixed population
   /// (unless `fixed=plain`). Throws InvalidShape.

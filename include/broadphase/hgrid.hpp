@@ -24,14 +24,23 @@
 /// tested against everything.
 #pragma once
 
+#include <broadphase/config_error.hpp>
 #include <broadphase/detail/grid_common.hpp>
-#include <broadphase/registry.hpp>
 #include <broadphase/structure.hpp>
 #include <cmath>
 #include <cstdint>
 #include <vector>
 
 namespace broadphase {
+
+/// HGrid takes no options; the struct is where they would go.
+struct HGridOptions {
+  /// Nothing to check.
+  void check() const {}
+  /// Reads Config::options (deprecated): refuses every key. Defined with the
+  /// registry (src/registry/). Throws InvalidConfig.
+  static HGridOptions from(const Config& c);
+};
 
 /// A hierarchical grid of power-of-two levels in one hash table.
 /// insert, remove, update: O(1) expected (a hash insert or erase; update is
@@ -42,8 +51,11 @@ namespace broadphase {
 /// mutations need exclusive access.
 class HGrid {
  public:
-  /// Takes no options. Throws UnknownStructure when some are given.
-  explicit HGrid(const Config& c = {});
+  using Options = HGridOptions;
+  /// Reads the deprecated Config::options (none accepted). Throws InvalidConfig.
+  explicit HGrid(const Config& c = {}) : HGrid(without_options(c), HGridOptions::from(c)) {}
+  /// Checks `c` (check_config). Throws InvalidConfig.
+  HGrid(const Config& c, const HGridOptions& o);
 
   /// Adds an object. Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion m = Motion::dynamic);

@@ -13,6 +13,30 @@
 
 namespace broadphase {
 
+/// How a KdTree reacts to motion (option `rebuild`).
+enum class KdTreePolicy : std::uint8_t {
+  refit,   ///< never rebuild for motion
+  decay,   ///< rebuild when the nodes' surface areas grew past `decay` times
+  always,  ///< rebuild after every update call
+};
+
+/// The options of KdTree (`kdtree:rebuild=refit|decay|always,decay=D,leaf=N`).
+struct KdTreeOptions {
+  /// When to rebuild for motion. Default decay.
+  KdTreePolicy rebuild = KdTreePolicy::decay;
+  /// The surface-area growth that triggers a rebuild under `decay`, in
+  /// [1, 1e6]. Default 1.5.
+  double decay = 1.5;
+  /// Objects per leaf, in [1, 1024]. Default 8.
+  std::size_t leaf = 8;
+  /// Throws InvalidConfig for a value out of range.
+  void check() const;
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static KdTreeOptions from(const Config& c);
+};
+
 /// A k-d tree with refitted bounds and a rebuild policy.
 ///
 /// Objects are partitioned by their centres at build time; afterwards an
@@ -37,9 +61,14 @@ namespace broadphase {
 class KdTree {
  public:
   /// How the tree reacts to motion.
-  enum class Policy : std::uint8_t { refit, decay, always };
+  using Policy = KdTreePolicy;
 
-  explicit KdTree(const Config& c = {});
+  using Options = KdTreeOptions;
+  /// Reads the deprecated Config::options map into KdTreeOptions.
+  /// Throws InvalidConfig.
+  explicit KdTree(const Config& c = {}) : KdTree(without_options(c), KdTreeOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o` (KdTreeOptions::check).
+  KdTree(const Config& c, const KdTreeOptions& o);
 
   /// Adds an object. Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion = Motion::dynamic);

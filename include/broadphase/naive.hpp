@@ -3,18 +3,34 @@
 /// other structure is checked against.
 #pragma once
 
+#include <broadphase/config_error.hpp>
 #include <broadphase/structure.hpp>
-#include <broadphase/registry.hpp>
 #include <vector>
 
 namespace broadphase {
+
+/// Naive takes no options; the struct is where they would go.
+struct NaiveOptions {
+  /// Nothing to check.
+  void check() const {}
+  /// Reads Config::options (deprecated): refuses every key. Defined with the
+  /// registry (src/registry/). Throws InvalidConfig.
+  static NaiveOptions from(const Config& c);
+};
 
 /// Keeps objects in a dense array and tests every pair.
 /// insert, remove, update: O(1). query: O(n). for_each_pair: O(n²).
 /// Handles stay valid until their object is removed.
 class Naive {
  public:
-  explicit Naive(const Config& c = {}) { OptionReader(c, "naive").finish(); }
+  using Options = NaiveOptions;
+  /// Reads the deprecated Config::options (none accepted). Throws InvalidConfig.
+  explicit Naive(const Config& c = {}) : Naive(without_options(c), NaiveOptions::from(c)) {}
+  /// Checks `c` (check_config). Throws InvalidConfig.
+  Naive(const Config& c, const NaiveOptions& o) {
+    check_config(c, "naive");
+    o.check();
+  }
 
   /// Adds an object. Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion = Motion::dynamic) {

@@ -9,10 +9,10 @@
 #pragma once
 
 #include <array>
+#include <broadphase/config_error.hpp>
 #include <broadphase/detail/inline_stack.hpp>
 #include <broadphase/detail/node_items.hpp>
 #include <broadphase/detail/tree_walk.hpp>
-#include <broadphase/registry.hpp>
 #include <broadphase/structure.hpp>
 #include <cmath>
 #include <cstddef>
@@ -43,9 +43,12 @@ class Octree {
  public:
   static constexpr int kMaxDepth = 20;
 
-  /// Options: `split=` (objects a leaf holds before it splits, default 32:
-  /// the frame time falls up to 16 and is flat beyond, docs/octrees.md).
-  explicit Octree(const Config& c = {});
+  using Options = OctreeOptions;
+  /// Reads the deprecated Config::options map into OctreeOptions.
+  /// Throws InvalidConfig.
+  explicit Octree(const Config& c = {}) : Octree(without_options(c), OctreeOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o` (OctreeOptions::check).
+  Octree(const Config& c, const OctreeOptions& o);
 
   /// Adds an object. Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion = Motion::dynamic);

@@ -19,6 +19,19 @@
 
 namespace broadphase {
 
+/// The options of LinearOctree (`octree-linear:depth=N`).
+struct LinearOctreeOptions {
+  /// Deepest level, in [0, 20]. Default 4: chosen by measurement
+  /// (docs/octrees.md).
+  int depth = 4;
+  /// Throws InvalidConfig for a value out of range.
+  void check() const;
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static LinearOctreeOptions from(const Config& c);
+};
+
 /// A pointerless octree with objects at the smallest cell (down to a fixed
 /// maximum depth) that holds them strictly inside its ancestors' midplanes.
 ///
@@ -31,9 +44,13 @@ namespace broadphase {
 /// exclusive access; const members may run concurrently.
 class LinearOctree {
  public:
-  /// Options: `depth=` (deepest level, default 4, at most 20; chosen by
-  /// measurement, see docs/octrees.md).
-  explicit LinearOctree(const Config& c = {});
+  using Options = LinearOctreeOptions;
+  /// Reads the deprecated Config::options map into LinearOctreeOptions.
+  /// Throws InvalidConfig.
+  explicit LinearOctree(const Config& c = {})
+      : LinearOctree(without_options(c), LinearOctreeOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o` (LinearOctreeOptions::check).
+  LinearOctree(const Config& c, const LinearOctreeOptions& o);
 
   /// Adds an object. Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion = Motion::dynamic);

@@ -14,6 +14,22 @@
 
 namespace broadphase {
 
+/// The options of LooseOctree (`octree-loose:k=K,depth=N`).
+struct LooseOctreeOptions {
+  /// Loose factor: a node's box is k times its cell, in [1.1, 8]. Default 2.
+  double k = 2;
+  /// Deepest level, in [0, 20]. Default 4: deeper levels cost more traversal
+  /// than they save (docs/octrees.md).
+  int depth = 4;
+  /// Throws InvalidConfig for a value out of range (NaN, infinite and
+  /// subnormal values are out of range).
+  void check() const;
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static LooseOctreeOptions from(const Config& c);
+};
+
 /// A sparse loose octree with objects placed by size and centre.
 ///
 /// Placement: the depth is the deepest one whose margin ((k - 1) / 2 cell
@@ -32,10 +48,13 @@ namespace broadphase {
 /// const members may run concurrently.
 class LooseOctree {
  public:
-  /// Options: `k=` (loose factor in [1.1, 8], default 2), `depth=` (deepest
-  /// level, default 4, at most 20: deeper levels cost more traversal than
-  /// they save, see docs/octrees.md).
-  explicit LooseOctree(const Config& c = {});
+  using Options = LooseOctreeOptions;
+  /// Reads the deprecated Config::options map into LooseOctreeOptions.
+  /// Throws InvalidConfig.
+  explicit LooseOctree(const Config& c = {})
+      : LooseOctree(without_options(c), LooseOctreeOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o` (LooseOctreeOptions::check).
+  LooseOctree(const Config& c, const LooseOctreeOptions& o);
 
   /// Adds an object. Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion = Motion::dynamic);

@@ -2,9 +2,12 @@
 /// Structures by name: what `broadphase list` prints and `--algo` selects.
 ///
 /// A name may carry options after a colon, `grid-dense:cell=25,storage=x`;
-/// each structure reads the keys it knows and rejects any other.
+/// each structure's entry reads the keys it knows into its typed options
+/// (src/registry/: the only place option strings are parsed) and rejects
+/// any other.
 #pragma once
 
+#include <broadphase/config_error.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
 #include <functional>
@@ -17,11 +20,13 @@
 
 namespace broadphase {
 
-/// Thrown for an unknown structure name or a bad option; the message names
-/// what was wrong and, for an unknown name, lists the valid ones.
-class UnknownStructure : public std::invalid_argument {
+/// Thrown for an unknown structure name; the message lists the valid ones.
+/// A bad option, an option not of the form key=value or a bad Config throws
+/// InvalidConfig, of which this is the special case "no such structure"
+/// (so `catch (const InvalidConfig&)` catches every error of a spec).
+class UnknownStructure : public InvalidConfig {
  public:
-  using std::invalid_argument::invalid_argument;
+  using InvalidConfig::InvalidConfig;
 };
 
 /// One entry of the registry.
@@ -32,19 +37,32 @@ struct StructureInfo {
   std::function<std::unique_ptr<AnyBroadPhase>(const Config&)> make;
 };
 
-/// Reads a structure's options from a Config and rejects unknown keys.
+/// An older name still accepted for a structure.
+struct StructureAlias {
+  std::string alias;  ///< the accepted name
+  std::string name;   ///< the entry it stands for
+};
+
+/// Reads a structure's options from Config::options (strings) into typed
+/// values and rejects unknown keys. Ranges are not checked here but by the
+/// options struct's check(), which the structure's constructor calls, so
+/// that a value given in C++ and one given as text meet the same rule.
+/// Throws InvalidConfig.
 class OptionReader {
  public:
   OptionReader(const Config& c, std::string structure);
-  /// A number in [lo, hi], or `fallback` when absent.
+  /// A finite number, or `fallback` when absent.
+  double number(const std::string& key, double fallback);
+  /// A whole number >= 0, or `fallback` when absent.
+  std::uint64_t integer(const std::string& key, std::uint64_t fallback);
+  /// A number in [lo, hi], or `fallback` when absent: for options that have
+  /// no options struct (the peers' adapters); NaN, infinite and subnormal
+  /// values are refused.
   double number(const std::string& key, double fallback, double lo, double hi);
-  /// A whole number in [lo, hi], or `fallback` when absent.
-  std::int64_t integer(const std::string& key, std::int64_t fallback, std::int64_t lo,
-                       std::int64_t hi);
   /// One of `allowed`, or `fallback` when absent.
   std::string choice(const std::string& key, const std::string& fallback,
                      std::initializer_list<std::string_view> allowed);
-  /// Throws UnknownStructure when a key was given that nobody read.
+  /// Throws InvalidConfig when a key was given that nobody read.
   void finish() const;
 
  private:
@@ -60,16 +78,24 @@ class Registry {
   static Registry library();
 
   void add(StructureInfo info);
+  /// Accepts `alias` as another name of the entry `name` (which must exist).
+  void add_alias(std::string alias, std::string name);
+  /// The entries, each once (aliases are not entries).
   const std::vector<StructureInfo>& entries() const { return entries_; }
-  /// Finds an entry by its bare name (no options); nullptr when unknown.
+  /// The accepted older names, in registration order.
+  const std::vector<StructureAlias>& aliases() const { return aliases_; }
+  /// Finds an entry by its bare name or an alias (no options); nullptr when
+  /// unknown.
   const StructureInfo* find(std::string_view name) const;
-  /// Makes `spec` (`name` or `name:key=value,...`). Throws UnknownStructure.
+  /// Makes `spec` (`name` or `name:key=value,...`). Throws UnknownStructure
+  /// for an unknown name, InvalidConfig for a bad option or Config.
   std::unique_ptr<AnyBroadPhase> make(std::string_view spec, Config config = {}) const;
   /// The names, comma-separated, for error messages.
   std::string names() const;
 
  private:
   std::vector<StructureInfo> entries_;
+  std::vector<StructureAlias> aliases_;
 };
 
 /// Convenience: makes a structure of the library by name.

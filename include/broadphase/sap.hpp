@@ -9,13 +9,22 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <broadphase/config_error.hpp>
 #include <broadphase/detail/pair_table.hpp>
-#include <broadphase/registry.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
 #include <vector>
 
 namespace broadphase {
+
+/// Sap takes no options; the struct is where they would go.
+struct SapOptions {
+  /// Nothing to check.
+  void check() const {}
+  /// Reads Config::options (deprecated): refuses every key. Defined with the
+  /// registry (src/registry/). Throws InvalidConfig.
+  static SapOptions from(const Config& c);
+};
 
 /// Incremental sweep-and-prune over float endpoints (rounded outwards from
 /// the conservative bounds), with an incrementally maintained set of pairs
@@ -32,8 +41,11 @@ namespace broadphase {
 /// concurrently; mutations need exclusive access.
 class Sap {
  public:
-  /// Options: none.
-  explicit Sap(const Config& c = {});
+  using Options = SapOptions;
+  /// Reads the deprecated Config::options (none accepted). Throws InvalidConfig.
+  explicit Sap(const Config& c = {}) : Sap(without_options(c), SapOptions::from(c)) {}
+  /// Checks `c` (check_config). Throws InvalidConfig.
+  Sap(const Config& c, const SapOptions& o);
 
   /// Adds an object and finds its overlapping boxes. Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion m = Motion::dynamic);

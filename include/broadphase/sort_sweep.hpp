@@ -5,13 +5,22 @@
 /// float keys) and sweeps.
 #pragma once
 
+#include <broadphase/config_error.hpp>
 #include <broadphase/structure.hpp>
-#include <broadphase/registry.hpp>
 #include <cstdint>
 #include <span>
 #include <vector>
 
 namespace broadphase {
+
+/// SortSweep takes no options; the struct is where they would go.
+struct SortSweepOptions {
+  /// Nothing to check.
+  void check() const {}
+  /// Reads Config::options (deprecated): refuses every key. Defined with the
+  /// registry (src/registry/). Throws InvalidConfig.
+  static SortSweepOptions from(const Config& c);
+};
 
 /// Batch sort-and-sweep over float boxes rounded outwards from the
 /// conservative bounds. No state but the boxes, so incoherent motion (an
@@ -25,8 +34,12 @@ namespace broadphase {
 /// sort-sweep on the same thread.
 class SortSweep {
  public:
-  /// Options: none.
-  explicit SortSweep(const Config& c = {});
+  using Options = SortSweepOptions;
+  /// Reads the deprecated Config::options (none accepted). Throws InvalidConfig.
+  explicit SortSweep(const Config& c = {})
+      : SortSweep(without_options(c), SortSweepOptions::from(c)) {}
+  /// Checks `c` (check_config). Throws InvalidConfig.
+  SortSweep(const Config& c, const SortSweepOptions& o);
 
   /// Adds an object. O(1). Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion m = Motion::dynamic);

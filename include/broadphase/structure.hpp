@@ -76,12 +76,17 @@ void check_moves(const S& s, std::span<const Move> moves) {
 struct Config {
   /// The region most objects live in. A hint for structures that subdivide
   /// a box (octrees, dense grids): objects outside it are still handled
-  /// exactly, at some cost. Must be non-empty and finite.
+  /// exactly, at some cost. Must be non-empty with finite corners and a
+  /// finite width on each axis (check_config in config_error.hpp).
   Aabb world{{0, 0, 0}, {1000, 1000, 1000}};
   /// How many objects the caller expects; sizes tables up front. 0: grow.
   std::size_t expected_objects = 0;
-  /// Structure-specific options, `key=value` as given after a structure's
-  /// name (`grid-dense:cell=25`). Each structure rejects keys it does not know.
+  /// Deprecated: give a structure's options typed instead, as its options
+  /// struct (`Octree(config, OctreeOptions{.split = 16})`), or by name
+  /// through the registry (`make_structure("octree:split=16")`). Still read,
+  /// as `key=value` text, by the registry and by every constructor that
+  /// takes a Config alone; each rejects keys it does not know
+  /// (InvalidConfig).
   std::map<std::string, std::string> options;
 };
 

@@ -1,11 +1,70 @@
-#include "register.hpp"
-
 #include <broadphase/grid_dense.hpp>
 #include <broadphase/grid_hashed.hpp>
 #include <broadphase/grid_hybrid.hpp>
 #include <broadphase/grid_implicit.hpp>
 #include <broadphase/grid_static.hpp>
 #include <broadphase/hgrid.hpp>
+
+#include "register.hpp"
+
+namespace broadphase {
+
+GridDenseOptions GridDenseOptions::from(const Config& c) {
+  OptionReader r(c, "grid-dense");
+  GridDenseOptions o;
+  o.cell = r.number("cell", o.cell);
+  r.finish();
+  return o;
+}
+
+namespace {
+// grid-hashed and grid-hybrid take the same keys.
+template <class O>
+O read_hashed(const Config& c, const char* name) {
+  OptionReader r(c, name);
+  O o;
+  o.cell = r.number("cell", o.cell);
+  o.buckets = detail::narrow<std::size_t>(r.integer("buckets", o.buckets));
+  r.finish();
+  return o;
+}
+}  // namespace
+
+GridHashedOptions GridHashedOptions::from(const Config& c) {
+  return read_hashed<GridHashedOptions>(c, "grid-hashed");
+}
+
+GridHybridOptions GridHybridOptions::from(const Config& c) {
+  return read_hashed<GridHybridOptions>(c, "grid-hybrid");
+}
+
+GridStaticOptions GridStaticOptions::from(const Config& c) {
+  OptionReader r(c, "grid-static");
+  GridStaticOptions o;
+  o.cell = r.number("cell", o.cell);
+  const std::string policy = r.choice("policy", "auto", {"rebuild", "patch", "auto"});
+  o.policy = policy == "rebuild" ? GridStaticPolicy::rebuild
+             : policy == "patch" ? GridStaticPolicy::patch
+                                 : GridStaticPolicy::automatic;
+  o.cache_fixed = r.choice("fixed", "cache", {"cache", "plain"}) == "cache";
+  r.finish();
+  return o;
+}
+
+GridImplicitOptions GridImplicitOptions::from(const Config& c) {
+  OptionReader r(c, "grid-implicit");
+  GridImplicitOptions o;
+  o.cell = r.number("cell", o.cell);
+  r.finish();
+  return o;
+}
+
+HGridOptions HGridOptions::from(const Config& c) {
+  OptionReader(c, "hgrid").finish();
+  return {};
+}
+
+}  // namespace broadphase
 
 namespace broadphase::detail {
 

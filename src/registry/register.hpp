@@ -2,7 +2,10 @@
 // adding a structure touches only that family's files.
 #pragma once
 
+#include <algorithm>
 #include <broadphase/registry.hpp>
+#include <cstdint>
+#include <limits>
 #include <memory>
 
 namespace broadphase::detail {
@@ -12,13 +15,23 @@ void register_grids(Registry& r);  // src/grids: the uniform and hierarchical gr
 void register_trees(Registry& r);  // src/trees: octrees, k-d tree, sweeps, AABB tree
 void register_fast(Registry& r);   // src/fast: the performance-tuned structures
 
-/// Registers a structure type whose constructor takes a Config.
+/// Registers a structure type S: its entry reads Config::options into
+/// S::Options (S::Options::from, defined beside the registration) and
+/// builds S from the Config without them and the typed options.
 template <class S>
 void add_structure(Registry& r, std::string name, std::string description) {
   r.add({std::move(name), std::move(description), false,
          [](const Config& c) -> std::unique_ptr<AnyBroadPhase> {
-           return std::make_unique<Erased<S>>(c);
+           return std::make_unique<Erased<S>>(without_options(c), S::Options::from(c));
          }});
+}
+
+/// A whole number read as text, narrowed to the option's type; a value too
+/// large for it saturates, which the options' check() then refuses.
+template <class T>
+T narrow(std::uint64_t v) {
+  return static_cast<T>(
+      std::min<std::uint64_t>(v, static_cast<std::uint64_t>(std::numeric_limits<T>::max())));
 }
 
 }  // namespace broadphase::detail

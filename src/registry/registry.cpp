@@ -13,38 +13,40 @@ OptionReader::OptionReader(const Config& c, std::string structure)
     : config_(c), structure_(std::move(structure)) {}
 
 namespace {
-// The value of option `key` when `text` is a number in [lo, hi] (a whole
-// one when `whole`); otherwise throws, naming the structure and the range.
+// The number `text` reads as, whole when `whole`; otherwise throws, naming
+// the structure and the option. Ranges are the options struct's check().
 double parse_number(const std::string& structure, const std::string& key, const std::string& text,
-                    double lo, double hi, bool whole) {
+                    bool whole) {
   double v = 0;
   const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (ec != std::errc{} || end != text.data() + text.size() || !std::isfinite(v) || v < lo ||
-      v > hi || (whole && v != std::floor(v))) {
-    std::ostringstream msg;
-    msg.precision(10);  // whole bounds such as 2^24 in full
-    msg << structure << ": option '" << key << "' must be " << (whole ? "an integer" : "a number")
-        << " in [" << lo << ", " << hi << "], got '" << text << "'";
-    throw UnknownStructure(msg.str());
+  if (ec != std::errc{} || end != text.data() + text.size() || !std::isfinite(v) ||
+      (whole && (v != std::floor(v) || v < 0 || v >= 0x1p64))) {
+    throw InvalidConfig(structure + ": option '" + key + "' must be " +
+                        (whole ? "a whole number >= 0" : "a finite number") + ", got '" + text +
+                        "'");
   }
   return v;
 }
 }  // namespace
 
-double OptionReader::number(const std::string& key, double fallback, double lo, double hi) {
+double OptionReader::number(const std::string& key, double fallback) {
   read_.push_back(key);
   const auto it = config_.options.find(key);
   if (it == config_.options.end()) return fallback;
-  return parse_number(structure_, key, it->second, lo, hi, false);
+  return parse_number(structure_, key, it->second, false);
 }
 
-std::int64_t OptionReader::integer(const std::string& key, std::int64_t fallback, std::int64_t lo,
-                                   std::int64_t hi) {
+double OptionReader::number(const std::string& key, double fallback, double lo, double hi) {
+  const double v = number(key, fallback);
+  if (config_.options.count(key) != 0) detail::check_number(structure_, key, v, lo, hi);
+  return v;
+}
+
+std::uint64_t OptionReader::integer(const std::string& key, std::uint64_t fallback) {
   read_.push_back(key);
   const auto it = config_.options.find(key);
   if (it == config_.options.end()) return fallback;
-  return static_cast<std::int64_t>(parse_number(
-      structure_, key, it->second, static_cast<double>(lo), static_cast<double>(hi), true));
+  return static_cast<std::uint64_t>(parse_number(structure_, key, it->second, true));
 }
 
 std::string OptionReader::choice(const std::string& key, const std::string& fallback,
@@ -56,8 +58,8 @@ std::string OptionReader::choice(const std::string& key, const std::string& fall
     if (a == it->second) return it->second;
   std::string list;
   for (std::string_view a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-  throw UnknownStructure(structure_ + ": option '" + key + "' must be one of " + list + ", got '" +
-                         it->second + "'");
+  throw InvalidConfig(structure_ + ": option '" + key + "' must be one of " + list + ", got '" +
+                      it->second + "'");
 }
 
 void OptionReader::finish() const {
@@ -65,9 +67,8 @@ void OptionReader::finish() const {
     if (std::find(read_.begin(), read_.end(), key) == read_.end()) {
       std::string known;
       for (const std::string& k : read_) known += (known.empty() ? "" : ", ") + k;
-      throw UnknownStructure(
-          structure_ + ": unknown option '" + key + "'" +
-          (known.empty() ? " (it takes no options)" : " (known: " + known + ")"));
+      throw InvalidConfig(structure_ + ": unknown option '" + key + "'" +
+                          (known.empty() ? " (it takes no options)" : " (known: " + known + ")"));
     }
   }
 }
@@ -87,9 +88,19 @@ void Registry::add(StructureInfo info) {
   entries_.push_back(std::move(info));
 }
 
+void Registry::add_alias(std::string alias, std::string name) {
+  if (find(alias) != nullptr)
+    throw std::logic_error("broadphase: alias names a structure already: " + alias);
+  if (find(name) == nullptr)
+    throw std::logic_error("broadphase: alias of an unknown structure: " + name);
+  aliases_.push_back({std::move(alias), std::move(name)});
+}
+
 const StructureInfo* Registry::find(std::string_view name) const {
   for (const StructureInfo& e : entries_)
     if (e.name == name) return &e;
+  for (const StructureAlias& a : aliases_)
+    if (a.alias == name) return find(a.name);
   return nullptr;
 }
 
@@ -98,11 +109,6 @@ std::string Registry::names() const {
   for (const StructureInfo& e : entries_) out += (out.empty() ? "" : ", ") + e.name;
   return out;
 }
-
-namespace {
-// Slot indices are 32 bits, one value of which means "null".
-constexpr std::size_t kMaxObjects = Handle::kNullIndex;
-}  // namespace
 
 std::unique_ptr<AnyBroadPhase> Registry::make(std::string_view spec, Config config) const {
   const std::size_t colon = spec.find(':');
@@ -118,25 +124,20 @@ std::unique_ptr<AnyBroadPhase> Registry::make(std::string_view spec, Config conf
       const std::string_view item = rest.substr(0, comma);
       const std::size_t eq = item.find('=');
       if (eq == std::string_view::npos || eq == 0)
-        throw UnknownStructure(std::string(name) + ": option '" + std::string(item) +
-                               "' is not of the form key=value");
+        throw InvalidConfig(std::string(name) + ": option '" + std::string(item) +
+                            "' is not of the form key=value");
       const std::string_view key = item.substr(0, eq);
       if (std::find(given.begin(), given.end(), key) != given.end())
-        throw UnknownStructure(std::string(name) + ": option '" + std::string(key) +
-                               "' is given twice");
+        throw InvalidConfig(std::string(name) + ": option '" + std::string(key) +
+                            "' is given twice");
       given.push_back(key);
       config.options[std::string(key)] = std::string(item.substr(eq + 1));
       rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
     }
   }
-  if (config.expected_objects > kMaxObjects)
-    throw UnknownStructure(std::string(name) + ": expected_objects " +
-                           std::to_string(config.expected_objects) + " is more than the " +
-                           std::to_string(kMaxObjects) + " objects a handle can name");
-  const Aabb& w = config.world;
-  for (int a = 0; a < 3; ++a)
-    if (!std::isfinite(w.lo[a]) || !std::isfinite(w.hi[a]) || !(w.lo[a] < w.hi[a]))
-      throw UnknownStructure(std::string(name) + ": the world box must be finite and non-empty");
+  // The Config and the option values are checked by the structure's
+  // constructor (check_config, Options::check), the same way as for a
+  // structure built directly.
   return info->make(config);
 }
 

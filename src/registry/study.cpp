@@ -1,8 +1,33 @@
+#include <broadphase/naive.hpp>
+#include <broadphase/study/hgrid_paper.hpp>
+#include <broadphase/study/octree_paper.hpp>
+
 #include "register.hpp"
 
-#include <broadphase/study/hgrid_paper.hpp>
-#include <broadphase/naive.hpp>
-#include <broadphase/study/octree_paper.hpp>
+namespace broadphase {
+
+NaiveOptions NaiveOptions::from(const Config& c) {
+  OptionReader(c, "naive").finish();
+  return {};
+}
+
+OctreePaperOptions OctreePaperOptions::from(const Config& c) {
+  OptionReader r(c, "octree-paper");
+  OctreePaperOptions o;
+  o.clamp_outside = r.choice("outside", "root", {"root", "clamp"}) == "clamp";
+  r.finish();
+  return o;
+}
+
+HGridPaperOptions HGridPaperOptions::from(const Config& c) {
+  OptionReader r(c, "hgrid-paper");
+  HGridPaperOptions o;
+  o.levels = detail::narrow<int>(r.integer("levels", static_cast<std::uint64_t>(o.levels)));
+  r.finish();
+  return o;
+}
+
+}  // namespace broadphase
 
 namespace broadphase::detail {
 

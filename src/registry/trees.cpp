@@ -1,5 +1,3 @@
-#include "register.hpp"
-
 #include <broadphase/aabb_tree.hpp>
 #include <broadphase/kdtree.hpp>
 #include <broadphase/octree.hpp>
@@ -7,6 +5,82 @@
 #include <broadphase/octree_loose.hpp>
 #include <broadphase/sap.hpp>
 #include <broadphase/sort_sweep.hpp>
+
+#include "register.hpp"
+
+namespace broadphase {
+
+OctreeOptions OctreeOptions::from(const Config& c) {
+  OptionReader r(c, "octree");
+  OctreeOptions o;
+  o.split = detail::narrow<std::size_t>(r.integer("split", o.split));
+  r.finish();
+  return o;
+}
+
+LooseOctreeOptions LooseOctreeOptions::from(const Config& c) {
+  OptionReader r(c, "octree-loose");
+  LooseOctreeOptions o;
+  o.k = r.number("k", o.k);
+  o.depth = detail::narrow<int>(r.integer("depth", static_cast<std::uint64_t>(o.depth)));
+  r.finish();
+  return o;
+}
+
+LinearOctreeOptions LinearOctreeOptions::from(const Config& c) {
+  OptionReader r(c, "octree-linear");
+  LinearOctreeOptions o;
+  o.depth = detail::narrow<int>(r.integer("depth", static_cast<std::uint64_t>(o.depth)));
+  r.finish();
+  return o;
+}
+
+KdTreeOptions KdTreeOptions::from(const Config& c) {
+  OptionReader r(c, "kdtree");
+  KdTreeOptions o;
+  const std::string p = r.choice("rebuild", "decay", {"refit", "decay", "always"});
+  o.rebuild = p == "refit"    ? KdTreePolicy::refit
+              : p == "always" ? KdTreePolicy::always
+                              : KdTreePolicy::decay;
+  o.decay = r.number("decay", o.decay);
+  o.leaf = detail::narrow<std::size_t>(r.integer("leaf", o.leaf));
+  r.finish();
+  return o;
+}
+
+SapOptions SapOptions::from(const Config& c) {
+  OptionReader(c, "sap").finish();
+  return {};
+}
+
+SortSweepOptions SortSweepOptions::from(const Config& c) {
+  OptionReader(c, "sort-sweep").finish();
+  return {};
+}
+
+AabbTreeOptions AabbTreeOptions::from(const Config& c) {
+  OptionReader r(c, "aabb-tree");
+  AabbTreeOptions o;
+  const double margin = r.number("margin", 0);
+  if (c.options.count("margin") != 0) o.margin = margin;  // absent: from the world
+  const std::string order = r.choice(
+      "order", "leaves-first", {"leaves-first", "smaller-first", "hit-ratio", "near-far", "none"});
+  o.order = order == "none"            ? AabbTreeOrder::none
+            : order == "smaller-first" ? AabbTreeOrder::smaller_first
+            : order == "hit-ratio"     ? AabbTreeOrder::hit_ratio
+            : order == "near-far"      ? AabbTreeOrder::near_far
+                                       : AabbTreeOrder::leaves_first;
+  o.predict = r.number("predict", o.predict);
+  o.max_depth = detail::narrow<std::uint32_t>(r.integer("max_depth", o.max_depth));
+  const std::string front = r.choice("front", "off", {"off", "basic", "deferred"});
+  o.front = front == "basic"      ? AabbTreeFront::basic
+            : front == "deferred" ? AabbTreeFront::deferred
+                                  : AabbTreeFront::off;
+  r.finish();
+  return o;
+}
+
+}  // namespace broadphase
 
 namespace broadphase::detail {
 
@@ -33,7 +107,8 @@ void register_trees(Registry& r) {
          [](const Config& c) -> std::unique_ptr<AnyBroadPhase> {
            Config with_front = c;
            with_front.options.try_emplace("front", "basic");
-           return std::make_unique<Erased<AabbTree>>(with_front, "aabb-tree-front");
+           return std::make_unique<Erased<AabbTree>>(without_options(c),
+                                                     AabbTreeOptions::from(with_front));
          }});
 }
 

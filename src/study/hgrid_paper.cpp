@@ -35,22 +35,20 @@ std::int64_t clamp_cell(double f) {
 
 }  // namespace
 
-HGridPaper::HGridPaper(const Config& c) {
-  OptionReader options(c, "hgrid-paper");
-  levels_ = static_cast<int>(options.integer("levels", kDefaultLevels, 1, kMaxLevels));
-  options.finish();
+void HGridPaperOptions::check() const {
+  detail::check_integer("hgrid-paper", "levels", static_cast<std::uint64_t>(levels), 1,
+                        HGridPaper::kMaxLevels);
+}
+
+HGridPaper::HGridPaper(const Config& c, const HGridPaperOptions& o) {
+  check_config(c, "hgrid-paper");
+  o.check();
+  levels_ = o.levels;
   origin_ = c.world.lo;
   const Vec3 extent = c.world.hi - c.world.lo;
-  double side = std::max(extent.x, std::max(extent.y, extent.z));
-  bool finite = true;
-  for (int a = 0; a < 3; ++a)
-    finite = finite && std::isfinite(c.world.lo[a]) && std::isfinite(c.world.hi[a]);
-  if (!(side > 0) || !finite)
-    throw std::invalid_argument("hgrid-paper: the world box must be finite and non-empty");
-  // Finite corners farther apart than the largest double ([-1e308, 1e308]):
-  // the cells of the largest side; objects whose cell coordinates then
-  // overflow go to the oversize list, which is exact.
-  if (!std::isfinite(side)) side = std::numeric_limits<double>::max();
+  const double side = std::max(extent.x, std::max(extent.y, extent.z));
+  if (!(side > 0) || !std::isfinite(side))
+    throw InvalidConfig("hgrid-paper: the world box must be finite and non-empty");
   for (int k = 0; k <= levels_; ++k) {
     const auto i = static_cast<std::size_t>(k);
     side_[i] = std::ldexp(side, -k);

@@ -26,21 +26,15 @@ constexpr std::uint32_t interleave(int x, int y, int z) {
 
 }  // namespace
 
-OctreePaper::OctreePaper(const Config& c) {
-  OptionReader options(c, "octree-paper");
-  clamp_outside_ = options.choice("outside", "root", {"root", "clamp"}) == "clamp";
-  options.finish();
+OctreePaper::OctreePaper(const Config& c, const OctreePaperOptions& o) {
+  check_config(c, "octree-paper");
+  o.check();
+  clamp_outside_ = o.clamp_outside;
   origin_ = c.world.lo;
   const Vec3 extent = c.world.hi - c.world.lo;
-  double side = std::max(extent.x, std::max(extent.y, extent.z));
-  bool finite = true;
-  for (int a = 0; a < 3; ++a)
-    finite = finite && std::isfinite(c.world.lo[a]) && std::isfinite(c.world.hi[a]);
-  if (!(side > 0) || !finite)
-    throw std::invalid_argument("octree-paper: the world box must be finite and non-empty");
-  // Finite corners farther apart than the largest double ([-1e308, 1e308]):
-  // a cube of the largest side; what lies beyond it lives at the root.
-  if (!std::isfinite(side)) side = std::numeric_limits<double>::max();
+  const double side = std::max(extent.x, std::max(extent.y, extent.z));
+  if (!(side > 0) || !std::isfinite(side))
+    throw InvalidConfig("octree-paper: the world box must be finite and non-empty");
   scale_ = kFinestCells / side;
 }
 

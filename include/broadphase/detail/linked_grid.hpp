@@ -8,8 +8,8 @@
 
 #include <bit>
 #include <broadphase/detail/cell_tally.hpp>
+#include <broadphase/config_error.hpp>
 #include <broadphase/detail/grid_common.hpp>
-#include <broadphase/registry.hpp>
 #include <broadphase/structure.hpp>
 #include <cstring>
 #include <stdexcept>
@@ -28,19 +28,18 @@ namespace detail {
 template <bool kHashed, bool kSorted = false>
 class LinkedGrid {
  public:
-  /// Reads `cell=` (and `buckets=` when hashed) from `c`. Throws UnknownStructure.
-  LinkedGrid(const Config& c, const char* name, double cell_scale = 1)
-      : name_(name), world_(c.world), cell_scale_(cell_scale) {
-    OptionReader opt(c, name);
-    const double cell = opt.number("cell", 0, 0, 1e300);
+  /// A grid of cells of edge `cell` (0: automatic), and when hashed of
+  /// `buckets` heads (0: automatic); both already checked by the options
+  /// struct of the structure named `name`. Throws InvalidConfig for a bad `c`.
+  LinkedGrid(const Config& c, const char* name, double cell, std::size_t buckets,
+             double cell_scale = 1)
+      : name_(name), world_(check_config(c, name).world), cell_scale_(cell_scale) {
     if constexpr (kHashed) {
-      const std::int64_t buckets = opt.integer("buckets", 0, 0, std::int64_t{1} << 30);
       forced_buckets_ = buckets > 0;
-      const std::size_t want = forced_buckets_ ? static_cast<std::size_t>(buckets)
-                                               : std::max<std::size_t>(c.expected_objects, 64);
+      const std::size_t want =
+          forced_buckets_ ? buckets : std::max<std::size_t>(c.expected_objects, 64);
       heads_.assign(std::bit_ceil(want), kNone);
     }
-    opt.finish();
     if (cell > 0) {
       trigger_.forced = true;
       set_cell(cell, std::max<std::size_t>(c.expected_objects, 1));

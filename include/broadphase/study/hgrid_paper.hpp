@@ -28,13 +28,26 @@
 
 #include <algorithm>
 #include <array>
+#include <broadphase/config_error.hpp>
 #include <broadphase/structure.hpp>
-#include <broadphase/registry.hpp>
 #include <cmath>
 #include <cstdint>
 #include <vector>
 
 namespace broadphase {
+
+/// The options of HGridPaper (`hgrid-paper:levels=N`).
+struct HGridPaperOptions {
+  /// Levels below the root, in [1, 30]. Default 10: the finest cells are
+  /// 1/1024 of the world.
+  int levels = 10;
+  /// Throws InvalidConfig for a value out of range.
+  void check() const;
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static HGridPaperOptions from(const Config& c);
+};
 
 /// The study's hierarchical hashed grid.
 /// insert, update: O(1) expected (amortised: the table doubles when it holds
@@ -53,9 +66,15 @@ class HGridPaper {
   static constexpr int kDefaultLevels = 10;
 
   /// Builds the empty grid over the cube with corner `c.world.lo` and side
-  /// the world box's largest extent. Option: `levels=` (1 to 30, default 10).
-  /// The table is sized for `c.expected_objects`.
-  explicit HGridPaper(const Config& c = {});
+  /// the world box's largest extent. The table is sized for
+  /// `c.expected_objects`.
+  using Options = HGridPaperOptions;
+  /// Reads the deprecated Config::options map into HGridPaperOptions.
+  /// Throws InvalidConfig.
+  explicit HGridPaper(const Config& c = {})
+      : HGridPaper(without_options(c), HGridPaperOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o` (HGridPaperOptions::check).
+  HGridPaper(const Config& c, const HGridPaperOptions& o);
 
   /// Adds an object to its level and cell. Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion = Motion::dynamic);

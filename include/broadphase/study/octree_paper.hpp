@@ -21,13 +21,27 @@
 
 #include <algorithm>
 #include <array>
+#include <broadphase/config_error.hpp>
 #include <broadphase/structure.hpp>
-#include <broadphase/registry.hpp>
 #include <cstdint>
 #include <span>
 #include <vector>
 
 namespace broadphase {
+
+/// The options of OctreePaper (`octree-paper:outside=root|clamp`).
+struct OctreePaperOptions {
+  /// Where objects not inside the cube go: false (`outside=root`, default)
+  /// the root, true (`outside=clamp`) the node of their bounds clamped into
+  /// the cube.
+  bool clamp_outside = false;
+  /// Nothing to check (every value is valid).
+  void check() const {}
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static OctreePaperOptions from(const Config& c);
+};
 
 /// The study's fixed-depth octree.
 /// insert: O(1) plus an amortised list append. remove: O(length of the
@@ -50,9 +64,14 @@ class OctreePaper {
   static constexpr std::uint32_t kNodeCount = 585;
 
   /// Builds the empty tree over the cube with corner `c.world.lo` and side
-  /// the world box's largest extent. Option `outside=root|clamp` (default
-  /// root): where objects not inside the cube go.
-  explicit OctreePaper(const Config& c = {});
+  /// the world box's largest extent.
+  using Options = OctreePaperOptions;
+  /// Reads the deprecated Config::options map into OctreePaperOptions.
+  /// Throws InvalidConfig.
+  explicit OctreePaper(const Config& c = {})
+      : OctreePaper(without_options(c), OctreePaperOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o` (OctreePaperOptions::check).
+  OctreePaper(const Config& c, const OctreePaperOptions& o);
 
   /// Adds an object to the node its bounds prescribe. Throws InvalidShape.
   Handle insert(const Shape& s, std::uint64_t user, Motion = Motion::dynamic);

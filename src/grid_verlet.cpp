@@ -1,8 +1,7 @@
 #include <atomic>
-#include <broadphase/fast_grid.hpp>
-#include <chrono>
+#include <broadphase/detail/worker_pool.hpp>
+#include <broadphase/grid_verlet.hpp>
 #include <cmath>
-#include <condition_variable>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
@@ -50,7 +49,7 @@ constexpr double kMaxMargin = 0.5;
 // 2.7 ms against 2.6-4.7, explosion 5.3-5.9 against 4.6-6.2, noisy).
 constexpr double kMinFrames = 2;
 // Threads at most (option threads=N, and hardware concurrency for N = 0).
-constexpr unsigned kMaxThreads = 64;
+constexpr unsigned kMaxThreads = GridVerletOptions::kMaxThreads;
 // Moving entries per share below which work stays on one thread (the
 // default of the option grain=N).
 constexpr std::size_t kMinEntriesPerThread = 2048;
@@ -81,27 +80,8 @@ Slice slice(std::size_t n, unsigned k, unsigned parts) {
 // renewals of half as many again.
 std::size_t with_room(std::size_t n) { return n + n / 2 + 1024; }
 
-// Pieces of work numbered 0, 1, ... whose results are joined in that
-// order while later pieces are still being made, on threads: finish(k,
-// join) marks piece k made and then, under a lock, calls join(j) for every
-// piece j from the next one not joined on that is made, in order. Each
-// thread that finishes a piece joins what it can, so no made piece waits
-// for more than the lock, and the last piece made leaves none unjoined.
-class InOrder {
- public:
-  static constexpr unsigned kMaxPieces = kMaxThreads * kChunksPerShare + 1;
-  template <class F>
-  void finish(unsigned piece, F&& join) {
-    std::lock_guard hold(m_);
-    made_[piece] = true;
-    for (; next_ < kMaxPieces && made_[next_]; ++next_) join(next_);
-  }
-
- private:
-  std::mutex m_;
-  bool made_[kMaxPieces] = {};
-  unsigned next_ = 0;
-};
+// Pieces joined in order: every chunk of every pass, and one more.
+using InOrder = detail::InOrder<kMaxThreads * kChunksPerShare + 1>;
 
 // Sorts keys by their high 32 bits, stably: an LSD radix sort, 11 bits a
 // pass, as many passes as the largest key needs (std::sort took half of a
@@ -130,126 +110,7 @@ double extent_of(const float lo[3], const float hi[3]) {
 
 }  // namespace
 
-namespace detail {
-
-/// Worker threads kept for the structure's lifetime: run(shares, job) runs
-/// job(k) once for every k in [0, shares), each share taken by whichever of
-/// the caller and the workers is free, and returns when all are done. One
-/// run at a time; a caller that finds the pool busy (another thread's const
-/// call) runs every share itself.
-///
-/// A frame makes about a dozen runs a fraction of a millisecond apart, and
-/// waking a sleeping thread costs about 70 µs here (a round trip through a
-/// condition variable). So a worker that finished a job, and a caller that
-/// waits for the workers, first poll for a while (kSpin) and only then
-/// sleep: runs within a frame find the workers awake, and an idle structure
-/// costs nothing once its workers have gone to sleep. The first run after
-/// a pause does not wait for them either: the caller takes shares until
-/// none is left and then closes the run, so a worker still waking up finds
-/// it closed (or joins in time to take shares) instead of holding it up.
-class WorkerPool {
- public:
-  explicit WorkerPool(unsigned workers) {
-    for (unsigned w = 0; w < workers; ++w)
-      threads_.emplace_back([this](std::stop_token st) { loop(st); });
-  }
-  ~WorkerPool() {
-    {
-      std::lock_guard lock(m_);
-      stopping_.store(true, std::memory_order_relaxed);
-      round_.fetch_add(1, std::memory_order_release);
-    }
-    wake_.notify_all();
-    threads_.clear();  // joins
-  }
-
-  void run(unsigned shares, const std::function<void(unsigned)>& job) {
-    std::unique_lock busy(run_mutex_, std::try_to_lock);
-    if (!busy.owns_lock() || shares <= 1) {
-      for (unsigned k = 0; k < shares; ++k) job(k);
-      return;
-    }
-    {
-      // The job and its share count are published by opening the run; they
-      // change only here, while no worker is in a run.
-      std::lock_guard lock(m_);
-      job_ = &job;
-      shares_ = shares;
-      next_.store(0, std::memory_order_relaxed);
-      open_.store(true, std::memory_order_seq_cst);
-      round_.fetch_add(1, std::memory_order_release);
-    }
-    wake_.notify_all();
-    for (unsigned k; (k = next_.fetch_add(1, std::memory_order_relaxed)) < shares;) job(k);
-    // Closing and entering are ordered (sequentially consistent): a worker
-    // that enters after the close sees it and leaves without touching the
-    // job; one that entered before is counted, and waited for.
-    open_.store(false, std::memory_order_seq_cst);
-    auto done = [&] { return inside_.load(std::memory_order_seq_cst) == 0; };
-    if (!spin_until(done)) {
-      std::unique_lock lock(m_);
-      done_.wait(lock, done);
-    }
-  }
-  unsigned capacity() const { return static_cast<unsigned>(threads_.size()) + 1; }
-
- private:
-  static constexpr std::chrono::microseconds kSpin{500};
-
-  /// Polls `ready` until it holds (true) or kSpin has passed (false).
-  template <class F>
-  static bool spin_until(F ready) {
-    const auto until = std::chrono::steady_clock::now() + kSpin;
-    for (unsigned k = 1;; ++k) {
-      if (ready()) return true;
-      if (k % 64 == 0 && std::chrono::steady_clock::now() > until) return false;
-#if defined(__x86_64__) || defined(__i386__)
-      __builtin_ia32_pause();
-#else
-      std::this_thread::yield();
-#endif
-    }
-  }
-
-  void loop(std::stop_token) {
-    std::uint64_t seen = 0;
-    for (;;) {
-      auto fresh = [&] { return round_.load(std::memory_order_acquire) != seen; };
-      if (!spin_until(fresh)) {
-        std::unique_lock lock(m_);
-        wake_.wait(lock, fresh);
-      }
-      seen = round_.load(std::memory_order_acquire);
-      if (stopping_.load(std::memory_order_relaxed)) return;
-      inside_.fetch_add(1, std::memory_order_seq_cst);
-      if (open_.load(std::memory_order_seq_cst)) {
-        const unsigned shares = shares_;
-        for (unsigned k; (k = next_.fetch_add(1, std::memory_order_relaxed)) < shares;) (*job_)(k);
-      }
-      if (inside_.fetch_sub(1, std::memory_order_seq_cst) == 1) {
-        // The caller may be asleep: notify under the lock it checks under.
-        std::lock_guard lock(m_);
-        done_.notify_one();
-      }
-    }
-  }
-
-  std::mutex run_mutex_;
-  std::mutex m_;
-  std::condition_variable wake_, done_;
-  const std::function<void(unsigned)>* job_ = nullptr;
-  unsigned shares_ = 0;
-  std::atomic<unsigned> next_{0};    // the next share to take
-  std::atomic<unsigned> inside_{0};  // workers in the run
-  std::atomic<bool> open_{false};    // shares may still be taken
-  std::atomic<std::uint64_t> round_{0};
-  std::atomic<bool> stopping_{false};
-  std::vector<std::jthread> threads_;
-};
-
-}  // namespace detail
-
-struct alignas(64) FastGrid::ShareStats {  // on lines of its own: each share writes its own
+struct alignas(64) GridVerlet::ShareStats {  // on lines of its own: each share writes its own
   double max_e = 0;
   std::uint32_t count[kLevelSlots] = {};
   float span_lo[kLevelSlots][3] = {}, span_hi[kLevelSlots][3] = {};
@@ -257,12 +118,18 @@ struct alignas(64) FastGrid::ShareStats {  // on lines of its own: each share wr
   ListTotals lists;              // the share's list lengths, before renewals
 };
 
-FastGrid::FastGrid(const Config& c) : world_(c.world) {
-  OptionReader opt(c, "fast-grid");
-  threads_ = static_cast<unsigned>(opt.integer("threads", 1, 0, kMaxThreads));
-  cell_factor_ = opt.number("cell", 1, 0.5, 64);
-  grain_ = static_cast<std::size_t>(opt.integer("grain", kMinEntriesPerThread, 1, 1 << 24));
-  opt.finish();
+void GridVerletOptions::check() const {
+  detail::check_integer("grid-verlet", "threads", threads, 0, kMaxThreads);
+  detail::check_number("grid-verlet", "cell", cell, 0.5, 64);
+  detail::check_integer("grid-verlet", "grain", grain, 1, std::uint64_t{1} << 24);
+}
+
+GridVerlet::GridVerlet(const Config& c, const GridVerletOptions& o)
+    : world_(check_config(c, "grid-verlet").world) {
+  o.check();
+  threads_ = o.threads;
+  cell_factor_ = o.cell;
+  grain_ = o.grain;
   if (threads_ == 0) threads_ = std::clamp(std::thread::hardware_concurrency(), 1u, kMaxThreads);
   if (threads_ > 1) pool_ = std::make_unique<detail::WorkerPool>(threads_ - 1);
   if (c.expected_objects > 0) {
@@ -272,19 +139,19 @@ FastGrid::FastGrid(const Config& c) : world_(c.world) {
   }
 }
 
-FastGrid::~FastGrid() = default;
+GridVerlet::~GridVerlet() = default;
 
-unsigned FastGrid::chunks_for(std::size_t entries) const {
+unsigned GridVerlet::chunks_for(std::size_t entries) const {
   const unsigned t = shares_for(entries);
   return t <= 1 ? 1 : t * kChunksPerShare;
 }
 
-unsigned FastGrid::shares_for(std::size_t entries) const {
+unsigned GridVerlet::shares_for(std::size_t entries) const {
   return static_cast<unsigned>(
       std::min<std::size_t>(threads_, std::max<std::size_t>(1, entries / grain_)));
 }
 
-void FastGrid::run_shares(unsigned shares, const std::function<void(unsigned)>& job) const {
+void GridVerlet::run_shares(unsigned shares, const std::function<void(unsigned)>& job) const {
   if (shares <= 1 || !pool_) {
     for (unsigned k = 0; k < shares; ++k) job(k);
     return;
@@ -292,13 +159,14 @@ void FastGrid::run_shares(unsigned shares, const std::function<void(unsigned)>& 
   pool_->run(shares, job);
 }
 
-std::uint32_t FastGrid::allocate_slot() {
+std::uint32_t GridVerlet::allocate_slot() {
   std::uint32_t s;
   if (free_head_ != Handle::kNullIndex) {
     s = free_head_;
     free_head_ = static_cast<std::uint32_t>(user_[s]);
   } else {
-    if (slots_.size() >= Handle::kNullIndex) throw std::length_error("fast-grid: too many objects");
+    if (slots_.size() >= Handle::kNullIndex)
+      throw std::length_error("grid-verlet: too many objects");
     s = static_cast<std::uint32_t>(slots_.size());
     user_.push_back(0);
     slots_.emplace_back();
@@ -308,7 +176,7 @@ std::uint32_t FastGrid::allocate_slot() {
   return s;
 }
 
-void FastGrid::free_slot(std::uint32_t s) {
+void GridVerlet::free_slot(std::uint32_t s) {
   slots_[s].home = Home::free;
   user_[s] = free_head_;
   free_head_ = s;
@@ -325,7 +193,7 @@ float displacement(const AabbF& from, const AabbF& to) {
 }
 }  // namespace
 
-void FastGrid::add_loose(std::uint32_t s, const Shape& shape) {
+void GridVerlet::add_loose(std::uint32_t s, const Shape& shape) {
   slots_[s].home = Home::loose;
   slots_[s].pos = static_cast<std::uint32_t>(loose_.size());
   loose_.push_back(s);
@@ -334,7 +202,7 @@ void FastGrid::add_loose(std::uint32_t s, const Shape& shape) {
   loose_speed_.push_back(0);  // unknown until it moves again
 }
 
-void FastGrid::drop_loose(std::uint32_t s) {
+void GridVerlet::drop_loose(std::uint32_t s) {
   const std::uint32_t p = slots_[s].pos;
   const std::uint32_t last = loose_.back();
   loose_[p] = last;
@@ -348,7 +216,7 @@ void FastGrid::drop_loose(std::uint32_t s) {
   loose_speed_.pop_back();
 }
 
-void FastGrid::leave_grid(std::uint32_t s) {
+void GridVerlet::leave_grid(std::uint32_t s) {
   Grid* g = nullptr;
   if (slots_[s].home == Home::fixed_grid) {
     --fixed_count_;
@@ -366,7 +234,7 @@ void FastGrid::leave_grid(std::uint32_t s) {
   }
 }
 
-Handle FastGrid::insert(const Shape& s, std::uint64_t user, Motion m) {
+Handle GridVerlet::insert(const Shape& s, std::uint64_t user, Motion m) {
   require_valid(s);
   const std::uint32_t i = allocate_slot();
   user_[i] = user;
@@ -377,7 +245,7 @@ Handle FastGrid::insert(const Shape& s, std::uint64_t user, Motion m) {
   return {i, slots_[i].gen};
 }
 
-void FastGrid::remove(Handle h) {
+void GridVerlet::remove(Handle h) {
   const std::uint32_t s = index_of(h);
   ++slots_[s].gen;  // odd -> even: every handle to the object is stale from now on
   --live_;
@@ -394,7 +262,7 @@ void FastGrid::remove(Handle h) {
   maybe_rebuild();
 }
 
-void FastGrid::update(Handle h, const Shape& s) {
+void GridVerlet::update(Handle h, const Shape& s) {
   const std::uint32_t i = index_of(h);
   require_valid(s);
   const bool was_loose = slots_[i].home == Home::loose;
@@ -402,7 +270,7 @@ void FastGrid::update(Handle h, const Shape& s) {
   if (!was_loose) maybe_rebuild();
 }
 
-void FastGrid::move_mover(std::uint32_t k, const Shape& shape) {
+void GridVerlet::move_mover(std::uint32_t k, const Shape& shape) {
   // The grid entry keeps the fat box; the rebuild renews it if needed.
   Mover& mv = movers_[k];
   const AabbF b = bounds_f(shape);
@@ -411,7 +279,7 @@ void FastGrid::move_mover(std::uint32_t k, const Shape& shape) {
   moving_.shapes[k] = shape;
 }
 
-void FastGrid::move_via_loose(std::uint32_t i, const Shape& shape) {
+void GridVerlet::move_via_loose(std::uint32_t i, const Shape& shape) {
   slots_[i].motion = Motion::dynamic;  // a fixed object that moves is moving from now on
   if (slots_[i].home != Home::loose) {
     leave_grid(i);
@@ -425,7 +293,7 @@ void FastGrid::move_via_loose(std::uint32_t i, const Shape& shape) {
   loose_shapes_[p] = shape;
 }
 
-void FastGrid::update(std::span<const Move> moves) {
+void GridVerlet::update(std::span<const Move> moves) {
   // Passes over the moves, in chunks taken by whichever thread is free: the
   // first checks every move (nothing changes if one is bad: the checks are
   // then repeated on one thread, for the error) and notes each one's mover;
@@ -526,11 +394,15 @@ void FastGrid::update(std::span<const Move> moves) {
   if (others)
     for (std::size_t j = 0; j < n; ++j)
       if (target[j] == kOther) move_via_loose(moves[j].handle.index, moves[j].shape);
+  settle();
+}
+
+void GridVerlet::settle() {
   rebuild(fixed_dirty_);
   if (!cache_built_) build_fixed_cache();
 }
 
-void FastGrid::maybe_rebuild() {
+void GridVerlet::maybe_rebuild() {
   if (loose_.size() + held_.size() > std::max(kMinLoose, live_ / 8)) {
     // The pair cache waits for the next bulk update: while objects stream
     // in, every threshold rebuild would otherwise recompute it.
@@ -538,7 +410,7 @@ void FastGrid::maybe_rebuild() {
   }
 }
 
-void FastGrid::rebuild(bool fixed_too) {
+void GridVerlet::rebuild(bool fixed_too) {
   auto take_loose = [&](Motion m, std::vector<Entry>& items, std::vector<std::uint32_t>& src) {
     for (std::size_t k = 0; k < loose_.size(); ++k) {
       const std::uint32_t s = loose_[k];
@@ -570,7 +442,9 @@ void FastGrid::rebuild(bool fixed_too) {
     take_loose(Motion::fixed, items, src);
     std::vector<LineShape> old_shapes;
     old_shapes.swap(fixed_.shapes);
-    build_grid(fixed_, items, src, old_shapes);
+    build_grid(fixed_, items, kCellsPerObject, [&](std::size_t i, std::uint32_t k) {
+      fixed_.shapes[k] = shape_from(src[i], old_shapes);
+    });
     point_slots(fixed_, Home::fixed_grid);
     fixed_count_ = fixed_.entries.size();
     fixed_pairs_.clear();
@@ -645,7 +519,22 @@ void FastGrid::rebuild(bool fixed_too) {
   }
   scratch_shapes_.swap(moving_.shapes);
   scratch_movers_.swap(movers_);
-  build_grid(moving_, items, src, scratch_shapes_);
+  movers_.resize(items.size());
+  build_grid(moving_, items, kMovingCellsPerObject, [&](std::size_t i, std::uint32_t k) {
+    const std::uint32_t from = src[i];
+    moving_.shapes[k] = shape_from(from, scratch_shapes_);
+    if ((from & kFromLoose) != 0) {
+      const std::uint32_t l = from & ~kFromLoose;
+      Mover& mv = movers_[k];
+      mv = Mover{};
+      mv.cur = loose_bounds_[l];
+      mv.speed = loose_speed_[l];
+      mv.guessed = !(mv.speed > 0);
+      mv.fat = items[i].box();
+    } else {
+      movers_[k] = scratch_movers_[from];
+    }
+  });
   point_slots(moving_, Home::moving_grid);
   moving_count_ = moving_.entries.size();
   count_slow_movers();
@@ -666,7 +555,7 @@ void FastGrid::rebuild(bool fixed_too) {
   release_if_oversized(held_);
 }
 
-void FastGrid::count_slow_movers() {
+void GridVerlet::count_slow_movers() {
   const std::size_t m = moving_.entries.size();
   const std::size_t levels = moving_.levels.size();
   const unsigned parts = chunks_for(m);
@@ -684,7 +573,7 @@ void FastGrid::count_slow_movers() {
     for (std::size_t l = 0; l < levels; ++l) slow_per_level_[l] += share_stats_[k].count[l];
 }
 
-void FastGrid::point_slots(const Grid& g, Home home) {
+void GridVerlet::point_slots(const Grid& g, Home home) {
   // Every slot is named by one entry: the shares write distinct records.
   const std::size_t n = g.entries.size();
   const unsigned parts = chunks_for(n);
@@ -697,32 +586,16 @@ void FastGrid::point_slots(const Grid& g, Home home) {
   });
 }
 
-inline void FastGrid::place(Grid& g, const std::vector<Entry>& items,
-                            const std::vector<std::uint32_t>& src,
-                            const std::vector<LineShape>& old_shapes, std::size_t i,
-                            std::uint32_t k) {
-  g.entries[k] = items[i];
-  const std::uint32_t from = src[i];
-  const bool loose = (from & kFromLoose) != 0;
-  g.shapes[k] =
-      loose ? loose_shapes_[from & ~kFromLoose] : static_cast<const Shape&>(old_shapes[from]);
-  if (&g != &moving_) return;
-  if (loose) {
-    Mover& mv = movers_[k];
-    mv = Mover{};
-    mv.cur = loose_bounds_[from & ~kFromLoose];
-    mv.speed = loose_speed_[from & ~kFromLoose];
-    mv.guessed = !(mv.speed > 0);
-    mv.fat = items[i].box();
-  } else {
-    movers_[k] = scratch_movers_[from];
-  }
+inline const Shape& GridVerlet::shape_from(std::uint32_t src,
+                                           const std::vector<LineShape>& old_shapes) const {
+  return (src & kFromLoose) != 0 ? loose_shapes_[src & ~kFromLoose]
+                                 : static_cast<const Shape&>(old_shapes[src]);
 }
 
-void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<std::uint32_t>& src,
-                          std::vector<LineShape>& old_shapes) {
+template <class Place>
+void GridVerlet::build_grid(Grid& g, const std::vector<Entry>& items, double cells_per_object,
+                            Place&& place) {
   const std::size_t n = items.size();
-  const bool moving = &g == &moving_;
   g.levels.clear();
   g.cell_start.clear();
   // Exact capacities when a grid grows (reserve, unlike resize, does not
@@ -733,7 +606,6 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
   g.shapes.resize(n);
   if (n == 0) {
     g.cell_start.push_back(0);
-    if (moving) movers_.clear();
     return;
   }
   // The passes over the items are split over the threads, in chunks, each
@@ -841,8 +713,7 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
       // One cell side for all axes: the reach times the factor, grown until
       // the cells number at most kCellsPerObject per object.
       double cell = reach[k] * cell_factor_;
-      const double budget =
-          std::max(1.0, (moving ? kMovingCellsPerObject : kCellsPerObject) * count[k]);
+      const double budget = std::max(1.0, cells_per_object * count[k]);
       auto cells_for = [&](double c) {
         double total = 1;
         for (int a = 0; a < 3; ++a) total *= std::floor(span[a] / c) + 1;
@@ -886,19 +757,20 @@ void FastGrid::build_grid(Grid& g, std::vector<Entry>& items, const std::vector<
     share_stats_[k].first_cell = static_cast<std::uint32_t>(
         std::lower_bound(starts, g.cell_start.end(), slice(n, k, t).begin) - starts);
   share_stats_[0].first_cell = 0;
-  if (moving) movers_.resize(n);
   run_shares(t, [&](unsigned share) {
     const std::uint32_t c_lo = share_stats_[share].first_cell;
     const std::uint32_t c_hi = share + 1 < t ? share_stats_[share + 1].first_cell : cells;
     for (std::size_t i = 0; i < n; ++i) {
       if (tag[i] < c_lo || tag[i] >= c_hi) continue;
-      place(g, items, src, old_shapes, i, g.cell_start[tag[i] + 1]++);
+      const std::uint32_t k = g.cell_start[tag[i] + 1]++;
+      g.entries[k] = items[i];
+      place(i, k);
     }
   });
   g.cell_start.pop_back();
 }
 
-AabbF FastGrid::fat_box(const AabbF& cur, float speed, bool& fast) const {
+AabbF GridVerlet::fat_box(const AabbF& cur, float speed, bool& fast) const {
   // A margin that covers several frames of the last displacement, within
   // the limits above.
   const double finest_cell =
@@ -925,7 +797,7 @@ AabbF FastGrid::fat_box(const AabbF& cur, float speed, bool& fast) const {
   return g;
 }
 
-void FastGrid::make_room_for_renewals(const ListTotals& totals) {
+void GridVerlet::make_room_for_renewals(const ListTotals& totals) {
   // Renewed lists are appended to the pools. When the lists about to be
   // renewed (estimated by their present lengths) would not fit, the lists
   // that stay are moved to the front of each pool, in pool order, in place:
@@ -965,7 +837,7 @@ void FastGrid::make_room_for_renewals(const ListTotals& totals) {
           totals.near_renewing);
 }
 
-void FastGrid::build_candidate_lists(const ListTotals& totals) {
+void GridVerlet::build_candidate_lists(const ListTotals& totals) {
   const std::size_t m = moving_.entries.size();
   const unsigned chunks = chunks_for(m);
   // Each chunk renews the lists of a contiguous range of the moving entries
@@ -1036,8 +908,9 @@ void FastGrid::build_candidate_lists(const ListTotals& totals) {
   trim(near_pool_, near_capacity);
 }
 
-void FastGrid::build_lists(std::size_t begin, std::size_t end, std::vector<Candidate>& part,
-                           std::vector<std::uint32_t>& near, std::vector<std::uint32_t>& renewed) {
+void GridVerlet::build_lists(std::size_t begin, std::size_t end, std::vector<Candidate>& part,
+                             std::vector<std::uint32_t>& near,
+                             std::vector<std::uint32_t>& renewed) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   for (std::size_t i = begin; i < end; ++i) {
     const Entry& e = moving_.entries[i];
@@ -1071,7 +944,7 @@ void FastGrid::build_lists(std::size_t begin, std::size_t end, std::vector<Candi
   }
 }
 
-void FastGrid::build_fixed_cache() {
+void GridVerlet::build_fixed_cache() {
   fixed_pairs_.clear();
   std::uint64_t tests = 0;
   auto emit = [this](Handle a, Handle b) {
@@ -1083,7 +956,7 @@ void FastGrid::build_fixed_cache() {
   cache_built_ = true;
 }
 
-QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
+QueryCost GridVerlet::find_pairs(std::vector<HandlePair>& out) const {
   QueryCost cost;
   auto emit_out = [&out](Handle a, Handle b) {
     out.push_back({a, b});
@@ -1150,7 +1023,7 @@ QueryCost FastGrid::find_pairs(std::vector<HandlePair>& out) const {
   return cost;
 }
 
-std::size_t FastGrid::memory_bytes() const {
+std::size_t GridVerlet::memory_bytes() const {
   std::size_t bytes = loose_shapes_.capacity() * sizeof(Shape) + user_.capacity() * 8 +
                       slots_.capacity() * sizeof(Slot) + loose_.capacity() * 4 +
                       loose_bounds_.capacity() * sizeof(AabbF) + loose_speed_.capacity() * 4 +
@@ -1170,8 +1043,8 @@ std::size_t FastGrid::memory_bytes() const {
   return bytes;
 }
 
-void FastGrid::validate() const {
-  auto fail = [](const std::string& what) { throw std::logic_error("fast-grid: " + what); };
+void GridVerlet::validate() const {
+  auto fail = [](const std::string& what) { throw std::logic_error("grid-verlet: " + what); };
   const std::size_t slots = slots_.size();
   if (user_.size() != slots) fail("slot arrays differ in length");
   std::size_t alive = 0, free = 0, held = 0;

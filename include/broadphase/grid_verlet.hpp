@@ -1,0 +1,602 @@
+/// \file grid_verlet.hpp
+/// `grid-verlet` (formerly `fast-grid`, still accepted): the default
+/// structure, tuned for frames in which a fifth of the objects move. A
+/// hierarchy of cell grids rebuilt in bulk by counting sort, with fixed and
+/// moving objects kept apart, the pairs among fixed objects cached, and for
+/// each mover a Verlet list: the objects near a box grown by a margin, valid
+/// until the mover leaves that box. A frame of the study retests only what
+/// moved, from those lists.
+///
+/// Parts: the grids are detail::LevelGrid (detail/level_grid.hpp), the
+/// movers' records and list entries detail::VerletMover and
+/// detail::VerletCandidate (detail/verlet_lists.hpp), the threads a
+/// detail::WorkerPool (detail/worker_pool.hpp).
+///
+/// Layout. Objects live in slot-indexed arrays (shape, user data,
+/// generation, where the object is). Each of the two grids (fixed objects,
+/// moving objects) is a flat array of 32-byte entries (float bounds rounded
+/// outwards, slot and generation) in cell order, with one cell index per
+/// level and a copy of each entry's shape in the same order. An object goes
+/// into exactly one cell of one level: the level whose reach (halved per
+/// level from the largest extent) covers its widest extent, the cell of its
+/// lower corner. Cells along x are contiguous, so a query box visits on each
+/// level one contiguous run of entries per (y, z) row of cells, without any
+/// search; every object is met at most once and every pair is reported once
+/// by construction.
+///
+/// Mutations. A bulk `update(span)` rebuilds the moving grid (one counting
+/// sort) and, when the fixed set changed, the fixed grid and its pair cache.
+/// A single insert or update puts the object on a short unsorted "loose"
+/// list that every query and frame scans; a removal takes the object out at
+/// once (loose objects leave their list, grid entries get NaN bounds, which
+/// no test passes, and their slot is held back until the next rebuild so
+/// that no stale grid entry can name a new object). When the loose and
+/// held-back objects exceed max(64, size/8), the mutation that crossed the
+/// line rebuilds the grids (not the pair cache, which the next bulk update
+/// builds; until then pair finding scans the fixed grid): amortised
+/// O(log n) per insert, and no work is ever left for the next query.
+///
+/// Frames. Each moving object keeps a list of the fixed objects near a
+/// "fat" box around it (its bounds grown by about 12 frames of its last
+/// displacement), with copies of their spheres, and a list of the moving
+/// objects whose fat boxes meet its own. While its bounds stay inside the
+/// fat box a frame tests these two lists and nothing else; the bulk update
+/// renews the lists of the objects that left theirs. An object too fast
+/// for a useful margin keeps no moving list and probes the moving grid
+/// every frame instead.
+///
+/// Threads. `find_pairs` and the bulk update split the moving objects over
+/// `threads` threads (option `threads=N`, default 1, 0 = hardware
+/// concurrency) of a pool kept by the structure, in chunks taken by
+/// whichever thread is free; each chunk writes its own buffers and the
+/// buffers are joined in chunk order, so the results, the pair order and
+/// the hash never depend on the thread count. Between the parts of a call
+/// the workers poll for up to 0.5 ms before they sleep (waking a sleeping
+/// thread costs more than that part of a frame), so after each call the
+/// workers keep their cores busy for up to that long; a call never waits
+/// for a worker that is still waking up (the caller takes its work).
+#pragma once
+
+#include <algorithm>
+#include <broadphase/config_error.hpp>
+#include <broadphase/detail/level_grid.hpp>
+#include <broadphase/detail/verlet_lists.hpp>
+#include <broadphase/structure.hpp>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <utility>
+#include <vector>
+
+namespace broadphase {
+
+namespace detail {
+class WorkerPool;
+}  // namespace detail
+
+/// The options of GridVerlet (`grid-verlet:threads=N,cell=F,grain=N`).
+struct GridVerletOptions {
+  /// The most threads: a chunk's mark holds its chunk in 10 bits, which
+  /// more than 128 threads would overflow.
+  static constexpr unsigned kMaxThreads = 64;
+  /// Threads the bulk update and find_pairs split their work over, with the
+  /// same results and pair order for every count, in [0, 64]; 0: the
+  /// hardware concurrency (at most 64). Default 1.
+  unsigned threads = 1;
+  /// A cell's side over its level's reach, in [0.5, 64] (larger: fewer cells
+  /// to visit, more entries per cell). Default 1.
+  double cell = 1;
+  /// Moving objects per thread below which the work stays on fewer threads,
+  /// in [1, 2^24]. Default 2048 (1: every thread takes part from two movers
+  /// on, which tests use to run the threaded paths on small scenes).
+  std::size_t grain = 2048;
+  /// Throws InvalidConfig for a value out of range (NaN, infinite and
+  /// subnormal values are out of range).
+  void check() const;
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static GridVerletOptions from(const Config& c);
+};
+
+/// Hierarchical cell grid with a fixed/moving split and cached fixed pairs.
+/// insert, remove, update: amortised O(log n) (O(1) unless a rebuild is
+/// due); bulk update of m objects: O(m) plus a rebuild of the fixed grid,
+/// O(f + pairs), only when the fixed set changed. Handles stay valid until
+/// their object is removed. Const members may run concurrently; mutations
+/// need exclusive access.
+class GridVerlet {
+ public:
+  using Options = GridVerletOptions;
+  /// Reads the deprecated Config::options map into GridVerletOptions.
+  /// Throws InvalidConfig.
+  explicit GridVerlet(const Config& c = {})
+      : GridVerlet(without_options(c), GridVerletOptions::from(c)) {}
+  /// Throws InvalidConfig for a bad `c` (check_config) or `o` (GridVerletOptions::check).
+  GridVerlet(const Config& c, const GridVerletOptions& o);
+  ~GridVerlet();
+
+  /// Adds an object (to the loose list). Throws InvalidShape.
+  Handle insert(const Shape& s, std::uint64_t user, Motion m = Motion::dynamic);
+  /// Removes an object; its handle becomes stale. Throws InvalidHandle.
+  void remove(Handle h);
+  /// Moves one object (to the loose list). Throws InvalidHandle, InvalidShape.
+  /// A fixed object that is updated is treated as moving from then on.
+  void update(Handle h, const Shape& s);
+  /// Moves many objects and rebuilds the moving grid once. Throws like
+  /// update(h, s), before changing anything when a handle or shape is bad.
+  void update(std::span<const Move> moves);
+  /// Puts every object inserted or updated one at a time (the loose list)
+  /// into the grids and, when the fixed objects changed, rebuilds the fixed
+  /// grid and the cache of pairs among fixed objects: the step that ends
+  /// every bulk update. Call it once after inserting a scene, before the
+  /// first frame, so that the first find_pairs reads the cache instead of
+  /// scanning the fixed grid (an empty bulk update does the same).
+  /// O(n + fixed pairs) when the fixed set changed, else O(moving + loose).
+  void settle();
+
+  /// Visits every object whose shape overlaps `q` exactly.
+  template <class V>
+  QueryCost query(const Shape& q, V&& visitor) const;
+  /// Visits every overlapping pair once, in a deterministic order.
+  template <class V>
+  QueryCost for_each_pair(V&& visitor) const;
+  /// Appends every overlapping pair once to `out`, using the configured
+  /// threads; the order equals for_each_pair's whatever the thread count.
+  QueryCost find_pairs(std::vector<HandlePair>& out) const;
+
+  /// The number of live objects. O(1).
+  std::size_t size() const { return live_; }
+  /// Bytes held: the capacity of every container, pair buffers included.
+  std::size_t memory_bytes() const;
+  /// True when `h` names a live object of this structure. O(1).
+  bool contains(Handle h) const {
+    return h.index < slots_.size() && slots_[h.index].gen == h.generation &&
+           (h.generation & 1u) != 0;
+  }
+  /// The object's shape. Throws InvalidHandle. The reference lives until
+  /// the next mutation.
+  const Shape& shape(Handle h) const { return shape_of(index_of(h)); }
+  /// The user data given at insertion. Throws InvalidHandle.
+  std::uint64_t user_data(Handle h) const { return user_[index_of(h)]; }
+  /// The number of threads find_pairs and the bulk update use.
+  unsigned threads() const { return threads_; }
+  /// Checks slots, lists, grid order and the pair cache; throws std::logic_error.
+  void validate() const;
+
+ private:
+  /// Where a slot's object is: which list or grid holds its live entry.
+  enum class Home : std::uint8_t { free, held, fixed_grid, moving_grid, loose };
+  using Entry = detail::GridEntry;
+  using Level = detail::GridLevel;
+  using LineShape = detail::LineShape;
+  using Grid = detail::LevelGrid;
+  using Mover = detail::VerletMover;
+  using Candidate = detail::VerletCandidate;
+
+  // Candidate pools larger than this are taken to be out of cache (a
+  // typical second-level cache), and so many candidates of a list at most
+  // are prefetched ahead of the pair pass.
+  static constexpr std::size_t kCachedListBytes = std::size_t{2} << 20;
+  static constexpr std::uint32_t kPrefetchCandidates = 128;
+  static constexpr double kNoMinX = Grid::kNoMinX;
+  static constexpr std::uint32_t kFromLoose = 0x80000000u;
+
+  std::uint32_t index_of(Handle h) const {
+    if (!contains(h)) throw InvalidHandle(h);
+    return h.index;
+  }
+  Handle handle_of(std::uint32_t s) const { return {s, slots_[s].gen}; }
+  /// The shape of a live object: each is held once, by its grid or list.
+  const Shape& shape_of(std::uint32_t s) const {
+    switch (slots_[s].home) {
+      case Home::fixed_grid:
+        return fixed_.shapes[slots_[s].pos];
+      case Home::moving_grid:
+        return moving_.shapes[slots_[s].pos];
+      default:
+        return loose_shapes_[slots_[s].pos];
+    }
+  }
+  std::uint32_t allocate_slot();
+  void free_slot(std::uint32_t s);
+  void add_loose(std::uint32_t s, const Shape& shape);
+  void drop_loose(std::uint32_t s);
+  void leave_grid(std::uint32_t s);
+  /// A mover (moving-grid entry k) to its new shape, in a bulk update.
+  void move_mover(std::uint32_t k, const Shape& shape);
+  /// Any object (slot i) to its new shape by the loose list: a grid object
+  /// leaves its grid; the object is moving from now on.
+  void move_via_loose(std::uint32_t i, const Shape& shape);
+  void maybe_rebuild();
+  void rebuild(bool fixed_too);
+  /// List lengths of the movers whose lists stay and of those whose lists
+  /// are renewed (by their present lengths), fixed and near.
+  struct ListTotals {
+    std::size_t kept = 0, renewing = 0, near_kept = 0, near_renewing = 0;
+  };
+  void build_candidate_lists(const ListTotals& totals);
+  /// Before renewals: when the lists about to be renewed would not fit in
+  /// a pool, moves the lists that stay to its front, in place.
+  void make_room_for_renewals(const ListTotals& totals);
+  void build_lists(std::size_t begin, std::size_t end, std::vector<Candidate>& part,
+                   std::vector<std::uint32_t>& near, std::vector<std::uint32_t>& renewed);
+  /// The box a mover's lists cover: its bounds grown by a margin.
+  AabbF fat_box(const AabbF& cur, float speed, bool& fast) const;
+  /// Fills `g` with `items` in cell order, at most `cells_per_object` cells
+  /// per object on each level, and calls place(i, k) for every item i put at
+  /// entry k (the caller copies what else goes with it: its shape, and in
+  /// the moving grid its mover record). Returns nothing else: the levels and
+  /// cell starts are g's.
+  template <class Place>
+  void build_grid(Grid& g, const std::vector<Entry>& items, double cells_per_object, Place&& place);
+  /// The shape an item of a rebuild came from: `src` is an index into
+  /// `old_shapes` (the grid's shapes before the build), or kFromLoose | an
+  /// index into loose_shapes_.
+  const Shape& shape_from(std::uint32_t src, const std::vector<LineShape>& old_shapes) const;
+  /// Counts, per level of the moving grid, the movers that are not fast.
+  void count_slow_movers();
+  /// Points the slots of a grid's entries at them.
+  void point_slots(const Grid& g, Home home);
+  void build_fixed_cache();
+  /// Runs job(k) once for every k in [0, shares) (a share, or a chunk of
+  /// the work), each taken by whichever of the caller and the pool's
+  /// workers is free; without workers, in order on the caller. The work of
+  /// a share depends on k alone, so results merged in share order do not
+  /// depend on the thread count or on timing.
+  void run_shares(unsigned shares, const std::function<void(unsigned)>& job) const;
+  unsigned shares_for(std::size_t entries) const;
+  /// Chunks for a pass over that many entries: several per share, taken by
+  /// whichever thread is free, so that a thread slowed down (by the host,
+  /// on a virtual machine) leaves its part to the others.
+  unsigned chunks_for(std::size_t entries) const;
+
+  /// Exact test of two shapes, with the sphere–sphere case inline.
+  static bool exact(const Shape& a, const Shape& b) {
+    if (a.kind == ShapeKind::sphere && b.kind == ShapeKind::sphere)
+      return spheres_overlap(a.center, a.half.x, b.center, b.half.x);
+    return overlaps(a, b);
+  }
+
+  /// Pairs of moving-grid entries [begin, end) with their fixed candidates
+  /// and their moving neighbours. emit(handle, handle) returns false to stop.
+  template <class E>
+  bool mover_pairs(std::size_t begin, std::size_t end, E& emit, std::uint64_t& tests) const;
+  /// Pairs among entries [begin, end) of one grid and later ones (each
+  /// pair once).
+  template <class E>
+  bool grid_pairs(const Grid& g, std::size_t begin, std::size_t end, E& emit,
+                  std::uint64_t& tests) const;
+  /// The fixed pairs: the cache when it is built, else a scan of the grid.
+  template <class E>
+  bool fixed_pairs(E& emit, std::uint64_t& tests) const;
+  /// Pairs of loose objects with both grids and with later loose objects.
+  template <class E>
+  bool loose_pairs(E& emit, std::uint64_t& tests) const;
+  template <class E>
+  bool all_pairs(E& emit, std::uint64_t& tests) const;
+
+  Aabb world_;
+  unsigned threads_ = 1;
+  std::size_t grain_ = 1;   // option grain=N: moving objects per share at least
+  double cell_factor_ = 1;  // cell side over reach
+
+  std::vector<std::uint64_t> user_;  // for a free slot: the next free slot
+  /// What a handle leads to, in one record (a lookup is one cache line).
+  struct Slot {
+    std::uint32_t gen = 0;  // odd while alive
+    std::uint32_t pos = 0;  // a loose object's index in loose_, a grid object's entry
+    Home home = Home::free;
+    Motion motion = Motion::dynamic;
+  };
+  std::vector<Slot> slots_;
+  std::uint32_t free_head_ = Handle::kNullIndex;
+  std::size_t live_ = 0;
+
+  std::vector<std::uint32_t> loose_;  // loose slots
+  std::vector<AabbF> loose_bounds_;   // parallel to loose_
+  std::vector<Shape> loose_shapes_;   // parallel to loose_
+  std::vector<float> loose_speed_;    // parallel to loose_: last displacement, 0 if unknown
+  std::vector<std::uint32_t> held_;   // removed grid objects whose slots wait for a rebuild
+  bool fixed_dirty_ = false;          // the fixed set changed since the fixed grid was built
+  bool cache_built_ = true;           // fixed_pairs_ holds the pairs of the fixed grid
+  std::size_t fixed_count_ = 0;       // objects of the fixed grid still in it
+  std::size_t moving_count_ = 0;      // objects of the moving grid still in it
+
+  Grid fixed_;
+  Grid moving_;
+  // Overlapping pairs within the fixed grid, stored as the handles find_pairs
+  // reports: while no fixed object has left the grid since the cache was
+  // built, a frame appends the whole cache as one block copy.
+  std::vector<HandlePair> fixed_pairs_;
+  // Rebuild scratch, kept to avoid reallocation: the moving grid's input,
+  // where each item came from, the previous shapes and mover states.
+  std::vector<Entry> scratch_items_;
+  std::vector<std::uint32_t> scratch_src_;
+  std::vector<LineShape> scratch_shapes_;
+  std::vector<Mover> scratch_movers_;
+  std::vector<std::uint32_t> scratch_tag_;  // per item: its level, then its cell
+  std::vector<std::uint32_t> move_target_;  // per move in a bulk update: its mover
+  // A bulk update on threads: per slot, the mark (update and chunk)
+  // of the last chunk of moves that named it, to find a handle named twice.
+  std::vector<std::uint32_t> mark_;
+  std::uint32_t mark_round_ = 0;
+  struct ShareStats;  // one share's totals in a grid build
+  std::vector<ShareStats> share_stats_;
+
+  // Candidate lists of moving objects. A mover's fixed list holds the fixed
+  // objects whose bounds overlap its fat box; its near list holds the
+  // movers whose fat boxes overlapped its own when it was renewed. A pair
+  // of movers is tested from the list of the one renewed last (by the lower
+  // slot when both were renewed by the same rebuild): that list was made
+  // against the other's current fat box, so it holds the pair whenever the
+  // two objects can touch. A frame thus reads lists front to back and
+  // probes grids only for the movers that left their fat boxes. A list that
+  // stays valid stays where it is; renewed lists are appended, and when
+  // they would not fit in a pool's memory the lists that stay are first
+  // moved to its front in place (the pools never shrink, so a steady frame
+  // allocates nothing). Every list is renewed when the fixed grid is
+  // rebuilt.
+  std::vector<Mover> movers_;                           // parallel to moving_.entries
+  std::vector<Candidate> list_pool_;                    // fixed candidates
+  std::vector<std::uint32_t> near_pool_;                // moving neighbours (slots)
+  std::vector<std::vector<Candidate>> list_parts_;      // per share, its renewed lists
+  std::vector<std::vector<std::uint32_t>> near_parts_;  // per share, its renewed near lists
+  std::vector<std::vector<std::uint32_t>> renewed_;     // per share, the movers it renewed
+  std::uint32_t epoch_ = 1;                             // bumped at every fixed-grid rebuild
+  std::uint32_t stamp_ = 0;                             // bumped at every rebuild
+  std::vector<std::uint32_t> slow_per_level_;           // per moving-grid level: movers not fast
+
+  /// Per-share pair buffers of find_pairs, reused between frames.
+  mutable std::mutex buffers_mutex_;
+  mutable std::vector<std::vector<HandlePair>> buffers_;
+  std::unique_ptr<detail::WorkerPool> pool_;
+};
+
+// ---------------------------------------------------------------------------
+
+template <class V>
+QueryCost GridVerlet::query(const Shape& q, V&& visitor) const {
+  require_valid(q);
+  QueryCost cost;
+  const AabbF b = bounds_f(q);
+  auto test = [&](Handle h, const Shape& shape) {
+    ++cost.tests;
+    if (overlaps(q, shape) && !visit(visitor, h)) {
+      cost.stopped = true;
+      return false;
+    }
+    return true;
+  };
+  for (const Grid* g : {&fixed_, &moving_})
+    if (!g->scan(b, 0, kNoMinX,
+                 [&](std::uint32_t k) { return test(g->entries[k].handle(), g->shapes[k]); }))
+      return cost;
+  for (std::size_t i = 0; i < loose_.size(); ++i)
+    if (loose_bounds_[i].overlaps(b) && !test(handle_of(loose_[i]), loose_shapes_[i])) return cost;
+  return cost;
+}
+
+template <class E>
+bool GridVerlet::grid_pairs(const Grid& g, std::size_t begin, std::size_t end, E& emit,
+                            std::uint64_t& tests) const {
+  // Each pair is reported by the entry that comes first in the order
+  // (level, lower x, entry index): entries on higher levels are scanned in
+  // full, entries on the same level only from the lower x onwards.
+  std::size_t level = 0;
+  for (std::size_t i = begin; i < end; ++i) {
+    const Entry& me = g.entries[i];
+    while (level + 1 < g.levels.size() && i >= g.level_end(level)) ++level;
+    if (me.dead()) continue;
+    const Shape& sm = g.shapes[i];
+    const std::size_t level_end = g.level_end(level);
+    const float me_x = me.lo[0];
+    const bool go = g.scan(me.box(), level, me_x, [&](std::uint32_t j) {
+      const Entry& o = g.entries[j];
+      if (j < level_end && (o.lo[0] < me_x || (o.lo[0] == me_x && j <= i))) return true;
+      ++tests;
+      return !exact(sm, g.shapes[j]) || emit(me.handle(), o.handle());
+    });
+    if (!go) return false;
+  }
+  return true;
+}
+
+template <class E>
+bool GridVerlet::mover_pairs(std::size_t begin, std::size_t end, E& emit,
+                             std::uint64_t& tests) const {
+  // While no fixed object has left the grid since it was built, every
+  // candidate is live and fixed lists are read alone.
+  const bool all_live = fixed_count_ == fixed_.entries.size();
+  const bool far = list_pool_.size() * sizeof(Candidate) > kCachedListBytes;
+  std::size_t level = 0;
+  for (std::size_t i = begin; i < end; ++i) {
+    const Entry& me = moving_.entries[i];
+    if (me.dead()) continue;
+    const Shape& sm = moving_.shapes[i];
+    const Mover& mv = movers_[i];
+    // Prefetch ahead: the lists of the movers a few entries on (lists
+    // renewed since the last compaction lie elsewhere in the pool), then
+    // the slots their near lists name, then those neighbours' records.
+    if (i + 8 < end) {
+      // Lists far out of cache are prefetched whole, line by line: a list
+      // is read in one go, and its lines then arrive together rather than
+      // one miss after another. Lists that fit in cache only get their
+      // first lines (prefetching every line costs more than it saves).
+      // Only lines of the list itself: an address past a list (or into an
+      // empty pool, whose data() may be null) is not computed.
+      const Mover& ahead = movers_[i + 8];
+      const std::uint32_t count =
+          std::min<std::uint32_t>(ahead.list_count, far ? kPrefetchCandidates : 2);
+      if (count > 0) {
+        const char* l = reinterpret_cast<const char*>(list_pool_.data() + ahead.list_begin);
+        for (const char* l_end = l + count * sizeof(Candidate); l < l_end; l += 64)
+          detail::prefetch(l);
+      }
+      if (ahead.near_count > 0) detail::prefetch(near_pool_.data() + ahead.near_begin);
+    }
+    if (i + 4 < end) {
+      const Mover& ahead = movers_[i + 4];
+      const std::uint32_t* n = near_pool_.data() + ahead.near_begin;
+      for (std::uint32_t k = 0; k < ahead.near_count; ++k) detail::prefetch(&slots_[n[k]]);
+    }
+    if (i + 2 < end) {
+      const Mover& ahead = movers_[i + 2];
+      const std::uint32_t* n = near_pool_.data() + ahead.near_begin;
+      for (std::uint32_t k = 0; k < ahead.near_count; ++k) {
+        const std::uint32_t p = slots_[n[k]].pos;
+        if (p < movers_.size()) {
+          // The fields read (an 80-byte record often spans two lines;
+          // prefetching the shape's second line too cost more than it
+          // saved), and the shape.
+          detail::prefetch(&movers_[p].stamp);
+          detail::prefetch(&moving_.shapes[p].center);
+        }
+      }
+    }
+    const Handle hm = me.handle();
+    const Candidate* c = list_pool_.data() + mv.list_begin;
+    const Candidate* c_end = c + mv.list_count;
+    tests += mv.list_count;
+    if (all_live && sm.kind == ShapeKind::sphere) {
+      const Vec3 p = sm.center;
+      const double r = sm.half.x;
+      // Hits are gathered without a branch on the outcome (about half the
+      // candidates hit in crowded scenes, which a branch mispredicts), then
+      // reported in order.
+      constexpr std::ptrdiff_t kBatch = 64;
+      Handle hits[kBatch];
+      while (c != c_end) {
+        const Candidate* stop = c + std::min(kBatch, c_end - c);
+        std::size_t n = 0;
+        for (; c != stop; ++c) {
+          hits[n] = c->handle;
+          if (c->r == c->r)
+            n += spheres_overlap(p, r, {c->c[0], c->c[1], c->c[2]}, c->r);
+          else
+            n += overlaps(sm, fixed_.shapes[slots_[c->handle.index].pos]);
+        }
+        for (std::size_t k = 0; k < n; ++k)
+          if (!emit(hm, hits[k])) return false;
+      }
+    } else {
+      for (; c != c_end; ++c) {
+        // A fixed object that left has another home (its slot is held back).
+        if (slots_[c->handle.index].home != Home::fixed_grid) continue;
+        if (exact(sm, fixed_.shapes[slots_[c->handle.index].pos]) && !emit(hm, c->handle))
+          return false;
+      }
+    }
+    if (mv.fast) {
+      // Pairs with slow movers are this one's to report; of two fast ones,
+      // the one first in the order (level, lower x, entry) reports, as in
+      // grid_pairs. Levels below its own and the part of its level before
+      // it are probed only when they hold slow movers.
+      while (level + 1 < moving_.levels.size() && i >= moving_.level_end(level)) ++level;
+      const std::size_t own_end = moving_.level_end(level);
+      const float me_x = me.lo[0];
+      auto test = [&](std::uint32_t k) {
+        if (k == i) return true;
+        const Entry& o = moving_.entries[k];
+        if (movers_[k].fast &&
+            (k < own_end && (k < moving_.cell_start[moving_.levels[level].first_cell] ||
+                             o.lo[0] < me_x || (o.lo[0] == me_x && k < i))))
+          return true;
+        ++tests;
+        return !exact(sm, moving_.shapes[k]) || emit(hm, o.handle());
+      };
+      bool go = true;
+      for (std::size_t l = 0; go && l < level; ++l)
+        if (slow_per_level_[l] > 0) go = moving_.scan_level(mv.cur, l, kNoMinX, test);
+      if (go)
+        go = moving_.scan_level(mv.cur, level, slow_per_level_[level] > 0 ? kNoMinX : me_x, test);
+      for (std::size_t l = level + 1; go && l < moving_.levels.size(); ++l)
+        go = moving_.scan_level(mv.cur, l, kNoMinX, test);
+      if (!go) return false;
+      continue;
+    }
+    const std::uint32_t* n = near_pool_.data() + mv.near_begin;
+    const std::uint32_t* n_end = n + mv.near_count;
+    for (; n != n_end; ++n) {
+      const Slot& o = slots_[*n];
+      // A neighbour that left the moving grid is met elsewhere (loose
+      // list); one renewed later holds this pair in its own list. A slot
+      // reused by another object always carries a later stamp.
+      if (o.home != Home::moving_grid || movers_[o.pos].fast) continue;
+      const std::uint32_t os = movers_[o.pos].stamp;
+      if (os > mv.stamp || (os == mv.stamp && *n < me.slot)) continue;
+      ++tests;
+      if (exact(sm, moving_.shapes[o.pos]) && !emit(hm, Handle{*n, o.gen})) return false;
+    }
+  }
+  return true;
+}
+
+template <class E>
+bool GridVerlet::fixed_pairs(E& emit, std::uint64_t& tests) const {
+  if (!cache_built_) return grid_pairs(fixed_, 0, fixed_.entries.size(), emit, tests);
+  for (const HandlePair& p : fixed_pairs_)
+    if (slots_[p.a.index].home == Home::fixed_grid && slots_[p.b.index].home == Home::fixed_grid &&
+        !emit(p.a, p.b))
+      return false;
+  return true;
+}
+
+template <class E>
+bool GridVerlet::loose_pairs(E& emit, std::uint64_t& tests) const {
+  const std::size_t n = loose_.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t s = loose_[i];
+    const Shape& sh = loose_shapes_[i];
+    for (const Grid* g : {&fixed_, &moving_}) {
+      if (!g->scan(loose_bounds_[i], 0, kNoMinX, [&](std::uint32_t k) {
+            ++tests;
+            return !overlaps(sh, g->shapes[k]) || emit(handle_of(s), g->entries[k].handle());
+          }))
+        return false;
+    }
+  }
+  // Loose against loose: a sweep along x (the loose list can hold an eighth
+  // of the objects, so testing every two of them would be quadratic).
+  if (n < 2) return true;
+  std::vector<std::uint32_t> order(n);
+  for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<std::uint32_t>(i);
+  std::sort(order.begin(), order.end(), [this](std::uint32_t a, std::uint32_t b) {
+    const float xa = loose_bounds_[a].lo[0], xb = loose_bounds_[b].lo[0];
+    return xa < xb || (xa == xb && a < b);
+  });
+  for (std::size_t a = 0; a < n; ++a) {
+    const std::uint32_t i = order[a];
+    const AabbF& q = loose_bounds_[i];
+    for (std::size_t b = a + 1; b < n && loose_bounds_[order[b]].lo[0] <= q.hi[0]; ++b) {
+      const std::uint32_t j = order[b];
+      if (!loose_bounds_[j].overlaps(q)) continue;
+      ++tests;
+      if (overlaps(loose_shapes_[i], loose_shapes_[j]) &&
+          !emit(handle_of(loose_[i]), handle_of(loose_[j])))
+        return false;
+    }
+  }
+  return true;
+}
+
+template <class E>
+bool GridVerlet::all_pairs(E& emit, std::uint64_t& tests) const {
+  const std::size_t m = moving_.entries.size();
+  return fixed_pairs(emit, tests) && mover_pairs(0, m, emit, tests) && loose_pairs(emit, tests);
+}
+
+template <class V>
+QueryCost GridVerlet::for_each_pair(V&& visitor) const {
+  QueryCost cost;
+  auto emit = [&](Handle a, Handle b) { return visit(visitor, a, b); };
+  cost.stopped = !all_pairs(emit, cost.tests);
+  return cost;
+}
+
+}  // namespace broadphase
