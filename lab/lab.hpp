@@ -29,14 +29,8 @@ struct LabContext {
 /// run says so in its section; it never throws for a missing optional tool.
 using LabExperiment = std::function<std::string(const LabContext&)>;
 
-/// The experiments beyond the study's six tests, in report order. Each
-/// family adds its own in its own file.
-std::string lab_pictures(const LabContext& ctx);            // lab_pictures.cpp
-std::string lab_cell_size_sweep(const LabContext& ctx);     // lab_grids.cpp
-std::string lab_tree_experiments(const LabContext& ctx);    // lab_trees.cpp
-std::string lab_octree_experiments(const LabContext& ctx);  // lab_octrees.cpp
-std::string lab_tunneling(const LabContext& ctx);           // lab_sim.cpp
-std::string lab_performance(const LabContext& ctx);         // lab_fast.cpp
+/// The experiments beyond the study's six tests register themselves:
+/// experiment.hpp.
 
 /// The Python interpreter that has matplotlib: $BROADPHASE_PYTHON, else
 /// /usr/bin/python3 (where Debian's python3-matplotlib lives), else the

@@ -5,6 +5,8 @@
 #include <chrono>
 #include <numeric>
 
+#include "lab_data.hpp"
+
 namespace broadphase::app {
 
 namespace {
@@ -90,18 +92,21 @@ SceneResult measure_scene(const Registry& registry, const std::string& structure
   const std::size_t n = ps.n;
   const double L = ps.scene.world;
   const std::string placement = ps.even ? "even" : "uneven";
-  auto add_row = [&](const std::string& test, int study_test, const std::string& unit,
-                     std::vector<double> samples, const std::string& note = {}) {
+  // A row of one metric of lab/metrics.json, which gives its unit and the
+  // study's test number (an unlisted name throws: the list comes first).
+  auto add_row = [&](const std::string& test, std::vector<double> samples,
+                     const std::string& note = {}) {
+    const Metric& m = metric(test);
     Row r;
     r.structure = structure;
     r.peer = peer;
     r.test = test;
-    r.study_test = study_test;
+    r.study_test = m.study_test_for(placement);
     r.placement = placement;
     r.dist = std::string(to_string(ps.dist));
     r.n = n;
     r.world = L;
-    r.unit = unit;
+    r.unit = m.unit;
     r.stat = summarize(std::move(samples));
     r.note = note;
     out.rows.push_back(std::move(r));
@@ -123,7 +128,7 @@ SceneResult measure_scene(const Registry& registry, const std::string& structure
   auto t0 = Clock::now();
   Replay replay(*bp, ps.scene);
   out.costs.build = since(t0);
-  add_row("build_time", 0, "ns",
+  add_row("build_time",
           {replay.build_seconds() / static_cast<double>(std::max<std::size_t>(n, 1)) * 1e9});
 
   std::vector<std::uint32_t> moving;
@@ -182,10 +187,10 @@ SceneResult measure_scene(const Registry& registry, const std::string& structure
   }
   out.costs.frame = summarize(frame_wall).median;
   out.costs.pass = reps_done > 0 ? pass_wall / reps_done : 0;
-  add_row("frame_time", 0, "ms", frame_ms, out.note);
-  add_row("query_time", ps.even ? 2 : 1, "ns", query_ns, out.note);
-  add_row("query_tests", ps.even ? 4 : 3, "tests", query_tests, out.note);
-  add_row("memory", 0, "bytes", {static_cast<double>(bp->memory_bytes())});
+  add_row("frame_time", frame_ms, out.note);
+  add_row("query_time", query_ns, out.note);
+  add_row("query_tests", query_tests, out.note);
+  add_row("memory", {static_cast<double>(bp->memory_bytes())});
 
   if (o.churn && n > 0) {
     // Tests 5 and 6: remove a batch of k random objects, then insert the
@@ -229,8 +234,8 @@ SceneResult measure_scene(const Registry& registry, const std::string& structure
       remove_ns.push_back(summarize(removing).median * per);
     }
     out.costs.churn = batches_total > 0 ? batch_wall / batches_total : 0;
-    add_row("insert_time", 5, "ns", insert_ns, churn_note);
-    add_row("remove_time", 6, "ns", remove_ns, churn_note);
+    add_row("insert_time", insert_ns, churn_note);
+    add_row("remove_time", remove_ns, churn_note);
   }
   out.costs.total = since(t_cell);
   return out;

@@ -89,6 +89,39 @@ sys.exit(1 if errors else 0)
 PY
 check "CSV, JSON and REPORT.md agree" python3 "$tmp/consistent.py" "$out"
 
+# The lab as data: results.csv has exactly the columns of lab/metrics.json,
+# each row's metric, unit and study test are that file's, docs/lab.md shows
+# that file's tables, and every registered experiment wrote its section.
+src=$(cd "$(dirname "$0")/.." && pwd)
+cat >"$tmp/data.py" <<'PY'
+import csv, json, sys
+out, src = sys.argv[1], sys.argv[2]
+m = json.load(open(src + "/lab/metrics.json"))
+metrics = {x["name"]: x for x in m["metrics"]}
+errors = []
+with open(out + "/results.csv") as f:
+    header = next(csv.reader(f))
+if header != [c["name"] for c in m["columns"]]:
+    errors.append("results.csv columns %s are not lab/metrics.json's" % header)
+for r in csv.DictReader(open(out + "/results.csv")):
+    x = metrics.get(r["test"])
+    if x is None:
+        errors.append("metric %s not in lab/metrics.json" % r["test"]); break
+    if r["unit"] != x["unit"] or int(r["study_test"]) != x["study_test"].get(r["placement"], 0):
+        errors.append("row %s disagrees with lab/metrics.json" % r); break
+report = open(out + "/REPORT.md").read()
+for section in ("## Pictures of the workloads", "## Cell-size sweep", "## Trees, sweeps and caches",
+                "## Octrees and the k-d tree", "## Tunneling", "## Performance"):
+    if section not in report:
+        errors.append("REPORT.md lacks the experiment section %r" % section)
+if "lab/goals.json" not in report:
+    errors.append("the performance section does not name lab/goals.json")
+print("\n".join(errors))
+sys.exit(1 if errors else 0)
+PY
+check "results follow lab/metrics.json; experiments reported" python3 "$tmp/data.py" "$out" "$src"
+check "docs/lab.md shows lab/metrics.json's tables" python3 "$src/tools/lab_columns.py" --check "$src/docs/lab.md"
+
 # Figures, whenever a Python the CLI would pick has matplotlib (see plot_python()).
 . "$(dirname "$0")/support/have_matplotlib.sh"
 if have_matplotlib; then

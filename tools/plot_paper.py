@@ -209,22 +209,33 @@ def small_multiples(data, peers, out, name, title, ylabel, reference=None):
                              sharey=True, squeeze=False)
     cmap = plt.get_cmap("tab10")
     overall = None
+    wins_all = defaultdict(int)
     for ax, (panel, members) in zip(axes.flat, groups):
-        top_n = max(max(p[0] for p in data[s]) for s in members)
-        at_top = {s: min(p[1] for p in data[s] if p[0] == top_n)
-                  for s in members if any(p[0] == top_n for p in data[s])}
-        best = min(at_top, key=at_top.get) if at_top else None
+        # The fastest of a panel is the structure lowest at the most sizes:
+        # the lowest at the largest N alone could be one that ran there only
+        # because the faster ones were stopped short by the budget.
+        by_n = defaultdict(dict)
+        for s in members:
+            for p in data[s]:
+                by_n[p[0]][s] = p[1]
+        wins = defaultdict(int)
+        for n, vals in by_n.items():
+            if len(vals) >= 2:
+                wins[min(vals, key=vals.get)] += 1
+                wins_all[min(vals, key=vals.get)] += 0  # keep the key
+        best = max(wins, key=lambda s: (wins[s], -data[s][-1][1])) if wins else None
+        sizes = sum(1 for vals in by_n.values() if len(vals) >= 2)
         for i, s in enumerate(members):
             pts = data[s]
             thick = s == best
+            label = ("fastest: %s (lowest at %d of %d N)" % (s, wins[s], sizes)) if thick else s
             ax.plot([p[0] for p in pts], [p[1] for p in pts], color=cmap(i % 10),
                     linewidth=2.6 if thick else 1.0, marker="o", markersize=3 if thick else 2,
-                    label=("fastest: " + s) if thick else s, zorder=3 if thick else 2)
+                    label=label, zorder=3 if thick else 2)
         if best is not None:
-            ax.annotate("%.3g" % at_top[best], (top_n, at_top[best]), textcoords="offset points",
+            last = data[best][-1]
+            ax.annotate("%.3g" % last[1], (last[0], last[1]), textcoords="offset points",
                         xytext=(4, -3), fontsize=7, fontweight="bold")
-            if overall is None or (top_n, -at_top[best]) > (overall[0], -overall[1]):
-                overall = (top_n, at_top[best], best)
         if reference is not None:
             ax.axhline(reference, color="gray", linewidth=0.8)
         ax.set_title(panel, fontsize=9)
@@ -232,6 +243,14 @@ def small_multiples(data, peers, out, name, title, ylabel, reference=None):
         ax.set_yscale("log")
         ax.grid(True, which="major", alpha=0.3)
         ax.legend(fontsize=6, loc="upper left", frameon=False)
+    by_n = defaultdict(dict)
+    for s, pts in data.items():
+        for p in pts:
+            by_n[p[0]][s] = p[1]
+    for vals in by_n.values():
+        if len(vals) >= 2:
+            wins_all[min(vals, key=vals.get)] += 1
+    overall = max(wins_all, key=wins_all.get) if wins_all else None
     for ax in axes.flat[len(groups):]:
         ax.set_visible(False)
     for ax in axes[-1]:
@@ -239,7 +258,8 @@ def small_multiples(data, peers, out, name, title, ylabel, reference=None):
     for ax in axes[:, 0]:
         ax.set_ylabel(ylabel)
     if overall is not None:
-        title += "\nfastest at N = %s: %s (%.3g)" % (f"{overall[0]:,}", overall[2], overall[1])
+        title += "\nfastest of all: %s, lowest at %d of the %d sizes measured" % (
+            overall, wins_all[overall], sum(1 for v in by_n.values() if len(v) >= 2))
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     for ext in ("png", "svg"):

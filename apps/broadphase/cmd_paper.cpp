@@ -11,9 +11,11 @@
 #include <ctime>
 #include <filesystem>
 #include <map>
+#include <optional>
 
 #include "cli_checks.hpp"
 #include "commands.hpp"
+#include "experiment.hpp"
 #include "interrupt.hpp"
 #include "lab.hpp"
 #include "paper_measure.hpp"
@@ -113,7 +115,7 @@ std::vector<Selected> select_structures(const PaperOptions& o) {
       throw UsageError("--algos: unknown structure '" + name + "'; valid: " + reg.names());
     try {
       reg.make(spec);  // rejects bad options now rather than an hour into the run
-    } catch (const InvalidConfig& e) {
+    } catch (const UnknownStructure& e) {
       throw UsageError(std::string("--algos: ") + e.what());
     }
     if (std::none_of(out.begin(), out.end(), [&](const Selected& s) { return s.spec == spec; }))
@@ -266,25 +268,48 @@ struct Hook {
   std::string (*run)(const LabContext&);
 };
 
-void run_paper(const PaperOptions& o) {
+// What one run of the lab carries from step to step.
+struct Run {
+  explicit Run(const PaperOptions& options) : o(options) {}
+  const PaperOptions& o;
+  std::vector<Selected> structures;
+  std::vector<std::size_t> study_sizes, scaled_sizes;
+  fs::path out_dir;
+  ProgressBar bar;
+  Clock::time_point t_start = Clock::now();
+  PaperResults res;
+  double experiment_seconds = 0;  // each registered experiment's share of the budget
+  bool experiment_failed = false;
+  // The steps done, recorded in out_dir so that --resume can finish the run.
+  std::optional<PaperSteps> steps;
+  bool study_done = false;  // --resume: the study's tables were read back
+  double elapsed() const { return std::chrono::duration<double>(Clock::now() - t_start).count(); }
+};
+
+// Step 1: checks everything the user asked for before any work; chooses the
+// sizes, the output folder and the budgets; records the provenance.
+void prepare(Run& run) {
+  const PaperOptions& o = run.o;
   // Check everything the user asked for before any work.
   if (o.max_n_given && o.max_n < 50)
     throw UsageError("--max-n " + std::to_string(o.max_n) +
                      ": must be at least 50, the study's smallest size");
   if (o.budget < 0 || !std::isfinite(o.budget))
     throw UsageError("--budget: must be a positive number of seconds");
-  const std::vector<Selected> structures = select_structures(o);
-  std::vector<std::size_t> study_sizes =
-      o.quick ? std::vector<std::size_t>{50, 100, 200, 400, 800, 1600}
-              : std::vector<std::size_t>{50, 100, 200, 400, 800, 1600, 3200, 6400};
-  std::vector<std::size_t> scaled_sizes =
-      o.quick ? std::vector<std::size_t>{3200}
-              : std::vector<std::size_t>{25600, 102400, 409600, 1024000};
+  run.structures = select_structures(o);
+  const std::vector<Selected>& structures = run.structures;
+  std::vector<std::size_t>& study_sizes = run.study_sizes;
+  study_sizes = o.quick ? std::vector<std::size_t>{50, 100, 200, 400, 800, 1600}
+                        : std::vector<std::size_t>{50, 100, 200, 400, 800, 1600, 3200, 6400};
+  std::vector<std::size_t>& scaled_sizes = run.scaled_sizes;
+  scaled_sizes = o.quick ? std::vector<std::size_t>{3200}
+                         : std::vector<std::size_t>{25600, 102400, 409600, 1024000};
   if (o.max_n_given) {
     std::erase_if(study_sizes, [&](std::size_t n) { return n > o.max_n; });
     std::erase_if(scaled_sizes, [&](std::size_t n) { return n > o.max_n; });
   }
-  const fs::path out_dir = o.out.empty() ? fs::path("results") / today_and_host() : fs::path(o.out);
+  run.out_dir = o.out.empty() ? fs::path("results") / today_and_host() : fs::path(o.out);
+  const fs::path& out_dir = run.out_dir;
   std::error_code ec;
   fs::create_directories(out_dir, ec);
   if (ec || !fs::is_directory(out_dir))
@@ -292,19 +317,14 @@ void run_paper(const PaperOptions& o) {
                              (ec ? ": " + ec.message() : std::string(": not a directory")));
   // Checks that DIR can be written before any work, and records each step
   // done there, so that an interrupted run can be finished with --resume.
-  PaperSteps steps =
-      o.resume.empty() ? PaperSteps::start(out_dir, options_json(o)) : PaperSteps::resume(out_dir);
-  set_interrupt_note(
-      "broadphase paper: the run in " + out_dir.string() +
-      " is incomplete (see RUN-INCOMPLETE); finish it with: " + steps.resume_command());
+  run.steps.emplace(o.resume.empty() ? PaperSteps::start(out_dir, options_json(o))
+                                     : PaperSteps::resume(out_dir));
+  set_interrupt_note("broadphase paper: the run in " + out_dir.string() +
+                     " is incomplete (see RUN-INCOMPLETE); finish it with: " +
+                     run.steps->resume_command());
 
-  ProgressBar bar;
-  bar.set_plain_interval(o.quick ? 5 : 15);
-  const auto t_start = Clock::now();
-  auto elapsed = [&] { return std::chrono::duration<double>(Clock::now() - t_start).count(); };
-
-  PaperResults res;
-  RunInfo& info = res.info;
+  run.bar.set_plain_interval(o.quick ? 5 : 15);
+  RunInfo& info = run.res.info;
   fill_provenance(info);
   info.quick = o.quick;
   info.seed = o.seed;
@@ -323,7 +343,22 @@ void run_paper(const PaperOptions& o) {
     info.peers.push_back(s.peer);
   }
   for (const StructureInfo& e : registry().entries()) info.registered.push_back(e.name);
+  run.experiment_seconds = (info.budget_seconds - info.study_budget_seconds) /
+                           static_cast<double>(std::max<std::size_t>(experiments().size(), 1));
+}
 
+// Step 2: the study's six tests, memory and the frame time on every
+// structure at every size, skipping what does not fit the budget; compares
+// what the structures report.
+void run_study(Run& run) {
+  const PaperOptions& o = run.o;
+  const std::vector<Selected>& structures = run.structures;
+  const std::vector<std::size_t>& study_sizes = run.study_sizes;
+  const std::vector<std::size_t>& scaled_sizes = run.scaled_sizes;
+  ProgressBar& bar = run.bar;
+  PaperResults& res = run.res;
+  RunInfo& info = res.info;
+  auto elapsed = [&run] { return run.elapsed(); };
   MeasureOptions mo;
   mo.seed = o.seed;
   mo.min_rep_seconds = o.quick ? 5e-4 : 4e-3;
@@ -331,15 +366,6 @@ void run_paper(const PaperOptions& o) {
   info.min_rep_seconds = mo.min_rep_seconds;
   auto reps_at = [&](std::size_t n) { return o.quick ? 3 : (n > 102400 ? 3 : 5); };
   info.reps_rule = o.quick ? "3 per measurement" : "5 per measurement up to N = 102 400, 3 above";
-
-  const Hook hooks[] = {{"pictures", lab_pictures},
-                        {"cell-size sweep", lab_cell_size_sweep},
-                        {"tree experiments", lab_tree_experiments},
-                        {"octree experiments", lab_octree_experiments},
-                        {"tunneling", lab_tunneling},
-                        {"performance", lab_performance}};
-  constexpr std::size_t kHooks = std::size(hooks);
-  const double hook_budget = (info.budget_seconds - info.study_budget_seconds) / kHooks;
 
   std::vector<std::size_t> sizes = study_sizes;
   sizes.insert(sizes.end(), scaled_sizes.begin(), scaled_sizes.end());
@@ -366,13 +392,13 @@ void run_paper(const PaperOptions& o) {
   auto study_elapsed = [&] {
     return std::chrono::duration<double>(Clock::now() - t_study).count();
   };
-  const bool study_done = steps.load_study(res);  // --resume: the study's tables
-  for (std::size_t ni = 0; ni < sizes.size() && !study_done; ++ni) {
+  run.study_done = run.steps->load_study(res);  // --resume: the study's tables
+  for (std::size_t ni = 0; ni < sizes.size() && !run.study_done; ++ni) {
     const std::size_t n = sizes[ni];
     const bool scaled = ni >= study_sizes.size();
     const int reps = reps_at(n);
     mo.reps = reps;
-    const double hooks_left = hook_budget * kHooks;
+    const double hooks_left = run.experiment_seconds * static_cast<double>(experiments().size());
     auto show = [&](const std::string& what, double left) {
       const double e = elapsed();
       bar.update(what, e / (e + left), left);
@@ -466,15 +492,21 @@ void run_paper(const PaperOptions& o) {
     }
     for (int p = 0; p < 2; ++p) compare(structures, n, scenes[p], digests[p], hits[p], res);
   }
-  if (!study_done) {
-    info.study_seconds = study_elapsed();
-    write_csv(out_dir / "results.csv", res.rows);
-    steps.save_study(res);
-  }
+  if (!run.study_done) info.study_seconds = study_elapsed();
+}
 
-  // The other families' experiments, each with its share of the budget.
-  bool hook_failed = false;
-  for (std::size_t k = 0; k < kHooks; ++k) {
+// Step 4: the registered experiments (lab/experiment.hpp), each with its
+// share of the budget; a failure is reported in its section.
+void run_experiments(Run& run) {
+  const PaperOptions& o = run.o;
+  const std::vector<Selected>& structures = run.structures;
+  const fs::path& out_dir = run.out_dir;
+  ProgressBar& bar = run.bar;
+  PaperResults& res = run.res;
+  RunInfo& info = res.info;
+  auto elapsed = [&run] { return run.elapsed(); };
+  const std::size_t kExperiments = experiments().size();
+  for (std::size_t k = 0; k < kExperiments; ++k) {
     LabContext ctx;
     ctx.out_dir = out_dir;
     ctx.quick = o.quick;
@@ -483,10 +515,11 @@ void run_paper(const PaperOptions& o) {
       for (const Selected& s : structures)
         if (!s.peer) ctx.algos.push_back(s.spec);
     const double left = info.budget_seconds - elapsed();
-    ctx.budget_seconds = std::max(o.quick ? 2.0 : 15.0,
-                                  std::min(hook_budget, left / static_cast<double>(kHooks - k)));
-    const double after = hook_budget * static_cast<double>(kHooks - k - 1);
-    const std::string name = hooks[k].name;
+    ctx.budget_seconds =
+        std::max(o.quick ? 2.0 : 15.0,
+                 std::min(run.experiment_seconds, left / static_cast<double>(kExperiments - k)));
+    const double after = run.experiment_seconds * static_cast<double>(kExperiments - k - 1);
+    const std::string name = experiments()[k].name;
     ctx.progress = [&, name, budget = ctx.budget_seconds](const std::string& what, double f) {
       const double left_here = std::max(0.0, 1 - f) * budget;
       const double e = elapsed();
@@ -494,19 +527,26 @@ void run_paper(const PaperOptions& o) {
     };
     ctx.progress("starting", 0);
     try {
-      res.sections.push_back(steps.experiment(name, ctx, hooks[k].run));
+      res.sections.push_back(run.steps->experiment(name, ctx, experiments()[k].run));
     } catch (const std::exception& e) {
-      hook_failed = true;
+      run.experiment_failed = true;
       res.sections.push_back("## " + name +
                              "\n\n<span style=\"color:red\">**The experiment failed: " +
                              std::string(e.what()) + "**</span>\n");
       bar.message("error: " + name + ": " + e.what());
     }
   }
+}
 
+// Step 5: the figures, by tools/plot_paper.py.
+void draw_figures(Run& run) {
+  const fs::path& out_dir = run.out_dir;
+  ProgressBar& bar = run.bar;
+  PaperResults& res = run.res;
+  RunInfo& info = res.info;
   // The plot script and its messages write to stderr too: no bar under them.
   bar.clear();
-  info.plots = steps.plots([&](const fs::path& into) {
+  info.plots = run.steps->plots([&](const fs::path& into) {
     return run_plot_script("plot_paper.py",
                            {"--csv", (out_dir / "results.csv").string(), "--out", into.string()});
   });
@@ -532,15 +572,29 @@ void run_paper(const PaperOptions& o) {
         "python3 with matplotlib was not available, or tools/plot_paper.py failed (the reason is "
         "on stderr)";
   }
+}
 
-  info.elapsed_seconds = elapsed();
+// Step 6: results.json and REPORT.md.
+void write_report(Run& run) {
+  const fs::path& out_dir = run.out_dir;
+  PaperResults& res = run.res;
+  RunInfo& info = res.info;
+  info.elapsed_seconds = run.elapsed();
   write_json(out_dir / "results.json", res);
   write_file_atomically(out_dir / "REPORT.md", report_markdown(res));
-  {
-    std::vector<std::string> all_steps{"study", "plots"};
-    for (const Hook& h : hooks) all_steps.emplace_back(h.name);
-    steps.finish(all_steps);
-  }
+  std::vector<std::string> all_steps{"study", "plots"};
+  for (const ExperimentInfo& e : experiments()) all_steps.emplace_back(e.name);
+  run.steps->finish(all_steps);
+}
+
+// Step 7: the summary line; an error when structures disagreed or an
+// experiment failed.
+void finish(Run& run) {
+  const std::vector<Selected>& structures = run.structures;
+  const fs::path& out_dir = run.out_dir;
+  ProgressBar& bar = run.bar;
+  PaperResults& res = run.res;
+  RunInfo& info = res.info;
   bar.finish("broadphase paper: done");
 
   std::printf("%s: %zu structures, %zu results, %zu skips, %zu of %zu results disagree%s\n",
@@ -554,7 +608,22 @@ void run_paper(const PaperOptions& o) {
         res.mismatches.size(), (out_dir / "REPORT.md").c_str());
     throw std::runtime_error("structures disagree on pairs or query results");
   }
-  if (hook_failed) throw std::runtime_error("an experiment failed (see REPORT.md)");
+  if (run.experiment_failed) throw std::runtime_error("an experiment failed (see REPORT.md)");
+}
+
+// The lab, step by step: each step runs in one place, here.
+void run_paper(const PaperOptions& o) {
+  Run run(o);
+  prepare(run);
+  run_study(run);
+  if (!run.study_done) {  // step 3
+    write_csv(run.out_dir / "results.csv", run.res.rows);
+    run.steps->save_study(run.res);
+  }
+  run_experiments(run);
+  draw_figures(run);
+  write_report(run);
+  finish(run);
 }
 
 }  // namespace

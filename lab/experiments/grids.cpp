@@ -13,7 +13,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "lab.hpp"
+#include "experiment.hpp"
 
 namespace broadphase::app {
 
@@ -97,6 +97,8 @@ std::string fixed(double v, int digits) {
 }
 
 }  // namespace
+
+namespace {
 
 std::string lab_cell_size_sweep(const LabContext& ctx) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -185,5 +187,11 @@ std::string lab_cell_size_sweep(const LabContext& ctx) {
   }
   return md;
 }
+
+const RegisterExperiment kRegistered{{"cell-size sweep", 20,
+                                      "frame time of the uniform grids against their cell size",
+                                      lab_cell_size_sweep}};
+
+}  // namespace
 
 }  // namespace broadphase::app

@@ -4,9 +4,9 @@
 // the machine's noise hits them alike.
 #include <algorithm>
 #include <broadphase/kdtree.hpp>
-#include <broadphase/registry.hpp>
 #include <broadphase/lab/replay.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/registry.hpp>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "lab.hpp"
+#include "experiment.hpp"
 
 namespace broadphase::app {
 
@@ -192,6 +192,8 @@ std::string memory_per_object(const LabContext& ctx) {
 
 }  // namespace
 
+namespace {
+
 std::string lab_octree_experiments(const LabContext& ctx) {
   const double budget = ctx.quick ? 6 : ctx.budget_seconds;
   std::string md = "## Octrees and the k-d tree\n\n";
@@ -206,5 +208,11 @@ std::string lab_octree_experiments(const LabContext& ctx) {
   md += "CSV: `octrees_kdtree_rebuild.csv`, `octrees_split_sweep.csv`, `octrees_memory.csv`.\n";
   return md;
 }
+
+const RegisterExperiment kRegistered{
+    {"octree experiments", 40, "the octrees' split threshold, memory and the k-d tree's rebuilds",
+     lab_octree_experiments}};
+
+}  // namespace
 
 }  // namespace broadphase::app

@@ -6,9 +6,11 @@
 #include <vector>
 
 #include "commands.hpp"
-#include "lab.hpp"
+#include "experiment.hpp"
 
 namespace broadphase::app {
+
+namespace {
 
 std::string lab_pictures(const LabContext& ctx) {
   std::string md = "## Pictures of the workloads\n\n";
@@ -71,5 +73,11 @@ std::string lab_pictures(const LabContext& ctx) {
       rows;
   return md;
 }
+
+const RegisterExperiment kRegistered{
+    {"pictures", 10, "pictures of the study's workloads and of how its structures divide them",
+     lab_pictures}};
+
+}  // namespace
 
 }  // namespace broadphase::app

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "commands.hpp"
-#include "lab.hpp"
+#include "experiment.hpp"
 
 namespace broadphase::app {
 
@@ -72,6 +72,8 @@ Row measure(const std::string& name, const Scene& scene, const std::string& algo
 }
 
 }  // namespace
+
+namespace {
 
 std::string lab_tunneling(const LabContext& ctx) {
   const std::string algo = pick_structure(ctx);
@@ -136,5 +138,10 @@ std::string lab_tunneling(const LabContext& ctx) {
   if (ctx.progress) ctx.progress("tunneling", 1.0);
   return md;
 }
+
+const RegisterExperiment kRegistered{
+    {"tunneling", 50, "tunneling with and without continuous collision detection", lab_tunneling}};
+
+}  // namespace
 
 }  // namespace broadphase::app

@@ -3,8 +3,8 @@
 // sweep-and-prune under coherent and incoherent motion.
 #include <algorithm>
 #include <broadphase/aabb_tree.hpp>
-#include <broadphase/registry.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/registry.hpp>
 #include <broadphase/witness_cache.hpp>
 #include <cstdio>
 #include <ctime>
@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "lab.hpp"
+#include "experiment.hpp"
 
 namespace broadphase::app {
 
@@ -169,6 +169,8 @@ ReplayRun run_replay(const std::string& spec, const Scene& start, int frames) {
 
 }  // namespace
 
+namespace {
+
 std::string lab_tree_experiments(const LabContext& ctx) {
   auto progress = [&](const std::string& what, double f) {
     if (ctx.progress) ctx.progress(what, f);
@@ -322,5 +324,10 @@ std::string lab_tree_experiments(const LabContext& ctx) {
   progress("trees: done", 1.0);
   return md.str();
 }
+
+const RegisterExperiment kRegistered{
+    {"tree experiments", 30, "the trees' orderings, fronts and sweeps", lab_tree_experiments}};
+
+}  // namespace
 
 }  // namespace broadphase::app

@@ -41,5 +41,5 @@ message(STATUS "broadphase: peer adapters:${BROADPHASE_PEERS_FOUND}")
 # operations, validate() after each), run by tests/peers_test.sh.
 if(BROADPHASE_BUILD_TESTS)
   add_executable(peers_check ${CMAKE_CURRENT_LIST_DIR}/check.cpp)
-  target_link_libraries(peers_check PRIVATE broadphase_app broadphase_warnings)
+  target_link_libraries(peers_check PRIVATE broadphase_app broadphase_testing broadphase_warnings)
 endif()

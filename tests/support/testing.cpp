@@ -96,6 +96,10 @@ const char* to_string(World w) {
       return "huge";
     case World::extreme:
       return "extreme";
+    case World::outside:
+      return "outside";
+    case World::many:
+      return "many";
     case World::tiny:
       return "tiny";
   }
@@ -153,6 +157,19 @@ class ShapeSource {
         const double size = u < 0.7 ? rng_.uniform(0, 50) : std::pow(10.0, rng_.uniform(0, 308));
         return shaped(c, size);
       }
+      case World::outside: {
+        // One object in ten larger than the world, the others far beside it.
+        if (rng_.below(10) == 0)
+          return shaped({rng_.uniform(0, 1000), rng_.uniform(0, 1000), rng_.uniform(0, 1000)},
+                        rng_.uniform(1000, 3000));
+        const double sign = rng_.below(2) == 0 ? 1 : -1;
+        return shaped(
+            {sign * rng_.uniform(1500, 5000), rng_.uniform(-5000, 5000), rng_.uniform(0, 1000)},
+            rng_.uniform(1, 400));
+      }
+      case World::many:
+        return shaped({rng_.uniform(0, 1000), rng_.uniform(0, 1000), rng_.uniform(0, 1000)},
+                      rng_.uniform(1, 40));
       case World::tiny: {
         // Objects within 1e-150 of the origin, down to subnormal numbers:
         // the squares of their distances underflow to zero, where the
@@ -166,9 +183,10 @@ class ShapeSource {
     return {};
   }
 
-  // A small move of `s` (or, sometimes, a jump anywhere, or a resize).
-  Shape moved(Shape s) {
-    const double u = rng_.uniform();
+  // A small move of `s` (or, sometimes, a jump anywhere, or a resize,
+  // unless only small moves are wanted).
+  Shape moved(Shape s, bool small_only) {
+    const double u = small_only ? 1.0 : rng_.uniform();
     if (u < 0.15) return draw();
     if (u < 0.25) {
       const double k = rng_.uniform(0.25, 4);
@@ -229,23 +247,26 @@ std::string describe_difference(const std::vector<T>& got, const std::vector<T>&
 
 }  // namespace
 
-void differential(const std::string& spec, World world, std::uint64_t seed, int steps,
-                  const Config& config) {
-  SCOPED_TRACE("structure=" + spec + " world=" + to_string(world) +
-               " seed=" + std::to_string(seed));
+std::string differential_run(const Factory& make, const std::string& name, World world,
+                             std::uint64_t seed, int steps, const DifferentialOptions& options) {
+  const std::string who =
+      name + " world=" + to_string(world) + " seed=" + std::to_string(seed) + ": ";
   Rng rng(seed);
   ShapeSource source(world, rng);
   std::unique_ptr<AnyBroadPhase> bp;
   try {
-    bp = make_structure(spec, config);
+    bp = make(options.config);
   } catch (const std::exception& e) {
-    FAIL() << "cannot make " << spec << ": " << e.what();
+    return who + "cannot make it: " + e.what();
   }
   Naive oracle;
   std::vector<Live> live;
   std::uint64_t next_id = 0;
   Handle stale;  // the last handle removed, for bad moves
-  const std::size_t target = world == World::crowded ? 1500 : 300;
+  const std::size_t target =
+      options.max_objects > 0
+          ? options.max_objects
+          : (world == World::crowded ? 1500 : (world == World::many ? 2600 : 300));
 
   for (int step = 0; step < steps; ++step) {
     const std::string where =
@@ -270,8 +291,7 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
         live[k] = live.back();
         live.pop_back();
         if (bp->contains(gone)) {
-          ADD_FAILURE() << "a removed handle is still reported as contained" << where;
-          return;
+          return who + "a removed handle is still reported as contained" + where;
         }
         bool threw = false;
         try {
@@ -280,15 +300,14 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
           threw = true;
         }
         if (!threw) {
-          ADD_FAILURE() << "removing a stale handle did not throw InvalidHandle" << where;
-          return;
+          return who + "removing a stale handle did not throw InvalidHandle" + where;
         }
       } else if (u < insert_p + 0.40) {
         op = "update";
         // Either one update or a bulk batch.
         if (rng.uniform() < 0.7) {
           const Live& o = live[rng.below(live.size())];
-          const Shape s = source.moved(oracle.shape(o.n));
+          const Shape s = source.moved(oracle.shape(o.n), options.small_moves);
           bp->update(o.s, s);
           oracle.update(o.n, s);
         } else {
@@ -306,7 +325,7 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
             const Shape base = last[pick] >= 0 ? batch[static_cast<std::size_t>(last[pick])].shape
                                                : oracle.shape(live[pick].n);
             last[pick] = static_cast<std::ptrdiff_t>(batch.size());
-            batch.push_back({live[pick].s, source.moved(base)});
+            batch.push_back({live[pick].s, source.moved(base, options.small_moves)});
             picks.push_back(pick);
           }
           const bool inject = rng.uniform() < 0.25;
@@ -342,8 +361,7 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
               refused = true;
             }
             if (!refused) {
-              ADD_FAILURE() << op << " was not refused" << where;
-              return;
+              return who + op + " was not refused" + where;
             }
             bp->validate();
             const auto got = ids_of_pairs(*bp);
@@ -354,15 +372,13 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
             });
             std::sort(want.begin(), want.end());
             if (got != want) {
-              ADD_FAILURE() << "after a refused " << op
-                            << ", pairs differ from naive: " << describe_difference(got, want)
-                            << where;
-              return;
+              return who + "after a refused " + op +
+                     ", pairs differ from naive: " + describe_difference(got, want) + where;
             }
             for (const Live& o : live)
               if (!(bp->shape(o.s) == oracle.shape(o.n))) {
-                ADD_FAILURE() << "a refused " << op << " changed object " << o.id << where;
-                return;
+                return who + "a refused " + op + " changed object " + std::to_string(o.id) +
+                       where;
               }
           } else {
             bp->update(batch);
@@ -380,8 +396,7 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
         oracle.query(q, [&](Handle h) { want.push_back(oracle.user_data(h)); });
         std::sort(want.begin(), want.end());
         if (got != want) {
-          ADD_FAILURE() << "query differs from naive: " << describe_difference(got, want) << where;
-          return;
+          return who + "query differs from naive: " + describe_difference(got, want) + where;
         }
         // An early-stopping visitor must see exactly one hit when there are any.
         int seen = 0;
@@ -390,8 +405,7 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
           return false;
         });
         if (seen != (want.empty() ? 0 : 1) || c.stopped != !want.empty()) {
-          ADD_FAILURE() << "early stop not honoured (saw " << seen << ")" << where;
-          return;
+          return who + "early stop not honoured (saw " + std::to_string(seen) + ")" + where;
         }
       } else {
         op = "all pairs";
@@ -403,21 +417,46 @@ void differential(const std::string& spec, World world, std::uint64_t seed, int 
         });
         std::sort(want.begin(), want.end());
         if (got != want) {
-          ADD_FAILURE() << "all pairs differ from naive: " << describe_difference(got, want)
-                        << where;
-          return;
+          return who + "all pairs differ from naive: " + describe_difference(got, want) + where;
         }
+        // The same pairs through the visitor, and an early stop after one.
+        std::vector<std::pair<std::uint64_t, std::uint64_t>> visited;
+        bp->for_each_pair([&](Handle a, Handle b) {
+          const std::uint64_t x = bp->user_data(a), y = bp->user_data(b);
+          visited.emplace_back(std::min(x, y), std::max(x, y));
+          return true;
+        });
+        std::sort(visited.begin(), visited.end());
+        if (visited != want)
+          return who + "for_each_pair differs from naive: " + describe_difference(visited, want) +
+                 where;
+        int seen = 0;
+        const QueryCost c = bp->for_each_pair([&](Handle, Handle) {
+          ++seen;
+          return false;
+        });
+        if (seen != (want.empty() ? 0 : 1) || c.stopped != !want.empty())
+          return who + "for_each_pair ignored a stop (saw " + std::to_string(seen) + ")" + where;
       }
       bp->validate();
       if (bp->size() != oracle.size()) {
-        ADD_FAILURE() << "size " << bp->size() << " != " << oracle.size() << where;
-        return;
+        return who + "size " + std::to_string(bp->size()) + " != " + std::to_string(oracle.size()) +
+               where;
       }
     } catch (const std::exception& e) {
-      ADD_FAILURE() << op << " threw: " << e.what() << where;
-      return;
+      return who + op + " threw: " + e.what() + where;
     }
   }
+  return {};
+}
+
+void differential(const std::string& spec, World world, std::uint64_t seed, int steps,
+                  const Config& config) {
+  DifferentialOptions options;
+  options.config = config;
+  const std::string failure = differential_run(
+      [&](const Config& c) { return make_structure(spec, c); }, spec, world, seed, steps, options);
+  if (!failure.empty()) ADD_FAILURE() << failure;
 }
 
 void const_calls_on_two_threads(const std::string& spec, const Scene& scene) {

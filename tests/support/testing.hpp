@@ -2,10 +2,12 @@
 // harness that drives any structure and the naive oracle side by side.
 #pragma once
 
-#include <broadphase/structure.hpp>
-#include <broadphase/registry.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/registry.hpp>
+#include <broadphase/structure.hpp>
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -61,13 +63,32 @@ enum class World {
   huge,      ///< a few objects larger than the world
   extreme,   ///< coordinates and sizes up to 1e300, where the predicate overflows
   tiny,      ///< coordinates and sizes down to subnormals, where its squares underflow
+  outside,   ///< most objects far outside the world, some larger than it
+  many,      ///< 2 600 ordinary objects (enough to outgrow a table sized for 100)
 };
 const char* to_string(World w);
 
-/// Runs `steps` random operations (insert, remove, update, query, all pairs)
-/// on structure `spec` and on the naive oracle, comparing every answer and
-/// calling validate() after every mutation. Reports failures through
-/// GoogleTest with the seed and step, and returns after the first one.
+/// Makes the structure under test from a Config.
+using Factory = std::function<std::unique_ptr<AnyBroadPhase>(const Config&)>;
+
+/// What a differential run varies beyond the world and the seed.
+struct DifferentialOptions {
+  Config config;                ///< given to the factory
+  bool small_moves = false;     ///< updates move a few units only: no jumps, no resizes
+  std::size_t max_objects = 0;  ///< live objects to grow to (0: the world's default)
+};
+
+/// Runs `steps` random operations (insert, remove, single and bulk update,
+/// query, all pairs, early stops, stale handles) on the structure `make`
+/// builds and on the naive oracle, comparing every answer and calling
+/// validate() after every mutation. Returns the first disagreement, naming
+/// `name`, the world, the seed and the step; empty when all agreed.
+std::string differential_run(const Factory& make, const std::string& name, World world,
+                             std::uint64_t seed, int steps,
+                             const DifferentialOptions& options = {});
+
+/// differential_run on a library structure `spec`, reporting a
+/// disagreement through GoogleTest.
 void differential(const std::string& spec, World world, std::uint64_t seed, int steps,
                   const Config& config = {});
 
