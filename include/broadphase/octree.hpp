@@ -23,6 +23,19 @@
 
 namespace broadphase {
 
+/// The options of Octree (`octree:split=N`).
+struct OctreeOptions {
+  /// Objects a leaf holds before it splits, in [1, 1000000]. Default 32: the
+  /// frame time falls up to 16 and is flat beyond (docs/octrees.md).
+  std::size_t split = 32;
+  /// Throws InvalidConfig for a value out of range.
+  void check() const;
+  /// Reads Config::options (deprecated) into the fields above; ranges are
+  /// left to check(). Defined with the registry (src/registry/). Throws
+  /// InvalidConfig for an unknown key or a value that is not a number.
+  static OctreeOptions from(const Config& c);
+};
+
 /// An adaptive octree with objects at the smallest cell that holds them.
 ///
 /// Placement: an object goes down from the root while its conservative box
