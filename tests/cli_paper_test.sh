@@ -44,8 +44,11 @@ args=(paper --quick --algos naive,grid-hashed --max-n 100 --no-peers)
 # waits up to 300 s for a file to exist
 wait_for() { for _ in $(seq 3000); do [ -e "$1" ] && return 0; sleep 0.1; done; return 1; }
 partials() { find "$1" -name '*.partial*' -not -path '*/.paper-steps/*' | grep -q .; }
-started() {  # started DIR: the background run's pid in $pid (own process group)
-  "$cli" "${args[@]}" --out "$1" >"$tmp/stdout" 2>"$tmp/stderr" &
+started() {  # started DIR [ARGS]: the background run's pid in $pid (own process group)
+  local dir=$1
+  shift
+  if [ $# -gt 0 ]; then set -- "$@"; else set -- "${args[@]}"; fi
+  "$cli" "$@" --out "$dir" >"$tmp/stdout" 2>"$tmp/stderr" &
   pid=$!
 }
 
@@ -65,7 +68,9 @@ check "--resume without a run says so" grep -q "no run of broadphase paper to re
 check "--resume with other options is a usage error" test $? -eq 2
 
 # --- Ctrl-C during the study: exit 130, nothing that looks whole.
-started "$tmp/a"
+# A study large enough to be still running when the signal comes, on an
+# idle machine too (at --max-n 100 it can end within the polling interval).
+started "$tmp/a" paper --quick --algos naive,grid-hashed --max-n 3200 --no-peers
 for _ in $(seq 3000); do grep -q "study:" "$tmp/stderr" 2>/dev/null && break; sleep 0.1; done
 kill -INT -- -$pid
 wait $pid

@@ -168,20 +168,28 @@ TEST_P(Extremes, WorldOfTheLargestSideReturns) {
   };
   exact_on(GetParam(), cube(0, kMax), s, "world [0, DBL_MAX]^3");
   exact_on(GetParam(), cube(-1e300, 1e300), s, "world [-1e300, 1e300]^3");
-  exact_on(GetParam(), cube(-kMax, kMax), s, "world [-DBL_MAX, DBL_MAX]^3");
+  // Corners at -DBL_MAX and DBL_MAX: a width no double holds, and no scene
+  // file can give (its world is [0, L]); refused as a configuration.
+  Config wide;
+  wide.world = cube(-kMax, kMax);
+  EXPECT_THROW(make_structure(GetParam(), wide), InvalidConfig);
 }
 
-// Issue 21, finding 4 (runtime part): a world with finite corners whose
-// width overflows a double is a valid world; grid-dense crashed on the
-// first insert, grid-implicit threw std::length_error.
-TEST_P(Extremes, WorldWhoseWidthOverflowsStaysExact) {
+// Issue 21, finding 4: a world with finite corners whose width overflows a
+// double (grid-dense crashed on the first insert, grid-implicit threw
+// std::length_error) is refused as a configuration by every structure; a
+// world as wide as the largest double stays exact.
+TEST_P(Extremes, WorldWhoseWidthOverflowsIsRefusedAndTheWidestWorldStaysExact) {
   std::vector<Shape> s;
   for (int i = 0; i < 20; ++i)
     s.push_back(Shape::sphere({i * 10.0, -i * 5e306, i * 1e300}, i % 4 == 0 ? 5e306 : 6));
   s.push_back(Shape::box({0, 0, 0}, {1e308, 1e308, 1e308}));
   s.push_back(Shape::sphere({1e308, 1e308, -1e308}, 0));
-  exact_on(GetParam(), cube(-1e308, 1e308), s, "world [-1e308, 1e308]^3");
+  Config wide;
+  wide.world = cube(-1e308, 1e308);
+  EXPECT_THROW(make_structure(GetParam(), wide), InvalidConfig);
   exact_on(GetParam(), cube(0, 1e308), s, "world [0, 1e308]^3");
+  exact_on(GetParam(), cube(0, kMax), s, "world [0, DBL_MAX]^3");
 }
 
 // Subnormal coordinates and sizes, in a world of subnormal side and in an
@@ -336,8 +344,16 @@ TEST(ExtremeOptions, CellArithmeticThatOverflowsStaysExact) {
         exact_on(spec, world, s, "overflowing cell arithmetic");
       }
   for (const char* k : {"octree-loose:k=4.2", "octree-loose:k=8,depth=20", "octree-loose:k=1.1"})
-    for (const Aabb& world : {cube(0, 1e308), cube(-1e308, 1e308), cube(0, 4e-323)})
+    for (const Aabb& world : {cube(0, 1e308), cube(-1e308, 1e308), cube(0, 4e-323)}) {
+      Config config;
+      config.world = world;
+      try {
+        make_structure(k, config);
+      } catch (const InvalidConfig&) {
+        continue;  // refused as a configuration (a width that overflows): fine
+      }
       exact_on(k, world, s, "a loose octree over a world of extreme size");
+    }
 }
 
 INSTANTIATE_TEST_SUITE_P(All, Extremes, ::testing::ValuesIn(structure_specs()),

@@ -94,6 +94,7 @@ class BulletBroadPhase : public PeerBase<btBroadphaseProxy*> {
   }
   /// setAabb for every move, then Bullet's per-step calculateOverlappingPairs.
   void update(std::span<const Move> moves) {
+    check_moves(*this, moves);  // all-or-nothing, as the interface asks
     for (const Move& m : moves) set_aabb(store_.set_shape(m.handle, m.shape), m.shape);
     bp_->calculateOverlappingPairs(nullptr);
   }

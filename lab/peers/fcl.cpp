@@ -150,6 +150,7 @@ class FclBroadPhase : public PeerBase<std::unique_ptr<FclObject>> {
     refit();
   }
   void update(std::span<const Move> moves) {
+    check_moves(*this, moves);  // all-or-nothing, as the interface asks
     moved_.clear();
     for (const Move& m : moves) {
       FclObject& o = *native_[store_.set_shape(m.handle, m.shape)];

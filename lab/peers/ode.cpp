@@ -114,6 +114,7 @@ class OdeBroadPhase : public PeerBase<dGeomID> {
   void remove(Handle h) { dGeomDestroy(take(h)); }
   void update(Handle h, const Shape& s) { place(native_[store_.set_shape(h, s)], s); }
   void update(std::span<const Move> moves) {
+    check_moves(*this, moves);  // all-or-nothing, as the interface asks
     for (const Move& m : moves) place(native_[store_.set_shape(m.handle, m.shape)], m.shape);
   }
 
