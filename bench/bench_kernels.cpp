@@ -2,9 +2,9 @@
 #include <benchmark/benchmark.h>
 
 #include <broadphase/geometry.hpp>
-#include <broadphase/naive.hpp>
 #include <broadphase/lab/replay.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/naive.hpp>
 #include <vector>
 
 namespace {

@@ -3,10 +3,10 @@
 // structure on the study's 6400-object uneven scene.
 #include <benchmark/benchmark.h>
 
-#include <broadphase/study/hgrid_paper.hpp>
-#include <broadphase/naive.hpp>
-#include <broadphase/study/octree_paper.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/naive.hpp>
+#include <broadphase/study/hgrid_paper.hpp>
+#include <broadphase/study/octree_paper.hpp>
 #include <vector>
 
 namespace {

@@ -5,9 +5,9 @@
 #pragma once
 
 #include <algorithm>
-#include <broadphase/registry.hpp>
 #include <broadphase/lab/replay.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/registry.hpp>
 #include <chrono>
 #include <cstdint>
 #include <exception>

@@ -3,9 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <broadphase/lab/ccd.hpp>
+#include <broadphase/lab/sim.hpp>
 #include <broadphase/naive.hpp>
 #include <broadphase/registry.hpp>
-#include <broadphase/lab/sim.hpp>
 #include <cmath>
 
 #include "testing.hpp"

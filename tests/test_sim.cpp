@@ -4,8 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <broadphase/lab/ccd.hpp>
-#include <broadphase/registry.hpp>
 #include <broadphase/lab/sim.hpp>
+#include <broadphase/registry.hpp>
 #include <cmath>
 
 #include "testing.hpp"

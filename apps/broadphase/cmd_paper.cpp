@@ -319,9 +319,9 @@ void prepare(Run& run) {
   // done there, so that an interrupted run can be finished with --resume.
   run.steps.emplace(o.resume.empty() ? PaperSteps::start(out_dir, options_json(o))
                                      : PaperSteps::resume(out_dir));
-  set_interrupt_note("broadphase paper: the run in " + out_dir.string() +
-                     " is incomplete (see RUN-INCOMPLETE); finish it with: " +
-                     run.steps->resume_command());
+  set_interrupt_note(
+      "broadphase paper: the run in " + out_dir.string() +
+      " is incomplete (see RUN-INCOMPLETE); finish it with: " + run.steps->resume_command());
 
   run.bar.set_plain_interval(o.quick ? 5 : 15);
   RunInfo& info = run.res.info;

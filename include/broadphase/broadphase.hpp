@@ -3,10 +3,10 @@
 /// the registry of structures by name, scenes and replay.
 #pragma once
 
-#include <broadphase/structure.hpp>
 #include <broadphase/geometry.hpp>
 #include <broadphase/handle.hpp>
-#include <broadphase/naive.hpp>
-#include <broadphase/registry.hpp>
 #include <broadphase/lab/replay.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/naive.hpp>
+#include <broadphase/registry.hpp>
+#include <broadphase/structure.hpp>

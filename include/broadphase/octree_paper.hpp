@@ -4,6 +4,7 @@
 /// to silence the warning.
 #pragma once
 #ifndef BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
-#pragma GCC warning "<broadphase/octree_paper.hpp> is deprecated: include <broadphase/study/octree_paper.hpp>"
+#pragma GCC warning \
+    "<broadphase/octree_paper.hpp> is deprecated: include <broadphase/study/octree_paper.hpp>"
 #endif
 #include <broadphase/study/octree_paper.hpp>

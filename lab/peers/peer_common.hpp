@@ -9,9 +9,9 @@
 // loses a candidate (docs/peers.md lists where that happens).
 #pragma once
 
-#include <broadphase/structure.hpp>
 #include <broadphase/handle.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/structure.hpp>
 #include <cstdint>
 #include <memory>
 #include <stdexcept>

@@ -377,8 +377,7 @@ std::string differential_run(const Factory& make, const std::string& name, World
             }
             for (const Live& o : live)
               if (!(bp->shape(o.s) == oracle.shape(o.n))) {
-                return who + "a refused " + op + " changed object " + std::to_string(o.id) +
-                       where;
+                return who + "a refused " + op + " changed object " + std::to_string(o.id) + where;
               }
           } else {
             bp->update(batch);

@@ -7,8 +7,8 @@
 #pragma once
 
 #include <bit>
-#include <broadphase/detail/cell_tally.hpp>
 #include <broadphase/config_error.hpp>
+#include <broadphase/detail/cell_tally.hpp>
 #include <broadphase/detail/grid_common.hpp>
 #include <broadphase/structure.hpp>
 #include <cstring>

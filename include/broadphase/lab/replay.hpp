@@ -3,8 +3,8 @@
 /// says: frame 0 at the file's positions, then move, update, find pairs.
 #pragma once
 
-#include <broadphase/structure.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/structure.hpp>
 #include <cstdint>
 #include <vector>
 

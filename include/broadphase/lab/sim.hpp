@@ -19,9 +19,9 @@
 /// every exact structure gives the same trajectories bit for bit.
 #pragma once
 
-#include <broadphase/structure.hpp>
 #include <broadphase/geometry.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/structure.hpp>
 #include <cstdint>
 #include <memory>
 #include <optional>
