@@ -600,10 +600,13 @@ void GridVerlet::build_grid(Grid& g, const std::vector<Entry>& items, double cel
   g.cell_start.clear();
   // Exact capacities when a grid grows (reserve, unlike resize, does not
   // double): grids are most of the memory held per object.
+  // assign, not resize: GCC 12's resize under -fsanitize=undefined reports
+  // its own unreachable-point check here (the vectors are sound: ASan is
+  // quiet and the release build exact), and assign costs the same fill.
   g.entries.reserve(n);
   g.shapes.reserve(n);
-  g.entries.resize(n);
-  g.shapes.resize(n);
+  g.entries.assign(n, detail::GridEntry{});
+  g.shapes.assign(n, LineShape{});
   if (n == 0) {
     g.cell_start.push_back(0);
     return;
