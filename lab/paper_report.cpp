@@ -415,6 +415,25 @@ void write_csv(const std::filesystem::path& path, const std::vector<Row>& rows) 
   file.commit();
 }
 
+nlohmann::ordered_json row_json(const Row& r) {
+  return {{"structure", r.structure},
+          {"peer", r.peer},
+          {"test", r.test},
+          {"study_test", r.study_test},
+          {"placement", r.placement},
+          {"dist", r.dist},
+          {"n", r.n},
+          {"world", r.world},
+          {"unit", r.unit},
+          {"median", r.stat.median},
+          {"min", r.stat.min},
+          {"max", r.stat.max},
+          {"q1", r.stat.q1},
+          {"q3", r.stat.q3},
+          {"reps", r.stat.reps},
+          {"note", r.note}};
+}
+
 void write_json(const std::filesystem::path& path, const PaperResults& res) {
   using json = nlohmann::ordered_json;
   const RunInfo& i = res.info;
@@ -444,22 +463,7 @@ void write_json(const std::filesystem::path& path, const PaperResults& res) {
               {"plots", i.plots}};
   json rows = json::array();
   for (const Row& r : res.rows) {
-    rows.push_back({{"structure", r.structure},
-                    {"peer", r.peer},
-                    {"test", r.test},
-                    {"study_test", r.study_test},
-                    {"placement", r.placement},
-                    {"dist", r.dist},
-                    {"n", r.n},
-                    {"world", r.world},
-                    {"unit", r.unit},
-                    {"median", r.stat.median},
-                    {"min", r.stat.min},
-                    {"max", r.stat.max},
-                    {"q1", r.stat.q1},
-                    {"q3", r.stat.q3},
-                    {"reps", r.stat.reps},
-                    {"note", r.note}});
+    rows.push_back(row_json(r));
   }
   j["rows"] = std::move(rows);
   json skips = json::array();

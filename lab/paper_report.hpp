@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -79,6 +80,9 @@ void fill_provenance(RunInfo& info);
 
 void write_csv(const std::filesystem::path& path, const std::vector<Row>& rows);
 void write_json(const std::filesystem::path& path, const PaperResults& results);
+/// One result row as results.json writes it (columns in lab/metrics.json order);
+/// a resumed run reads the same form back.
+nlohmann::ordered_json row_json(const Row& r);
 /// REPORT.md's text.
 std::string report_markdown(const PaperResults& results);
 

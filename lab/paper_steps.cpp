@@ -129,25 +129,6 @@ void PaperSteps::move_into_place(const fs::path& from) const {
 
 namespace {
 
-json row_json(const Row& r) {
-  return {{"structure", r.structure},
-          {"peer", r.peer},
-          {"test", r.test},
-          {"study_test", r.study_test},
-          {"placement", r.placement},
-          {"dist", r.dist},
-          {"n", r.n},
-          {"world", r.world},
-          {"unit", r.unit},
-          {"median", r.stat.median},
-          {"min", r.stat.min},
-          {"max", r.stat.max},
-          {"q1", r.stat.q1},
-          {"q3", r.stat.q3},
-          {"reps", r.stat.reps},
-          {"note", r.note}};
-}
-
 Row row_of(const json& j) {
   Row r;
   j.at("structure").get_to(r.structure);
@@ -176,7 +157,7 @@ void PaperSteps::save_study(const PaperResults& res) {
   j["study_seconds"] = res.info.study_seconds;
   j["comparisons"] = res.comparisons;
   json& rows = j["rows"] = json::array();
-  for (const Row& r : res.rows) rows.push_back(row_json(r));
+  for (const Row& r : res.rows) rows.push_back(json(row_json(r)));
   json& skips = j["skips"] = json::array();
   for (const Skip& s : res.skips)
     skips.push_back({s.structure, s.n, s.projected_seconds, s.cap_seconds, s.reason});
