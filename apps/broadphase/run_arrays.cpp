@@ -2,8 +2,10 @@
 // (PairTracker over the scene's objects held as the caller's arrays),
 // printing the same `frame pairs hash` lines as any structure.
 #include <broadphase/arrays.hpp>
+#include <broadphase/lab/array_caller.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -14,26 +16,10 @@
 namespace broadphase::app {
 
 void run_arrays(const std::string& path, int frames, bool json) {
-  Scene scene = read_scene(path);
-  const std::size_t n = scene.size();
-  // The caller's arrays: struct of arrays in double, one kind byte per object.
-  std::vector<double> x(n), y(n), z(n), hx(n), hy(n), hz(n);
-  std::vector<std::uint8_t> kind(n);
-  std::vector<std::uint32_t> movers;
-  for (std::size_t i = 0; i < n; ++i) {
-    const Shape& s = scene.objects[i];
-    hx[i] = s.half.x, hy[i] = s.half.y, hz[i] = s.half.z;
-    kind[i] = s.is_sphere() ? 0 : 1;
-    if (scene.is_moving(i)) movers.push_back(static_cast<std::uint32_t>(i));
-  }
-  Objects objects;
-  objects.count = n;
-  objects.x = Column::of(x.data()), objects.y = Column::of(y.data());
-  objects.z = Column::of(z.data());
-  objects.radius = Column::of(hx.data());  // a sphere's radius is its half.x
-  objects.half_x = Column::of(hx.data()), objects.half_y = Column::of(hy.data());
-  objects.half_z = Column::of(hz.data());
-  objects.kind = kind.data();
+  ArrayCaller caller(read_scene(path));
+  const std::size_t n = caller.size();
+  const Objects objects = caller.objects();
+  const std::vector<std::uint32_t>& movers = caller.movers();
 
   PairTracker tracker;
   FrameDigest total;
@@ -41,25 +27,15 @@ void run_arrays(const std::string& path, int frames, bool json) {
   double total_ms = 0;
   std::string out;
   for (int f = 0; f < frames; ++f) {
+    // The caller moves its objects in place (the movers), then calls.
     if (f > 0) {
-      step(scene);
-      for (std::uint32_t i : movers)
-        if (!is_valid(scene.objects[i])) {
-          if (!json) std::fwrite(out.data(), 1, out.size(), stdout);
-          throw SceneError("frame " + std::to_string(f) + ": object " + std::to_string(i) +
-                           " moves beyond the range of doubles (its motion overflows)");
-        }
+      const std::size_t bad = caller.step();
+      if (bad != SIZE_MAX) {
+        if (!json) std::fwrite(out.data(), 1, out.size(), stdout);
+        throw SceneError("frame " + std::to_string(f) + ": object " + std::to_string(bad) +
+                         " moves beyond the range of doubles (its motion overflows)");
+      }
     }
-    // The caller moves its objects in place: every centre at frame 0, the
-    // movers' after.
-    auto place = [&](std::size_t i) {
-      x[i] = scene.objects[i].center.x, y[i] = scene.objects[i].center.y;
-      z[i] = scene.objects[i].center.z;
-    };
-    if (f == 0)
-      for (std::size_t i = 0; i < n; ++i) place(i);
-    else
-      for (std::uint32_t i : movers) place(i);
     FrameDigest d;
     const auto t0 = std::chrono::steady_clock::now();
     const ArrayCallStats stats = tracker.find_pairs(
