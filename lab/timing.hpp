@@ -5,12 +5,15 @@
 #pragma once
 
 #include <algorithm>
+#include <broadphase/arrays.hpp>
+#include <broadphase/lab/array_caller.hpp>
 #include <broadphase/lab/replay.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <broadphase/registry.hpp>
 #include <chrono>
 #include <cstdint>
 #include <exception>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -27,6 +30,7 @@ struct StructureTiming {
   double insert_us = 0;              ///< one insert (median of batches)
   double remove_us = 0;              ///< one remove (median of batches)
   std::size_t memory_bytes = 0;      ///< after the frames
+  std::size_t caller_bytes = 0;      ///< the caller's arrays a borrowed path reads (0: none)
   std::string error;                 ///< non-empty when the structure failed
 
   double median_frame_ms() const { return median(frame_ms); }
@@ -145,6 +149,61 @@ inline StructureTiming time_structure(const Registry& registry, const std::strin
       t.insert_us = StructureTiming::median(ins);
       t.remove_us = StructureTiming::median(rem);
     }
+  } catch (const std::exception& e) {
+    t.error = e.what();
+  }
+  return t;
+}
+
+/// The lean path (arrays.hpp) on `scene` as its caller would run it: the
+/// scene's objects as the caller's arrays (`ArrayCaller`), the movers moved
+/// in place, then one `PairTracker` call told which objects moved, per
+/// frame; frames, warm-up and budget as in `time_structure`, with the same
+/// per-frame digests. `spec` names it in the tables (`arrays`, or
+/// `arrays:threads=2`). Never throws: a failure is reported in `error`.
+inline StructureTiming time_arrays(const std::string& spec, const Scene& scene,
+                                   const TimingLimits& limits, unsigned threads = 1) {
+  StructureTiming t;
+  t.spec = spec;
+  try {
+    ArrayCaller caller(scene);
+    ArrayOptions options;
+    options.threads = threads;
+    PairTracker tracker(options);
+    const Objects objects = caller.objects();
+    constexpr int kWarmFrames = 2;
+    auto start = std::chrono::steady_clock::now();
+    for (int f = 0; f < limits.max_frames; ++f) {
+      const auto t0 = std::chrono::steady_clock::now();
+      if (f > 0 && caller.step() != SIZE_MAX)
+        throw std::runtime_error("frame " + std::to_string(f) + ": a motion overflows a double");
+      FrameDigest d;
+      tracker.find_pairs(
+          objects,
+          [&d](std::span<const IndexPair> c) {
+            for (const IndexPair& p : c) d.add(p.i, p.j);
+            return true;
+          },
+          f == 0 ? Changes::everything() : Changes::only(caller.movers()));
+      const double seconds = seconds_since(t0);
+      if (f == 0) t.build_ms = seconds * 1e3;
+      t.frame_ms.push_back(seconds * 1e3);
+      t.digests.push_back(d);
+      if (f < kWarmFrames) {
+        const double warm_cap =
+            limits.warmup_seconds > 0 ? limits.warmup_seconds : 2 * limits.budget_seconds;
+        if (seconds > warm_cap) break;
+        if (f + 1 == kWarmFrames) start = std::chrono::steady_clock::now();
+        continue;
+      }
+      const double spent = seconds_since(start);
+      if (f + 1 >= limits.min_frames && spent > limits.budget_seconds) break;
+      if (spent > 2 * limits.budget_seconds) break;
+    }
+    const std::size_t warm = t.frame_ms.size() > 2 ? 2 : (t.frame_ms.size() > 1 ? 1 : 0);
+    t.frame_ms.erase(t.frame_ms.begin(), t.frame_ms.begin() + static_cast<std::ptrdiff_t>(warm));
+    t.memory_bytes = tracker.memory_bytes();
+    t.caller_bytes = caller.bytes();
   } catch (const std::exception& e) {
     t.error = e.what();
   }

@@ -34,6 +34,10 @@ struct Workload {
   double issue_peer_ms;    // the fastest peer's reference figure (NaN: none given)
   double max_frame_ms;     // absolute goals (NaN: none)
   double max_bytes_per_object;
+  // The lean path's goals on this workload (NaN / false: none).
+  double arrays_max_frame_ms;
+  double arrays_max_bytes_per_object;
+  bool arrays_no_slower;  // no slower than our handle structure
 };
 
 std::string fmt(double v, int digits = 3) {
@@ -46,7 +50,8 @@ std::string fmt(double v, int digits = 3) {
 struct Row {
   std::string workload;
   StructureTiming ours;
-  StructureTiming ours2;  // on two threads (empty spec: not run)
+  StructureTiming ours2;   // on two threads (empty spec: not run)
+  StructureTiming arrays;  // the lean path (arrays.hpp) on the same frames
   std::vector<StructureTiming> peers;
   bool agree = true;
 };
@@ -69,7 +74,9 @@ std::string lab_performance(const LabContext& ctx) {
     workloads.push_back({w.at("label"), parse_distribution(w.at("dist").get<std::string>()),
                          w.at("n"), w.at("n_quick"), w.value("speedup_over_fastest_peer", 0.0),
                          w.value("reference_peer_ms", nan), w.value("max_frame_ms", nan),
-                         w.value("max_bytes_per_object", nan)});
+                         w.value("max_bytes_per_object", nan), w.value("arrays_max_frame_ms", nan),
+                         w.value("arrays_max_bytes_per_object", nan),
+                         w.value("arrays_no_slower", false)});
   std::erase_if(workloads, [&](const Workload& w) { return ctx.quick && w.n_quick == 0; });
   // Peers are slow to build at 100 000 objects and more (Bullet's sweep
   // takes minutes): they run there only with a generous budget.
@@ -77,7 +84,7 @@ std::string lab_performance(const LabContext& ctx) {
   // Our structure runs on one thread and, where there are two cores, on two.
   const bool two_cores = std::thread::hardware_concurrency() >= 2;
   const std::string ours2_spec = g.at("two_threads_spec");
-  const std::size_t runs = workloads.size() * (1 + (two_cores ? 1 : 0) + peers.size()) + 2;
+  const std::size_t runs = workloads.size() * (2 + (two_cores ? 1 : 0) + peers.size()) + 2;
   const double per_run = std::max(0.2, 0.6 * ctx.budget_seconds / static_cast<double>(runs));
   std::size_t done = 0;
   auto progress = [&](const std::string& what) {
@@ -87,13 +94,14 @@ std::string lab_performance(const LabContext& ctx) {
   std::vector<Row> rows;
   std::ofstream csv(ctx.out_dir / "performance.csv");
   csv << "workload,structure,objects,frames,median_frame_ms,mean_frame_ms,build_ms,query_us,"
-         "insert_us,remove_us,bytes_per_object,pairs_agree\n";
+         "insert_us,remove_us,bytes_per_object,pairs_agree,caller_bytes_per_object\n";
   auto write_csv = [&](const std::string& w, std::size_t n, const StructureTiming& t, bool ok) {
     csv << w << ',' << t.spec << ',' << n << ',' << t.frame_ms.size() << ',' << t.median_frame_ms()
         << ',' << t.mean_frame_ms() << ',' << t.build_ms << ',' << t.query_us << ',' << t.insert_us
         << ',' << t.remove_us << ','
         << (n ? static_cast<double>(t.memory_bytes) / static_cast<double>(n) : 0.0) << ','
-        << (ok ? "yes" : "no") << '\n';
+        << (ok ? "yes" : "no") << ','
+        << (n ? static_cast<double>(t.caller_bytes) / static_cast<double>(n) : 0.0) << '\n';
   };
 
   std::size_t n_micro = 0;
@@ -129,6 +137,12 @@ std::string lab_performance(const LabContext& ctx) {
       row.ours2 = time_structure(reg, ours2_spec, scene, lim2);
       ++done;
     }
+    // The lean path over the caller's arrays, on the same frames.
+    progress(w.label + " arrays");
+    TimingLimits arrays_lim = lim;
+    arrays_lim.warmup_seconds = 120;
+    row.arrays = time_arrays("arrays", scene, arrays_lim);
+    ++done;
     if (n <= 20000 || big_peers) {
       for (const std::string& p : peers) {
         progress(w.label + " " + p);
@@ -143,6 +157,8 @@ std::string lab_performance(const LabContext& ctx) {
     for (const StructureTiming& p : row.peers)
       if (p.error.empty() && first_disagreement(p, row.ours) >= 0) row.agree = false;
     write_csv(row.workload, n, row.ours, row.agree);
+    write_csv(row.workload, n, row.arrays,
+              row.arrays.error.empty() && first_disagreement(row.arrays, row.ours) < 0);
     if (!row.ours2.spec.empty()) write_csv(row.workload, n, row.ours2, row.agree);
     for (const StructureTiming& p : row.peers)
       write_csv(row.workload, n, p, p.error.empty() && first_disagreement(p, row.ours) < 0);
@@ -228,6 +244,11 @@ std::string lab_performance(const LabContext& ctx) {
        << (row.ours.error.empty() ? fmt(ours_ms) : "failed: " + row.ours.error) << " | "
        << (row.ours.error.empty() ? fmt(row.ours.mean_frame_ms()) : "–") << " | " << fmt(ours2)
        << " | ";
+    if (w.goal_ratio == 0 && !std::isfinite(w.max_frame_ms) &&
+        !std::isfinite(w.max_bytes_per_object)) {
+      md << "– | – | – | – | – | – |\n";  // measured, no goal for ours
+      continue;
+    }
     if (w.goal_ratio == 0) {
       // The million-object row has absolute goals.
       const double n = static_cast<double>(w.n);
@@ -265,6 +286,52 @@ std::string lab_performance(const LabContext& ctx) {
     md << (peer_name.empty() ? "–" : peer_name) << " | " << fmt(peer_ms) << " | " << times(ratio)
        << " | " << times(ratio2) << " | ≥ " << fmt(w.goal_ratio, 0) << "× | " << met << " |\n";
   }
+  // The lean path on the same workloads.
+  md << "\n**The lean path** (`arrays.hpp`: pairs over the caller's own arrays, one "
+        "`PairTracker` call per frame told which objects moved; docs/arrays.md), one thread, on "
+        "the same frames as `"
+     << ours
+     << "` (pair counts and hashes compared frame by frame). A frame is the caller moving its "
+        "movers in place plus the call. Bytes per object: the tracker's own (everything it keeps "
+        "between calls), and its own plus the caller's columns that it reads.\n\n";
+  md << "| workload | arrays ms | mean ms | " << ours << " ms | arrays / " << ours
+     << " | own B/object | own + caller B/object | goal | met |\n";
+  md << "|---|---:|---:|---:|---:|---:|---:|---|:-:|\n";
+  for (std::size_t r = 0; r < rows.size(); ++r) {
+    const Row& row = rows[r];
+    const Workload& w = workloads[r];
+    const StructureTiming& a = row.arrays;
+    const double n = static_cast<double>(ctx.quick ? w.n_quick : w.n);
+    const bool agree = a.error.empty() && first_disagreement(a, row.ours) < 0;
+    if (!a.error.empty()) {
+      md << "| " << row.workload << " | failed: " << a.error << " | | | | | | | ✗ |\n";
+      continue;
+    }
+    const double ms = a.median_frame_ms(), ours_ms = row.ours.median_frame_ms();
+    const double own = static_cast<double>(a.memory_bytes) / n;
+    const double with_caller = static_cast<double>(a.memory_bytes + a.caller_bytes) / n;
+    std::string goal;
+    bool met = agree;
+    auto add_goal = [&](const std::string& text, bool ok) {
+      goal += (goal.empty() ? "" : ", ") + text;
+      met = met && ok;
+    };
+    if (std::isfinite(w.arrays_max_frame_ms))
+      add_goal("≤ " + fmt(w.arrays_max_frame_ms, 0) + " ms", ms <= w.arrays_max_frame_ms);
+    if (std::isfinite(w.arrays_max_bytes_per_object))
+      add_goal("≤ " + fmt(w.arrays_max_bytes_per_object, 0) + " B/object",
+               own <= w.arrays_max_bytes_per_object);
+    if (w.arrays_no_slower) add_goal("≤ " + ours, ms <= ours_ms);
+    md << "| " << row.workload << (agree ? "" : " **pairs differ**") << " | " << fmt(ms) << " | "
+       << fmt(a.mean_frame_ms()) << " | " << fmt(ours_ms) << " | " << fmt(ms / ours_ms, 2) << " | "
+       << fmt(own, 1) << " | " << fmt(with_caller, 1) << " | " << (goal.empty() ? "–" : goal)
+       << " | "
+       << (goal.empty() ? (agree ? "" : "✗")
+           : met        ? "✓"
+                        : "✗")
+       << " |\n";
+  }
+
   const double speedup = one.median_frame_ms() / two.median_frame_ms();
   const double min_speedup = gt.at("min_speedup");
   md << "\n**Threads** (scaled-even " << n_threads
