@@ -13,6 +13,25 @@
 
 namespace broadphase::testing {
 
+/// True in a ThreadSanitizer build. Every memory access costs there many
+/// times more, so tests that repeat a threaded call many times, or compare
+/// tens of thousands of objects with an O(n^2) oracle, do fewer repeats
+/// (a race shows in a few; the Release build runs them all).
+#if defined(__SANITIZE_THREAD__)
+inline constexpr bool kThreadSanitizer = true;
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+inline constexpr bool kThreadSanitizer = true;
+#else
+inline constexpr bool kThreadSanitizer = false;
+#endif
+#else
+inline constexpr bool kThreadSanitizer = false;
+#endif
+
+/// `n` repeats, or a tenth of them (at least one) under ThreadSanitizer.
+constexpr int repeats(int n) { return kThreadSanitizer ? (n + 9) / 10 : n; }
+
 /// A reference scene and its expected per-frame results.
 struct ReferenceScene {
   std::string name;
