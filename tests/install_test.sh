@@ -1,15 +1,19 @@
 #!/usr/bin/env bash
 # Installs the library into a temporary prefix, builds the README example
-# against it with find_package(broadphase), and runs it.
+# against it with find_package(broadphase), and runs it; with a fourth
+# argument ON, also the MPI example (find_package(broadphase COMPONENTS
+# mpi), broadphase::mpi) on two ranks.
 set -eu
 build=$1
 src=$2
 flags=${3:-}
+mpi=${4:-OFF}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 cmake --install "$build" --prefix "$tmp/prefix" >/dev/null
 cmake -S "$src/tests/install" -B "$tmp/consumer" -DCMAKE_PREFIX_PATH="$tmp/prefix" \
-  -DEXAMPLE_SOURCE="$src/examples/quickstart.cpp" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS="$flags" >/dev/null
+  -DEXAMPLE_SOURCE="$src/examples/quickstart.cpp" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS="$flags" \
+  -DWITH_MPI="$mpi" -DMPI_EXAMPLE_SOURCE="$src/examples/distributed.cpp" >/dev/null
 cmake --build "$tmp/consumer" >/dev/null
 out=$("$tmp/consumer/quickstart")
 echo "$out"
@@ -17,4 +21,14 @@ expected='pair 1-2
 touches 2
 touches 3
 3 narrow-phase tests'
-if [ "$out" = "$expected" ]; then echo "1 passed, 0 failed"; else echo "0 passed, 1 failed"; exit 1; fi
+if [ "$out" != "$expected" ]; then echo "0 passed, 1 failed"; exit 1; fi
+if [ "$mpi" = ON ]; then
+  # Bounded: an MPI program that hangs fails the test instead.
+  out=$(OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 timeout 120 \
+    mpirun --oversubscribe -np 2 "$tmp/consumer/distributed")
+  echo "$out"
+  if [ "$out" != "pairs 99, on 2 ranks" ]; then echo "1 passed, 1 failed"; exit 1; fi
+  echo "2 passed, 0 failed"
+else
+  echo "1 passed, 0 failed"
+fi
