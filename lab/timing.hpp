@@ -16,6 +16,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace broadphase::app {
@@ -64,6 +65,38 @@ inline double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+/// Runs `frame(f)`, which returns the frame's seconds and digest, for
+/// f = 0, 1, ... within `limits`, recording each in `t`, then leaves the
+/// warm-up out. Frame 0 has no update, and frame 1 carries the first bulk
+/// update after the inserts (where structures that defer work sort
+/// everything into place): both are warm-up, left out when later frames
+/// exist. The budget counts from the end of the warm-up, so that a
+/// structure whose warm-up is long (a pair cache built at a million
+/// objects) still gets its measured frames; a warm-up frame alone over
+/// `warmup_seconds` ends the run (the structure is too slow for this size).
+template <class Frame>
+void run_frames(const TimingLimits& limits, StructureTiming& t, Frame&& frame) {
+  constexpr int kWarmFrames = 2;
+  auto start = std::chrono::steady_clock::now();
+  for (int f = 0; f < limits.max_frames; ++f) {
+    const auto [seconds, digest] = frame(f);
+    t.frame_ms.push_back(seconds * 1e3);
+    t.digests.push_back(digest);
+    if (f < kWarmFrames) {
+      const double warm_cap =
+          limits.warmup_seconds > 0 ? limits.warmup_seconds : 2 * limits.budget_seconds;
+      if (seconds > warm_cap) break;
+      if (f + 1 == kWarmFrames) start = std::chrono::steady_clock::now();
+      continue;
+    }
+    const double spent = seconds_since(start);
+    if (f + 1 >= limits.min_frames && spent > limits.budget_seconds) break;
+    if (spent > 2 * limits.budget_seconds) break;  // the frames are too slow for min_frames
+  }
+  const std::size_t warm = t.frame_ms.size() > 2 ? 2 : (t.frame_ms.size() > 1 ? 1 : 0);
+  t.frame_ms.erase(t.frame_ms.begin(), t.frame_ms.begin() + static_cast<std::ptrdiff_t>(warm));
+}
+
 /// Builds `spec` from `registry` for `scene`, replays frames within the
 /// limits, then times queries, inserts and removes. Never throws: a failure
 /// is reported in `error`.
@@ -78,32 +111,10 @@ inline StructureTiming time_structure(const Registry& registry, const std::strin
     auto bp = registry.make(spec, config);
     Replay replay(*bp, scene);
     t.build_ms = replay.build_seconds() * 1e3;
-    // Frame 0 has no update, and frame 1 carries the first bulk update
-    // after the inserts (where structures that defer work sort everything
-    // into place): both are warm-up, left out when later frames exist. The
-    // budget counts from the end of the warm-up, so that a structure whose
-    // warm-up is long (a pair cache built at a million objects) still gets
-    // its measured frames; a warm-up frame alone over `warmup_seconds`
-    // ends the run (the structure is too slow for this size).
-    constexpr int kWarmFrames = 2;
-    auto start = std::chrono::steady_clock::now();
-    for (int f = 0; f < limits.max_frames; ++f) {
+    run_frames(limits, t, [&](int) {
       const FrameResult r = replay.next();
-      t.frame_ms.push_back(r.seconds() * 1e3);
-      t.digests.push_back(r.digest);
-      if (f < kWarmFrames) {
-        const double warm_cap =
-            limits.warmup_seconds > 0 ? limits.warmup_seconds : 2 * limits.budget_seconds;
-        if (r.seconds() > warm_cap) break;
-        if (f + 1 == kWarmFrames) start = std::chrono::steady_clock::now();
-        continue;
-      }
-      const double spent = seconds_since(start);
-      if (f + 1 >= limits.min_frames && spent > limits.budget_seconds) break;
-      if (spent > 2 * limits.budget_seconds) break;  // the frames are too slow for min_frames
-    }
-    const std::size_t warm = t.frame_ms.size() > 2 ? 2 : (t.frame_ms.size() > 1 ? 1 : 0);
-    t.frame_ms.erase(t.frame_ms.begin(), t.frame_ms.begin() + static_cast<std::ptrdiff_t>(warm));
+      return std::pair{r.seconds(), r.digest};
+    });
     t.memory_bytes = bp->memory_bytes();
     if (limits.micro && scene.size() > 0) {
       // Each batch's shapes are drawn before its clock starts: drawing one
@@ -171,9 +182,7 @@ inline StructureTiming time_arrays(const std::string& spec, const Scene& scene,
     options.threads = threads;
     PairTracker tracker(options);
     const Objects objects = caller.objects();
-    constexpr int kWarmFrames = 2;
-    auto start = std::chrono::steady_clock::now();
-    for (int f = 0; f < limits.max_frames; ++f) {
+    run_frames(limits, t, [&](int f) {
       const auto t0 = std::chrono::steady_clock::now();
       if (f > 0 && caller.step() != SIZE_MAX)
         throw std::runtime_error("frame " + std::to_string(f) + ": a motion overflows a double");
@@ -187,21 +196,8 @@ inline StructureTiming time_arrays(const std::string& spec, const Scene& scene,
           f == 0 ? Changes::everything() : Changes::only(caller.movers()));
       const double seconds = seconds_since(t0);
       if (f == 0) t.build_ms = seconds * 1e3;
-      t.frame_ms.push_back(seconds * 1e3);
-      t.digests.push_back(d);
-      if (f < kWarmFrames) {
-        const double warm_cap =
-            limits.warmup_seconds > 0 ? limits.warmup_seconds : 2 * limits.budget_seconds;
-        if (seconds > warm_cap) break;
-        if (f + 1 == kWarmFrames) start = std::chrono::steady_clock::now();
-        continue;
-      }
-      const double spent = seconds_since(start);
-      if (f + 1 >= limits.min_frames && spent > limits.budget_seconds) break;
-      if (spent > 2 * limits.budget_seconds) break;
-    }
-    const std::size_t warm = t.frame_ms.size() > 2 ? 2 : (t.frame_ms.size() > 1 ? 1 : 0);
-    t.frame_ms.erase(t.frame_ms.begin(), t.frame_ms.begin() + static_cast<std::ptrdiff_t>(warm));
+      return std::pair{seconds, d};
+    });
     t.memory_bytes = tracker.memory_bytes();
     t.caller_bytes = caller.bytes();
   } catch (const std::exception& e) {
