@@ -13,7 +13,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(fuzz_scene_reader fuzz_structure_spec fuzz_operations fuzz_arrays)
+[ ${#targets[@]} -gt 0 ] || targets=(fuzz_scene_reader fuzz_structure_spec fuzz_operations fuzz_arrays fuzz_partition)
 build=${FUZZ_BUILD_DIR:-build-fuzz}
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)

@@ -1,5 +1,6 @@
 // The subdomains as a tree of cuts: the grid, and the queries both
 // decompositions share (the bisection's cuts are found in domain.cpp).
+#include <algorithm>
 #include <broadphase/distributed.hpp>
 #include <limits>
 #include <stdexcept>
@@ -10,7 +11,10 @@ namespace broadphase::distributed {
 namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// Fills rank regions by walking the tree from `child` with `box`.
+// Fills rank regions by walking the tree from `child` with `box`. A cut
+// outside its node's box (a tree built by hand need not nest its cuts)
+// leaves one side empty: the region is the box clipped by the cut, exactly
+// the points owner() sends there.
 void fill_regions(const std::vector<Partition::Node>& nodes, int child, Aabb box,
                   std::vector<Aabb>& regions) {
   if (child < 0) {
@@ -19,8 +23,8 @@ void fill_regions(const std::vector<Partition::Node>& nodes, int child, Aabb box
   }
   const Partition::Node& n = nodes[static_cast<std::size_t>(child)];
   Aabb left = box, right = box;
-  left.hi[n.axis] = n.cut;
-  right.lo[n.axis] = n.cut;
+  left.hi[n.axis] = std::min(box.hi[n.axis], n.cut);
+  right.lo[n.axis] = std::max(box.lo[n.axis], n.cut);
   fill_regions(nodes, n.left, left, regions);
   fill_regions(nodes, n.right, right, regions);
 }
