@@ -68,7 +68,9 @@ struct Common {
 };
 
 void add_common(CLI::App* cmd, Common& o) {
-  cmd->add_option("--algo", o.algo, "Local structure by name (name:key=value,...)")
+  cmd->add_option(
+         "--algo", o.algo,
+         "Local pairs: a structure by name (name:key=value,...), or 'arrays' for the lean path")
       ->default_val("grid-hashed");
   cmd->add_option("--frames", o.frames, "Number of frames")
       ->default_val(100)
@@ -106,7 +108,7 @@ dist::Options domain_options(const Common& o) {
     }
   }
   // The structure name is checked here, on every rank alike, before any data moves.
-  broadphase::make_structure(d.algo);
+  if (d.algo != dist::kLeanPath) broadphase::make_structure(d.algo);
   return d;
 }
 

@@ -65,13 +65,20 @@ enum class Decomposition : std::uint8_t {
   bisection,  ///< weighted recursive coordinate bisection of the centres
 };
 
+/// The `Options::algo` that finds each rank's local pairs with the lean
+/// path (arrays.hpp's one-shot `find_pairs`), reading the received objects
+/// in place instead of building a structure.
+inline constexpr const char* kLeanPath = "arrays";
+
 /// Options of a Domain. Every field has a default.
 struct Options {
-  /// The structure that finds each rank's local pairs, by registry name
-  /// (registry.hpp; options after a colon). It is rebuilt on every call:
-  /// `grid-hashed` rebuilt fastest of those tried (local pairs of one frame
-  /// at 64 000 objects: grid-hashed 0.79 s, fast-grid 0.82, hgrid 1.12,
-  /// sort-sweep 1.80, on the 2-core VM under a load of 18).
+  /// What finds each rank's local pairs: a structure by registry name
+  /// (registry.hpp; options after a colon), rebuilt on every call, or
+  /// `kLeanPath` ("arrays"). `grid-hashed` rebuilt fastest of the
+  /// structures tried (local pairs of one frame at 64 000 objects:
+  /// grid-hashed 0.79 s, fast-grid 0.82, hgrid 1.12, sort-sweep 1.80, on
+  /// the 2-core VM under a load of 18); docs/distributed.md compares it
+  /// with the lean path.
   std::string algo = "grid-hashed";
   Decomposition decomposition = Decomposition::grid;
   /// Grid: ranks per axis. Zero entries are chosen by MPI_Dims_create; the

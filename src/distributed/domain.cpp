@@ -8,6 +8,7 @@
 #include <cmath>
 #include <exception>
 #include <string>
+#include <string_view>
 
 namespace broadphase::distributed {
 
@@ -398,35 +399,67 @@ void Domain::find_pairs(std::span<const std::uint32_t> ids, std::span<const Shap
   try {
     std::vector<Aabb> box(local.size());
     for (std::size_t i = 0; i < local.size(); ++i) box[i] = bounds(local[i].shape);
-    Config config;
-    config.world = world_;
-    const Aabb& region = partition_.region(rank_);
-    Aabb clipped;
-    bool usable = true;
-    for (int a = 0; a < 3; ++a) {
-      clipped.lo[a] = std::max(region.lo[a], world_.lo[a]);
-      clipped.hi[a] = std::min(region.hi[a], world_.hi[a]);
-      usable = usable && clipped.lo[a] < clipped.hi[a];
-    }
-    if (usable) config.world = clipped;
-    config.expected_objects = local.size();
-    auto structure = make_structure(options_.algo, config);
-    for (std::size_t i = 0; i < local.size(); ++i) structure->insert(local[i].shape, i);
-    std::vector<HandlePair> pairs;
-    structure->find_pairs(pairs);
     const std::size_t first = out.size();
-    for (const HandlePair& p : pairs) {
-      const auto i = static_cast<std::size_t>(structure->user_data(p.a));
-      const auto j = static_cast<std::size_t>(structure->user_data(p.b));
+    // Keeps pair (i, j) of `local` when this rank's subdomain holds
+    // max(lo_i, lo_j); false stops (an id seen twice).
+    auto keep = [&](std::size_t i, std::size_t j) {
       const Vec3 at{std::max(box[i].lo.x, box[j].lo.x), std::max(box[i].lo.y, box[j].lo.y),
                     std::max(box[i].lo.z, box[j].lo.z)};
-      if (!partition_.holds(rank_, at)) continue;
+      if (!partition_.holds(rank_, at)) return true;
       const std::uint32_t a = local[i].id, b = local[j].id;
       if (a == b) {
         error = "object id " + std::to_string(a) + " was passed on more than one rank or twice";
-        break;
+        return false;
       }
       out.push_back({std::min(a, b), std::max(a, b)});
+      return true;
+    };
+    if (options_.algo == std::string_view(kLeanPath)) {
+      // The lean path reads the received records in place (arrays.hpp):
+      // no structure is built and no copy made.
+      const auto stride = static_cast<std::ptrdiff_t>(sizeof(Record));
+      const Shape* s0 = local.empty() ? nullptr : &local[0].shape;
+      Objects view;
+      view.count = local.size();
+      if (s0 != nullptr) {
+        view.x = {&s0->center.x, stride, Real::f64};
+        view.y = {&s0->center.y, stride, Real::f64};
+        view.z = {&s0->center.z, stride, Real::f64};
+        view.radius = {&s0->half.x, stride, Real::f64};  // a sphere's radius is its half.x
+        view.half_x = view.radius;
+        view.half_y = {&s0->half.y, stride, Real::f64};
+        view.half_z = {&s0->half.z, stride, Real::f64};
+        static_assert(sizeof(ShapeKind) == 1 && static_cast<int>(ShapeKind::sphere) == 0 &&
+                      static_cast<int>(ShapeKind::box) == 1);
+        view.kind = reinterpret_cast<const std::uint8_t*>(&s0->kind);
+        view.kind_stride = stride;
+      }
+      broadphase::find_pairs(view, [&](std::span<const IndexPair> chunk) {
+        for (const IndexPair& p : chunk)
+          if (!keep(p.i, p.j)) return false;
+        return true;
+      });
+    } else {
+      Config config;
+      config.world = world_;
+      const Aabb& region = partition_.region(rank_);
+      Aabb clipped;
+      bool usable = true;
+      for (int a = 0; a < 3; ++a) {
+        clipped.lo[a] = std::max(region.lo[a], world_.lo[a]);
+        clipped.hi[a] = std::min(region.hi[a], world_.hi[a]);
+        usable = usable && clipped.lo[a] < clipped.hi[a];
+      }
+      if (usable) config.world = clipped;
+      config.expected_objects = local.size();
+      auto structure = make_structure(options_.algo, config);
+      for (std::size_t i = 0; i < local.size(); ++i) structure->insert(local[i].shape, i);
+      std::vector<HandlePair> pairs;
+      structure->find_pairs(pairs);
+      for (const HandlePair& p : pairs)
+        if (!keep(static_cast<std::size_t>(structure->user_data(p.a)),
+                  static_cast<std::size_t>(structure->user_data(p.b))))
+          break;
     }
     stats_.local_pairs = out.size() - first;
   } catch (const std::exception& e) {
