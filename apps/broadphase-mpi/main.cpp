@@ -56,7 +56,7 @@ struct Common {
   std::uint64_t n = 0;
   std::uint64_t per_rank = 0;
   std::uint64_t seed = 1;
-  std::string algo = "grid-hashed";
+  std::string algo = broadphase::distributed::kLeanPath;
   int frames = 100;
   std::string grid;
   bool bisect = false;
@@ -71,7 +71,7 @@ void add_common(CLI::App* cmd, Common& o) {
   cmd->add_option(
          "--algo", o.algo,
          "Local pairs: a structure by name (name:key=value,...), or 'arrays' for the lean path")
-      ->default_val("grid-hashed");
+      ->default_val(broadphase::distributed::kLeanPath);
   cmd->add_option("--frames", o.frames, "Number of frames")
       ->default_val(100)
       ->check(CLI::Range(1, 100000000));

@@ -72,14 +72,16 @@ inline constexpr const char* kLeanPath = "arrays";
 
 /// Options of a Domain. Every field has a default.
 struct Options {
-  /// What finds each rank's local pairs: a structure by registry name
-  /// (registry.hpp; options after a colon), rebuilt on every call, or
-  /// `kLeanPath` ("arrays"). `grid-hashed` rebuilt fastest of the
-  /// structures tried (local pairs of one frame at 64 000 objects:
-  /// grid-hashed 0.79 s, fast-grid 0.82, hgrid 1.12, sort-sweep 1.80, on
-  /// the 2-core VM under a load of 18); docs/distributed.md compares it
-  /// with the lean path.
-  std::string algo = "grid-hashed";
+  /// What finds each rank's local pairs: `kLeanPath` ("arrays", the
+  /// default), or a structure by registry name (registry.hpp; options
+  /// after a colon), rebuilt on every call. The lean path reads the
+  /// received objects in place; local pairs of one frame at 256 000
+  /// scaled-even objects on one rank took 0.63x grid-hashed's time
+  /// (medians of three alternated runs, 0.87-0.92 s against 1.35-1.43 s,
+  /// 2-core VM at a load of 6), the fastest of the structures before it
+  /// (at 64 000: grid-hashed 0.79 s, fast-grid 0.82, hgrid 1.12,
+  /// sort-sweep 1.80).
+  std::string algo = kLeanPath;
   Decomposition decomposition = Decomposition::grid;
   /// Grid: ranks per axis. Zero entries are chosen by MPI_Dims_create; the
   /// product must equal the number of ranks.
