@@ -178,7 +178,10 @@ struct ArrayCallStats {
   std::uint64_t pairs = 0;
   std::uint64_t tests = 0;  ///< exact predicate evaluations
   bool rebuilt = false;     ///< the tracker rebuilt its index in this call
-  bool stopped = false;     ///< the sink asked to stop
+  /// Objects the tracker renewed alone in this call (they had left their
+  /// fat box and got a new one, without a rebuild).
+  std::uint64_t renewed = 0;
+  bool stopped = false;  ///< the sink asked to stop
 };
 
 /// All overlapping pairs (i < j) of one set, streamed to `sink`.
