@@ -251,10 +251,14 @@ struct LoosePair {
   std::uint32_t a, b;
 };
 
-// Renewal stops paying when this fraction of the objects has been renewed
-// since the last build: the rows then carry that many dead entries and the
-// loose pairs cost 8 bytes each (docs/arrays.md).
-constexpr double kRenewedLimit = 0.3;
+// When more than this fraction of the objects leave in one call, a rebuild
+// is cheaper than renewing each (a renewal queries the grid on every level,
+// several times the work of one object's probe in a build).
+constexpr double kRebuildFraction = 0.25;
+// Compaction folds the loose pairs into the rows once this fraction of the
+// objects is renewed, or the loose pairs (8 bytes each) take more than half
+// the rows' partner memory (docs/arrays.md).
+constexpr double kCompactFraction = 0.1;
 // A renewed object's box reaches ahead by this times its last displacement,
 // if that was at most kAheadSkins skins (docs/arrays.md).
 constexpr double kAheadFactor = 1.0;
@@ -318,8 +322,15 @@ struct PairTracker::Impl {
 
   double margin(const Objects& o) const;
   void rebuild(const Objects& o);
-  // Renews the objects in `leave` (distinct, none yet marked in `now`).
+  // Renews the objects in `leave` (distinct, sorted).
   void renew(const std::vector<std::uint32_t>& leave);
+  // Folds the loose pairs into the rows and drops the dead entries.
+  void compact();
+  bool wants_compaction() const {
+    return static_cast<double>(renewed_list.size()) >
+               kCompactFraction * static_cast<double>(count) ||
+           loose.size() * 4 > partner.size();
+  }
   AabbF fat_box(const Shape& s) const {
     const Aabb b = bounds(s);
     const double m = margin_used;
@@ -457,6 +468,49 @@ void PairTracker::Impl::renew(const std::vector<std::uint32_t>& leave) {
     });
 }
 
+// A new grid over the current fat boxes and rows in its order, holding the
+// same candidates with the same bits: the rows' live entries, then the loose
+// pairs of the row's object (as the lower index). No probe, so it costs a
+// grid build and two passes over the candidates, against a probe of every
+// object for a rebuild.
+void PairTracker::Impl::compact() {
+  const std::size_t rows = grid.probe_count();
+  std::vector<std::uint32_t> cursor(count, 0);  // candidates per object, then where they go
+  for (std::size_t k = 0; k < rows; ++k) {
+    const std::uint32_t i = grid.probe_object(k);
+    if (is_renewed(i)) continue;
+    std::uint32_t c = 0;
+    for (std::uint32_t p = offset[k]; p < offset[k + 1]; ++p)
+      c += is_renewed(partner[p] & kIndexMask) ? 0 : 1;
+    cursor[i] = c;
+  }
+  for (const LoosePair& lp : loose) ++cursor[lp.a];
+  ArrayGrid next;
+  next.build(fat);
+  std::vector<std::uint32_t> next_offset(rows + 1, 0);
+  for (std::size_t k = 0; k < rows; ++k) {
+    const std::uint32_t i = next.probe_object(k);
+    next_offset[k + 1] = next_offset[k] + cursor[i];
+    cursor[i] = next_offset[k];
+  }
+  std::vector<std::uint32_t> next_partner(next_offset[rows]);
+  for (std::size_t k = 0; k < rows; ++k) {
+    const std::uint32_t i = grid.probe_object(k);
+    if (is_renewed(i)) continue;
+    for (std::uint32_t p = offset[k]; p < offset[k + 1]; ++p)
+      if (!is_renewed(partner[p] & kIndexMask)) next_partner[cursor[i]++] = partner[p];
+  }
+  for (const LoosePair& lp : loose) next_partner[cursor[lp.a]++] = lp.b;
+  grid = std::move(next);
+  offset = std::move(next_offset);
+  partner = std::move(next_partner);
+  std::fill(renewed.begin(), renewed.end(), 0);
+  renewed_list.clear();
+  renewed_list.shrink_to_fit();
+  loose.clear();
+  loose.shrink_to_fit();
+}
+
 PairTracker::PairTracker(const ArrayOptions& options) : impl_(std::make_unique<Impl>()) {
   impl_->options = options;
 }
@@ -500,9 +554,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
       }
       std::sort(leave.begin(), leave.end());
     }
-    std::size_t after = im.renewed_list.size();
-    for (std::uint32_t i : leave) after += im.is_renewed(i) ? 0 : 1;
-    rebuild = static_cast<double>(after) > kRenewedLimit * static_cast<double>(n);
+    rebuild = static_cast<double>(leave.size()) > kRebuildFraction * static_cast<double>(n);
   }
   if (rebuild) {
     im.rebuild(objects);
@@ -511,6 +563,10 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
     for (std::uint32_t i : leave) im.fat[i] = im.renewed_box(objects.shape(i), im.fat[i]);
     im.renew(leave);
     stats.renewed = leave.size();
+    if (im.wants_compaction()) {
+      im.compact();
+      stats.compacted = true;
+    }
   }
 
   // Which objects changed: a pair of unchanged objects keeps the answer of

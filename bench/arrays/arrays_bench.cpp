@@ -181,7 +181,8 @@ int main(int argc, char** argv) {
     if (!quiet)
       std::printf("%d %llu %s %.2f ms (cpu %.2f)%s renewed %llu, own %.1f B/object\n", f,
                   static_cast<unsigned long long>(d.pairs), hex16(d.hash).c_str(), call_ms.back(),
-                  cpu_call_ms.back(), stats.rebuilt ? " rebuilt" : "",
+                  cpu_call_ms.back(),
+                  stats.rebuilt ? " rebuilt" : (stats.compacted ? " compacted" : ""),
                   static_cast<unsigned long long>(stats.renewed),
                   static_cast<double>(tracker.memory_bytes()) / static_cast<double>(n));
   }

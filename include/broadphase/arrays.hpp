@@ -181,6 +181,9 @@ struct ArrayCallStats {
   /// Objects the tracker renewed alone in this call (they had left their
   /// fat box and got a new one, without a rebuild).
   std::uint64_t renewed = 0;
+  /// The tracker folded its renewed objects' candidates back into its rows
+  /// (a new grid over the same fat boxes; no candidate search).
+  bool compacted = false;
   bool stopped = false;  ///< the sink asked to stop
 };
 
