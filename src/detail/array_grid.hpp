@@ -43,21 +43,33 @@ class ArrayGrid {
   /// The probing order: the objects in bucket order (neighbours in space
   /// close together), then the big ones. Probing in this order reads the
   /// grid's memory in long runs.
-  std::size_t probe_count() const { return entries_.size() + big_.size(); }
+  std::size_t probe_count() const { return placed() + big_.size(); }
   std::uint32_t probe_object(std::size_t k) const {
-    return k < entries_.size() ? entries_[k].index : big_[k - entries_.size()];
+    return k < placed() ? entry_index(k) : big_[k - placed()];
   }
+  /// Not after `slim`.
   const AabbF& probe_box(std::size_t k) const {
     return k < entries_.size() ? entries_[k].box : boxes_[big_[k - entries_.size()]];
   }
+
+  /// Keeps only the entries' object indices (4 bytes an object instead of
+  /// 28): `query` then reads the boxes from the span given to `build`, which
+  /// must stay valid. `probe` and `probe_box` are then unavailable, and the
+  /// grid is not built again (assign a new one instead).
+  void slim() {
+    slim_.resize(entries_.size());
+    for (std::size_t k = 0; k < entries_.size(); ++k) slim_[k] = entries_[k].index;
+    std::vector<GridEntry>().swap(entries_);  // `= {}` would keep the capacity
+    slimmed_ = true;
+  }
+  /// Bytes of the index kept by `slim` (not in `memory_bytes`).
+  std::size_t slim_bytes() const { return slim_.capacity() * sizeof(std::uint32_t); }
 
   /// Calls `visit(j)` once for every object j whose box, as given to the
   /// last build, overlaps `box` (every level and the big list).
   template <class Visit>
   void query(const AabbF& box, Visit&& visit) const;
 
-  /// The entries in bucket order (box and object as at the build).
-  std::span<const GridEntry> entries() const { return entries_; }
   /// The objects whose box was infinite or too wide for any level.
   std::span<const std::uint32_t> big() const { return big_; }
 
@@ -89,7 +101,15 @@ class ArrayGrid {
   std::vector<std::uint32_t> start_;  // per bucket, then one past the end
   std::vector<GridEntry> entries_;
   std::vector<std::uint32_t> big_;
-  std::span<const AabbF> boxes_;  // the boxes of the last build (for big probes)
+  std::span<const AabbF> boxes_;     // the boxes of the last build (for big probes)
+  std::vector<std::uint32_t> slim_;  // the entries' objects, after `slim`
+  bool slimmed_ = false;
+
+  std::size_t placed() const { return slimmed_ ? slim_.size() : entries_.size(); }
+  std::uint32_t entry_index(std::size_t k) const { return slimmed_ ? slim_[k] : entries_[k].index; }
+  const AabbF& entry_box(std::size_t k) const {
+    return slimmed_ ? boxes_[slim_[k]] : entries_[k].box;
+  }
 };
 
 inline std::int64_t ArrayGrid::cell(double x, double inv) {
@@ -190,7 +210,7 @@ void ArrayGrid::query(const AabbF& box, Visit&& visit) const {
     if (cells >= static_cast<double>(lv.mask + 1)) {
       // A box wide against this level's cells: every bucket, once.
       for (std::uint32_t k = start_[b0]; k < start_[b1]; ++k)
-        if (box.overlaps(entries_[k].box)) visit(entries_[k].index);
+        if (box.overlaps(entry_box(k))) visit(entry_index(k));
       continue;
     }
     // The hash is linear in x, so a row of cells along x is a run of
@@ -204,15 +224,14 @@ void ArrayGrid::query(const AabbF& box, Visit&& visit) const {
     const auto len = static_cast<std::uint32_t>(x1 - x0 + 1);
     auto run = [&](std::uint32_t r0, std::uint32_t r1, std::int64_t cy, std::int64_t cz) {
       for (std::uint32_t k = start_[b0 + r0]; k < start_[b0 + r1]; ++k) {
-        const GridEntry& en = entries_[k];
-        if (!box.overlaps(en.box)) continue;
+        const AabbF& eb = entry_box(k);
+        if (!box.overlaps(eb)) continue;
         if (may_share) {
-          const std::int64_t ex = cell(en.box.lo[0], lv.inv);
-          if (ex < x0 || ex > x1 || cell(en.box.lo[1], lv.inv) != cy ||
-              cell(en.box.lo[2], lv.inv) != cz)
+          const std::int64_t ex = cell(eb.lo[0], lv.inv);
+          if (ex < x0 || ex > x1 || cell(eb.lo[1], lv.inv) != cy || cell(eb.lo[2], lv.inv) != cz)
             continue;
         }
-        visit(en.index);
+        visit(entry_index(k));
       }
     };
     for (std::int64_t cy = y0; cy <= y1; ++cy)
