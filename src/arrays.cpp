@@ -273,26 +273,13 @@ inline void set_bit(std::vector<std::uint64_t>& bits, std::uint32_t k) {
   bits[k >> 6] |= std::uint64_t{1} << (k & 63);
 }
 
-// Starts loading object j's values from the caller's columns, so that the
-// exact test a few candidates later finds them in cache (the partners of a
-// row are in no order the caller's memory knows).
-inline void prefetch(const Objects& o, std::uint32_t j) {
-  auto pf = [&](const Column& c) {
-    if (c.data != nullptr)
-      __builtin_prefetch(static_cast<const unsigned char*>(c.data) +
-                         static_cast<std::ptrdiff_t>(j) * c.stride);
-  };
-  pf(o.x);
-  pf(o.y);
-  pf(o.z);
-  if (o.kind != nullptr)
-    __builtin_prefetch(o.kind + static_cast<std::ptrdiff_t>(j) * o.kind_stride);
-  if (!o.radius.empty() && o.radius.stride != 0) pf(o.radius);
-  if (o.kind != nullptr || o.radius.empty()) {
-    pf(o.half_x);
-    pf(o.half_y);
-    pf(o.half_z);
-  }
+// Object i as a Shape, always inlined: perf showed GCC calling
+// Objects::shape out of line from the tracker's scan once the scan grew
+// (32% of a steady call told everything at scaled-even 1 024 000).
+[[gnu::always_inline]] inline Shape read_shape(const Objects& o, std::uint32_t i) {
+  const Vec3 c{o.x.at(i), o.y.at(i), o.z.at(i)};
+  if (o.is_sphere(i)) return Shape::sphere(c, o.radius.at(i));
+  return Shape::box(c, {o.half_x.at(i), o.half_y.at(i), o.half_z.at(i)});
 }
 
 }  // namespace
@@ -363,7 +350,7 @@ struct PairTracker::Impl {
   }
   bool is_renewed(std::uint32_t k) const { return test_bit(renewed, k); }
   bool contained(const Objects& o, std::uint32_t i) const {
-    const AabbF b = bounds_f(o.shape(i));
+    const AabbF b = bounds_f(read_shape(o, i));
     const AabbF& f = fat[i];
     return f.lo[0] <= b.lo[0] && f.lo[1] <= b.lo[1] && f.lo[2] <= b.lo[2] && b.hi[0] <= f.hi[0] &&
            b.hi[1] <= f.hi[1] && b.hi[2] <= f.hi[2];
@@ -591,13 +578,8 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   // not to be trusted.
   im.fresh = true;
 
-  // How far ahead of the test the partner's values are requested: rows of
-  // a few candidates each, so whole rows ahead (perf at scaled-even 1 024 000:
-  // the loads of the partner's x, y, z and radius were 64% of the scan).
-  constexpr std::size_t kRowsAhead = 3;
-  constexpr std::size_t kAhead = 16;
-  const bool any_renewed = !im.renewed_list.empty();
   const std::size_t rows = im.offset.size() - 1;
+  const bool any_renewed = !im.renewed_list.empty();
   Emitter emit(sink, im.options.sorted, stats);
   const unsigned threads = thread_count(im.options.threads);
   const bool go_on = run_in_order<PairChunk>(
@@ -606,10 +588,6 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
         out.pairs.clear();
         out.tests = 0;
         for (std::size_t k = begin; k < end; ++k) {
-          if (k + kRowsAhead < rows) {
-            const std::uint32_t ia = im.grid.probe_object(k + kRowsAhead);
-            if (is_changed(ia)) prefetch(objects, ia);
-          }
           const std::uint32_t s = im.offset[k], e = im.offset[k + 1];
           if (s == e) continue;
           const std::uint32_t i = im.grid.probe_object(k);
@@ -618,21 +596,17 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
           Shape si;
           bool si_read = false;
           for (std::uint32_t p = s; p < e; ++p) {
-            if (p + kAhead < im.partner.size()) {
-              const std::uint32_t ja = im.partner[p + kAhead] & kIndexMask;
-              if (is_changed(ja)) prefetch(objects, ja);
-            }
             std::uint32_t& entry = im.partner[p];
             const std::uint32_t j = entry & kIndexMask;
             if (any_renewed && im.is_renewed(j)) continue;
             bool hit;
             if (i_changed || is_changed(j)) {
               if (!si_read) {
-                si = objects.shape(i);
+                si = read_shape(objects, i);
                 si_read = true;
               }
               ++out.tests;
-              hit = overlaps(si, objects.shape(j));
+              hit = overlaps(si, read_shape(objects, j));
               entry = j | (hit ? kOverlapBit : 0);
             } else {
               hit = (entry & kOverlapBit) != 0;
@@ -650,20 +624,12 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
           out.pairs.clear();
           out.tests = 0;
           for (std::size_t p = begin; p < end; ++p) {
-            if (p + kAhead < end) {
-              const LoosePair& f = im.loose[p + kAhead];
-              const std::uint32_t fb = f.b & kIndexMask;
-              if (is_changed(f.a) || is_changed(fb)) {
-                prefetch(objects, f.a);
-                prefetch(objects, fb);
-              }
-            }
             LoosePair& lp = im.loose[p];
             const std::uint32_t i = lp.a, j = lp.b & kIndexMask;
             bool hit;
             if (is_changed(i) || is_changed(j)) {
               ++out.tests;
-              hit = overlaps(objects.shape(i), objects.shape(j));
+              hit = overlaps(read_shape(objects, i), read_shape(objects, j));
               lp.b = j | (hit ? kOverlapBit : 0);
             } else {
               hit = (lp.b & kOverlapBit) != 0;
