@@ -535,8 +535,9 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   ArrayCallStats stats;
   const auto n = static_cast<std::uint32_t>(objects.count);
   bool rebuild = !im.built || objects.count != im.count;
-  // The objects that left their fat box: renewed alone, unless so many have
-  // left since the last build that a rebuild is cheaper.
+  // The objects that left their fat box: renewed alone, unless so many
+  // left in this call that a rebuild is cheaper. (Renewal and compaction
+  // run on the calling thread only.)
   std::vector<std::uint32_t> leave;
   if (!rebuild) {
     if (changes.all) {
