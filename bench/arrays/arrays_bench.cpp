@@ -5,7 +5,8 @@
 //   arrays_bench DIST N [FRAMES] [--threads T] [--skin S] [--all]
 //                [--compare ALGO] [--seed S]
 //
-// Prints per frame: frame, pairs, hash, the call's ms, rebuilt; then the
+// Prints per frame: frame, pairs, hash, the call's ms (wall and CPU),
+// rebuilt or compacted, the objects renewed alone, own bytes per object; then the
 // medians, the tracker's own bytes per object, and the process's VmRSS and
 // VmHWM (kB, from /proc/self/status). `--compare ALGO` replays the same
 // scene through a handle structure (e.g. fast-grid) in the same process,
