@@ -246,26 +246,113 @@ constexpr std::uint32_t kOverlapBit = 0x80000000u;
 constexpr std::uint32_t kIndexMask = 0x7FFFFFFFu;
 constexpr std::size_t kMaxTracked = kIndexMask;
 
+// A candidate pair of a renewed object: a < b, b's top bit the overlap bit.
+struct LoosePair {
+  std::uint32_t a, b;
+};
+
+// When more than this fraction of the objects leave in one call, a rebuild
+// is cheaper than renewing each (a renewal queries the grid on every level,
+// several times the work of one object's probe in a build).
+constexpr double kRebuildFraction = 0.25;
+// Compaction folds the loose pairs into the rows once this fraction of the
+// objects is renewed, or the loose pairs (8 bytes each) take more than half
+// the rows' partner memory (docs/arrays.md).
+constexpr double kCompactFraction = 0.1;
+// A renewed object's box reaches ahead by this times its last displacement,
+// if that was at most kAheadSkins skins. Renewals over 16 frames at
+// scaled-even 1 024 000: 305 543 with no reach, 209 304 with 1, 160 022
+// with 2, 160 020 with 3; own memory 88, 89, 81, 82 B/object.
+constexpr double kAheadFactor = 2.0;
+constexpr double kAheadSkins = 4.0;
+
+namespace {
+
+inline bool test_bit(const std::vector<std::uint64_t>& bits, std::uint32_t k) {
+  return (bits[k >> 6] >> (k & 63)) & 1;
+}
+inline void set_bit(std::vector<std::uint64_t>& bits, std::uint32_t k) {
+  bits[k >> 6] |= std::uint64_t{1} << (k & 63);
+}
+
+// Object i as a Shape, always inlined: perf showed GCC calling
+// Objects::shape out of line from the tracker's scan once the scan grew
+// (32% of a steady call told everything at scaled-even 1 024 000).
+[[gnu::always_inline]] inline Shape read_shape(const Objects& o, std::uint32_t i) {
+  const Vec3 c{o.x.at(i), o.y.at(i), o.z.at(i)};
+  if (o.is_sphere(i)) return Shape::sphere(c, o.radius.at(i));
+  return Shape::box(c, {o.half_x.at(i), o.half_y.at(i), o.half_z.at(i)});
+}
+
+}  // namespace
+
 struct PairTracker::Impl {
   ArrayOptions options;
   bool built = false;
   bool fresh = false;  // rebuilt and not yet tested: every candidate is tested
   std::size_t count = 0;
-  // Per object: its bounds at the last rebuild, fattened by the skin. While
-  // every object's bounds stay inside its fat box, every overlapping pair is
-  // among the candidates (pairs of overlapping fat boxes).
+  double margin_used = 0;  // the skin as a distance, fixed at the last build
+  // Per object: its bounds when it was last (re)placed, fattened by the
+  // skin. While every object's bounds stay inside its fat box, every
+  // overlapping pair is among the candidates (pairs of overlapping fat boxes).
   std::vector<AabbF> fat;
-  // Candidates in rows, one row per object in the grid's probe order (so
-  // that a row's neighbours in memory are its neighbours in space): row k
-  // belongs to object owner[k] and holds partner[offset[k] .. offset[k+1]).
-  std::vector<std::uint32_t> owner;
+  // The grid of the fat boxes at the last build (or compaction), kept to
+  // find the partners of renewed objects; slimmed to object indices that
+  // read their boxes from `fat` (4 bytes an object instead of 28). Renewed
+  // objects sit where their old box put them: a query skips them.
+  ArrayGrid grid;
+  // Candidates of the last build in rows, one row per object in the grid's
+  // probe order (so that a row's neighbours in memory are its neighbours in
+  // space): row k belongs to grid.probe_object(k) and holds
+  // partner[offset[k] .. offset[k+1]). Entries with a renewed object are dead.
   std::vector<std::uint32_t> offset;
   std::vector<std::uint32_t> partner;
+  // Objects renewed since the last build (left their fat box and got a new
+  // one): a bit each, and their list. Every candidate pair with a renewed
+  // object is in `loose`, once.
+  std::vector<std::uint64_t> renewed;
+  std::vector<std::uint32_t> renewed_list;
+  std::vector<LoosePair> loose;
 
   double margin(const Objects& o) const;
   void rebuild(const Objects& o);
+  // Renews the objects in `leave` (distinct, sorted).
+  void renew(const std::vector<std::uint32_t>& leave);
+  // Folds the loose pairs into the rows and drops the dead entries.
+  void compact();
+  bool wants_compaction() const {
+    return static_cast<double>(renewed_list.size()) >
+               kCompactFraction * static_cast<double>(count) ||
+           loose.size() * 4 > partner.size();
+  }
+  AabbF fat_box(const Shape& s) const {
+    const Aabb b = bounds(s);
+    const double m = margin_used;
+    return {{round_down(b.lo.x - m), round_down(b.lo.y - m), round_down(b.lo.z - m)},
+            {round_up(b.hi.x + m), round_up(b.hi.y + m), round_up(b.hi.z + m)}};
+  }
+  // The fat box of an object leaving `old`: the skin all round, and ahead
+  // of it, kAheadFactor times as far as it went since `old` was made, on
+  // the axes it moved along (an object in steady motion then stays inside
+  // longer). A jump of more than a few skins gets the plain box.
+  AabbF renewed_box(const Shape& s, const AabbF& old) const {
+    AabbF f = fat_box(s);
+    const Aabb b = bounds(s);
+    double d[3];
+    const double c[3] = {b.lo.x + b.hi.x, b.lo.y + b.hi.y, b.lo.z + b.hi.z};
+    for (int a = 0; a < 3; ++a) {
+      d[a] = 0.5 * (c[a] - (static_cast<double>(old.lo[a]) + static_cast<double>(old.hi[a])));
+      if (!(std::abs(d[a]) <= kAheadSkins * margin_used)) return f;
+    }
+    for (int a = 0; a < 3; ++a) {
+      if (d[a] < 0) f.lo[a] = round_down(static_cast<double>(f.lo[a]) + kAheadFactor * d[a]);
+      if (d[a] > 0) f.hi[a] = round_up(static_cast<double>(f.hi[a]) + kAheadFactor * d[a]);
+    }
+    return f;
+  }
+  bool is_renewed(std::uint32_t k) const { return test_bit(renewed, k); }
   bool contained(const Objects& o, std::uint32_t i) const {
-    const AabbF b = bounds_f(o.shape(i));
+    const AabbF b = bounds_f(read_shape(o, i));
     const AabbF& f = fat[i];
     return f.lo[0] <= b.lo[0] && f.lo[1] <= b.lo[1] && f.lo[2] <= b.lo[2] && b.hi[0] <= f.hi[0] &&
            b.hi[1] <= f.hi[1] && b.hi[2] <= f.hi[2];
@@ -288,21 +375,17 @@ double PairTracker::Impl::margin(const Objects& o) const {
 
 void PairTracker::Impl::rebuild(const Objects& o) {
   const std::size_t n = o.count;
-  const double m = margin(o);
+  margin_used = margin(o);
   fat.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Aabb b = bounds(o.shape(i));
-    fat[i] = {{round_down(b.lo.x - m), round_down(b.lo.y - m), round_down(b.lo.z - m)},
-              {round_up(b.hi.x + m), round_up(b.hi.y + m), round_up(b.hi.z + m)}};
-  }
-  ArrayGrid grid;
+  fat.shrink_to_fit();
+  for (std::size_t i = 0; i < n; ++i) fat[i] = fat_box(o.shape(i));
+  grid = ArrayGrid{};
   grid.build(fat);
   struct Lists {
     std::vector<std::uint32_t> counts;
     std::vector<std::uint32_t> partners;
   };
   const std::size_t rows = grid.probe_count();
-  owner.resize(rows);
   offset.assign(rows + 1, 0);
   partner.clear();
   std::size_t filled = 0;
@@ -314,7 +397,6 @@ void PairTracker::Impl::rebuild(const Objects& o) {
         for (std::size_t k = begin; k < end; ++k) {
           const std::size_t before = out.partners.size();
           const std::uint32_t i = grid.probe_object(k);
-          owner[k] = i;
           grid.probe(i, grid.probe_box(k), [&](std::uint32_t j) { out.partners.push_back(j); });
           out.counts.push_back(static_cast<std::uint32_t>(out.partners.size() - before));
         }
@@ -328,9 +410,102 @@ void PairTracker::Impl::rebuild(const Objects& o) {
         return true;
       });
   partner.shrink_to_fit();
+  grid.slim();
+  renewed.assign((n + 63) / 64, 0);
+  renewed.shrink_to_fit();
+  renewed_list.clear();
+  renewed_list.shrink_to_fit();
+  loose.clear();
+  loose.shrink_to_fit();
   count = n;
   built = true;
   fresh = true;
+}
+
+void PairTracker::Impl::renew(const std::vector<std::uint32_t>& leave) {
+  // Which objects are renewed now: their old candidates go.
+  std::vector<std::uint64_t> now((count + 63) / 64, 0);
+  for (std::uint32_t i : leave) set_bit(now, i);
+  std::erase_if(loose, [&](const LoosePair& p) {
+    return test_bit(now, p.a) || test_bit(now, p.b & kIndexMask);
+  });
+  for (std::uint32_t i : leave) {
+    if (!is_renewed(i)) renewed_list.push_back(i);
+    set_bit(renewed, i);
+  }
+  auto add = [&](std::uint32_t i, std::uint32_t j) {
+    const IndexPair q = ordered(i, j);
+    loose.push_back({q.i, q.j});
+  };
+  // Partners that were not renewed: the kept grid holds their fat boxes.
+  for (std::uint32_t i : leave)
+    grid.query(fat[i], [&](std::uint32_t j) {
+      if (j != i && !is_renewed(j)) add(i, j);
+    });
+  // Partners among the renewed ones (this call's included, each pair once:
+  // a pair of two objects renewed now is added by the lower index).
+  auto wanted = [&](std::uint32_t i, std::uint32_t j) {
+    return j != i && (!test_bit(now, j) || j > i);
+  };
+  if (renewed_list.size() <= 64) {
+    for (std::uint32_t i : leave)
+      for (std::uint32_t j : renewed_list)
+        if (wanted(i, j) && fat[i].overlaps(fat[j])) add(i, j);
+    return;
+  }
+  std::vector<AabbF> boxes(renewed_list.size());
+  for (std::size_t k = 0; k < boxes.size(); ++k) boxes[k] = fat[renewed_list[k]];
+  ArrayGrid loose_grid;
+  loose_grid.build(boxes);
+  for (std::uint32_t i : leave)
+    loose_grid.query(fat[i], [&](std::uint32_t k) {
+      const std::uint32_t j = renewed_list[k];
+      if (wanted(i, j)) add(i, j);
+    });
+}
+
+// A new grid over the current fat boxes and rows in its order, holding the
+// same candidates with the same bits: the rows' live entries, then the loose
+// pairs of the row's object (as the lower index). No probe, so it costs a
+// grid build and two passes over the candidates, against a probe of every
+// object for a rebuild.
+void PairTracker::Impl::compact() {
+  const std::size_t rows = grid.probe_count();
+  std::vector<std::uint32_t> cursor(count, 0);  // candidates per object, then where they go
+  for (std::size_t k = 0; k < rows; ++k) {
+    const std::uint32_t i = grid.probe_object(k);
+    if (is_renewed(i)) continue;
+    std::uint32_t c = 0;
+    for (std::uint32_t p = offset[k]; p < offset[k + 1]; ++p)
+      c += is_renewed(partner[p] & kIndexMask) ? 0 : 1;
+    cursor[i] = c;
+  }
+  for (const LoosePair& lp : loose) ++cursor[lp.a];
+  ArrayGrid next;
+  next.build(fat);
+  next.slim();
+  std::vector<std::uint32_t> next_offset(rows + 1, 0);
+  for (std::size_t k = 0; k < rows; ++k) {
+    const std::uint32_t i = next.probe_object(k);
+    next_offset[k + 1] = next_offset[k] + cursor[i];
+    cursor[i] = next_offset[k];
+  }
+  std::vector<std::uint32_t> next_partner(next_offset[rows]);
+  for (std::size_t k = 0; k < rows; ++k) {
+    const std::uint32_t i = grid.probe_object(k);
+    if (is_renewed(i)) continue;
+    for (std::uint32_t p = offset[k]; p < offset[k + 1]; ++p)
+      if (!is_renewed(partner[p] & kIndexMask)) next_partner[cursor[i]++] = partner[p];
+  }
+  for (const LoosePair& lp : loose) next_partner[cursor[lp.a]++] = lp.b;
+  grid = std::move(next);
+  offset = std::move(next_offset);
+  partner = std::move(next_partner);
+  std::fill(renewed.begin(), renewed.end(), 0);
+  renewed_list.clear();
+  renewed_list.shrink_to_fit();
+  loose.clear();
+  loose.shrink_to_fit();
 }
 
 PairTracker::PairTracker(const ArrayOptions& options) : impl_(std::make_unique<Impl>()) {
@@ -358,61 +533,83 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
                              k);
 
   ArrayCallStats stats;
+  const auto n = static_cast<std::uint32_t>(objects.count);
   bool rebuild = !im.built || objects.count != im.count;
+  // The objects that left their fat box: renewed alone, unless so many
+  // left in this call that a rebuild is cheaper. (Renewal and compaction
+  // run on the calling thread only.)
+  std::vector<std::uint32_t> leave;
   if (!rebuild) {
     if (changes.all) {
-      for (std::size_t i = 0; i < objects.count && !rebuild; ++i)
-        rebuild = !im.contained(objects, static_cast<std::uint32_t>(i));
+      for (std::uint32_t i = 0; i < n; ++i)
+        if (!im.contained(objects, i)) leave.push_back(i);
     } else {
-      for (std::uint32_t k : changes.indices)
-        if (!im.contained(objects, k)) {
-          rebuild = true;
-          break;
-        }
+      std::vector<std::uint64_t> listed((n + 63) / 64, 0);
+      for (std::uint32_t k : changes.indices) {
+        if (test_bit(listed, k)) continue;
+        set_bit(listed, k);
+        if (!im.contained(objects, k)) leave.push_back(k);
+      }
+      std::sort(leave.begin(), leave.end());
     }
+    rebuild = static_cast<double>(leave.size()) > kRebuildFraction * static_cast<double>(n);
   }
   if (rebuild) {
     im.rebuild(objects);
     stats.rebuilt = true;
+  } else if (!leave.empty()) {
+    for (std::uint32_t i : leave) im.fat[i] = im.renewed_box(objects.shape(i), im.fat[i]);
+    im.renew(leave);
+    stats.renewed = leave.size();
+    if (im.wants_compaction()) {
+      im.compact();
+      stats.compacted = true;
+    }
   }
 
   // Which objects changed: a pair of unchanged objects keeps the answer of
   // the last call (its bit), so only pairs with a changed object are tested.
+  // (The renewed pairs of this call all have a changed object.)
   const bool test_all = changes.all || im.fresh;
   std::vector<std::uint64_t> changed;
   if (!test_all) {
     changed.assign((objects.count + 63) / 64, 0);
-    for (std::uint32_t k : changes.indices) changed[k >> 6] |= std::uint64_t{1} << (k & 63);
+    for (std::uint32_t k : changes.indices) set_bit(changed, k);
   }
-  auto is_changed = [&](std::uint32_t k) { return (changed[k >> 6] >> (k & 63)) & 1; };
+  auto is_changed = [&](std::uint32_t k) { return test_all || test_bit(changed, k); };
   // Until every row is done (a sink may stop early or throw), the bits are
   // not to be trusted.
   im.fresh = true;
 
+  const std::size_t rows = im.offset.size() - 1;
+  const bool any_renewed = !im.renewed_list.empty();
   Emitter emit(sink, im.options.sorted, stats);
-  run_in_order<PairChunk>(
-      im.owner.size(), thread_count(im.options.threads),
+  const unsigned threads = thread_count(im.options.threads);
+  const bool go_on = run_in_order<PairChunk>(
+      rows, threads,
       [&](std::size_t begin, std::size_t end, PairChunk& out) {
         out.pairs.clear();
         out.tests = 0;
         for (std::size_t k = begin; k < end; ++k) {
           const std::uint32_t s = im.offset[k], e = im.offset[k + 1];
           if (s == e) continue;
-          const std::uint32_t i = im.owner[k];
-          const bool i_changed = test_all || is_changed(i);
+          const std::uint32_t i = im.grid.probe_object(k);
+          if (any_renewed && im.is_renewed(i)) continue;  // its pairs are loose
+          const bool i_changed = is_changed(i);
           Shape si;
           bool si_read = false;
           for (std::uint32_t p = s; p < e; ++p) {
             std::uint32_t& entry = im.partner[p];
             const std::uint32_t j = entry & kIndexMask;
+            if (any_renewed && im.is_renewed(j)) continue;
             bool hit;
             if (i_changed || is_changed(j)) {
               if (!si_read) {
-                si = objects.shape(i);
+                si = read_shape(objects, i);
                 si_read = true;
               }
               ++out.tests;
-              hit = overlaps(si, objects.shape(j));
+              hit = overlaps(si, read_shape(objects, j));
               entry = j | (hit ? kOverlapBit : 0);
             } else {
               hit = (entry & kOverlapBit) != 0;
@@ -422,6 +619,28 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
         }
       },
       [&](PairChunk& c) { return emit.deliver(c); });
+  // The renewed objects' candidates, in the order they were found.
+  if (go_on)
+    run_in_order<PairChunk>(
+        im.loose.size(), threads,
+        [&](std::size_t begin, std::size_t end, PairChunk& out) {
+          out.pairs.clear();
+          out.tests = 0;
+          for (std::size_t p = begin; p < end; ++p) {
+            LoosePair& lp = im.loose[p];
+            const std::uint32_t i = lp.a, j = lp.b & kIndexMask;
+            bool hit;
+            if (is_changed(i) || is_changed(j)) {
+              ++out.tests;
+              hit = overlaps(read_shape(objects, i), read_shape(objects, j));
+              lp.b = j | (hit ? kOverlapBit : 0);
+            } else {
+              hit = (lp.b & kOverlapBit) != 0;
+            }
+            if (hit) out.pairs.push_back({i, j});
+          }
+        },
+        [&](PairChunk& c) { return emit.deliver(c); });
   emit.finish();
   im.fresh = stats.stopped;
   return stats;
@@ -434,9 +653,11 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, std::vector<Index
 
 std::size_t PairTracker::memory_bytes() const {
   const Impl& im = *impl_;
-  return sizeof(Impl) + im.fat.capacity() * sizeof(AabbF) +
-         (im.owner.capacity() + im.offset.capacity() + im.partner.capacity()) *
-             sizeof(std::uint32_t);
+  return sizeof(Impl) + im.fat.capacity() * sizeof(AabbF) + im.grid.memory_bytes() +
+         im.grid.slim_bytes() +
+         (im.offset.capacity() + im.partner.capacity() + im.renewed_list.capacity()) *
+             sizeof(std::uint32_t) +
+         im.renewed.capacity() * sizeof(std::uint64_t) + im.loose.capacity() * sizeof(LoosePair);
 }
 
 void PairTracker::clear() {
@@ -452,31 +673,61 @@ void PairTracker::validate(const Objects& objects) const {
   if (im.count != objects.count) fail("count differs from the last call's objects");
   const std::size_t n = im.count;
   if (im.fat.size() != n) fail("one fat box per object");
-  const std::size_t rows = im.owner.size();
+  const std::size_t rows = im.grid.probe_count();
   if (rows != n) fail("one candidate row per object");
   if (im.offset.size() != rows + 1 || im.offset[0] != 0 || im.offset[rows] != im.partner.size())
     fail("candidate offsets do not span the partner list");
+  if (im.renewed.size() != (n + 63) / 64) fail("one renewed bit per object");
+  // The renewed list and bits agree, without repeats.
+  std::size_t marked = 0;
+  for (std::uint32_t i = 0; i < n; ++i) marked += im.is_renewed(i) ? 1 : 0;
+  if (marked != im.renewed_list.size()) fail("renewed bits and list disagree");
+  {
+    std::vector<char> listed(n, 0);
+    for (std::uint32_t i : im.renewed_list) {
+      if (i >= n || !im.is_renewed(i) || listed[i])
+        fail("renewed list holds " + std::to_string(i) + " wrongly or twice");
+      listed[i] = 1;
+    }
+  }
   std::vector<char> has_row(n, 0);
   std::unordered_set<std::uint64_t> seen;
+  auto check_pair = [&](std::uint32_t i, std::uint32_t entry) {
+    const std::uint32_t j = entry & kIndexMask;
+    if (j >= n || j == i) fail("candidate partner out of range at " + std::to_string(i));
+    const IndexPair q = ordered(i, j);
+    if (!seen.insert((std::uint64_t(q.i) << 32) | q.j).second)
+      fail("candidate pair (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
+           ") listed twice");
+    if (!im.fat[i].overlaps(im.fat[j]))
+      fail("candidate pair (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
+           ") has fat boxes apart");
+    if (!im.fresh && ((entry & kOverlapBit) != 0) != overlaps(objects.shape(i), objects.shape(j)))
+      fail("the overlap bit of (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
+           ") is stale");
+  };
   for (std::size_t k = 0; k < rows; ++k) {
-    const std::uint32_t i = im.owner[k];
+    const std::uint32_t i = im.grid.probe_object(k);
     if (i >= n || has_row[i]) fail("row " + std::to_string(k) + " has a bad or repeated owner");
     has_row[i] = 1;
     if (im.offset[k] > im.offset[k + 1]) fail("candidate offsets decrease at " + std::to_string(k));
     if (!im.contained(objects, i))
       fail("object " + std::to_string(i) + " lies outside its fat box");
+    if (im.is_renewed(i)) continue;  // dead row
     for (std::uint32_t p = im.offset[k]; p < im.offset[k + 1]; ++p) {
-      const std::uint32_t j = im.partner[p] & kIndexMask;
-      if (j >= n || j == i) fail("candidate partner out of range at " + std::to_string(i));
-      const IndexPair q = ordered(i, j);
-      if (!seen.insert((std::uint64_t(q.i) << 32) | q.j).second)
-        fail("candidate pair (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
-             ") listed twice");
-      if (!im.fresh &&
-          ((im.partner[p] & kOverlapBit) != 0) != overlaps(objects.shape(i), objects.shape(j)))
-        fail("the overlap bit of (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
-             ") is stale");
+      if (im.is_renewed(im.partner[p] & kIndexMask)) continue;  // dead entry
+      check_pair(i, im.partner[p]);
     }
+  }
+  for (const LoosePair& lp : im.loose) {
+    const std::uint32_t j = lp.b & kIndexMask;
+    if (lp.a >= j)
+      fail("loose pair (" + std::to_string(lp.a) + ", " + std::to_string(j) +
+           ") not in increasing order");
+    if (!im.is_renewed(lp.a) && (j >= n || !im.is_renewed(j)))
+      fail("loose pair (" + std::to_string(lp.a) + ", " + std::to_string(j) +
+           ") has no renewed object");
+    check_pair(lp.a, lp.b);
   }
   // Completeness: every pair of overlapping fat boxes is a candidate
   // (quadratic, so checked only on small sets).

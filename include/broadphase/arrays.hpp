@@ -163,11 +163,12 @@ struct ArrayOptions {
   /// pairs and their order are the same for every thread count.
   unsigned threads = 1;
   /// Verlet skin of the tracker, relative to the typical object size (the
-  /// median largest half-extent at the last rebuild): candidates are kept
-  /// while every object stays within the skin of where it was then. 0 picks
-  /// the default, 0.25 (docs/arrays.md: larger skins rebuild less often but
-  /// keep more candidates; 0.25 stays near 64 bytes per object at
-  /// scaled-even).
+  /// median largest half-extent at the last rebuild): an object's
+  /// candidates are kept while it stays within the skin of where it was
+  /// last placed; one that leaves is renewed alone. 0 picks the default,
+  /// 0.25 (docs/arrays.md: larger skins renew less often but keep more
+  /// candidates; 0.25 gives 71 bytes per object at scaled-even after a
+  /// build).
   double skin = 0;
   /// Sort the pairs (by i, then j) before handing them over.
   bool sorted = false;
@@ -178,7 +179,13 @@ struct ArrayCallStats {
   std::uint64_t pairs = 0;
   std::uint64_t tests = 0;  ///< exact predicate evaluations
   bool rebuilt = false;     ///< the tracker rebuilt its index in this call
-  bool stopped = false;     ///< the sink asked to stop
+  /// Objects the tracker renewed alone in this call (they had left their
+  /// fat box and got a new one, without a rebuild).
+  std::uint64_t renewed = 0;
+  /// The tracker folded its renewed objects' candidates back into its rows
+  /// (a new grid over the same fat boxes; no candidate search).
+  bool compacted = false;
+  bool stopped = false;  ///< the sink asked to stop
 };
 
 /// All overlapping pairs (i < j) of one set, streamed to `sink`.
@@ -209,12 +216,15 @@ struct Changes {
 
 /// Pairs of one set, frame after frame. The caller moves its objects in
 /// place and calls `find_pairs` again; the tracker reuses its index through
-/// a skin (as Verlet lists do) and is exact however far objects moved.
+/// a skin (as Verlet lists do), renews the objects that left their skin
+/// alone, and is exact however far objects moved.
 ///
 /// Growing and shrinking: a call may see more objects than the last one
 /// (appended at the end) or fewer (those past the new count are gone);
 /// a caller that removes object k by moving the last one into its place
-/// lists k as changed.
+/// lists k as changed. With `Changes::only`, an index whose object was
+/// removed and another appended in its place since the last call (the
+/// count alone does not show it) is listed as changed too.
 class PairTracker {
  public:
   explicit PairTracker(const ArrayOptions& options = {});

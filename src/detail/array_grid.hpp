@@ -10,6 +10,7 @@
 // "big" list and are tested against every object.
 #pragma once
 
+#include <algorithm>
 #include <broadphase/geometry.hpp>
 #include <cmath>
 #include <cstdint>
@@ -42,13 +43,35 @@ class ArrayGrid {
   /// The probing order: the objects in bucket order (neighbours in space
   /// close together), then the big ones. Probing in this order reads the
   /// grid's memory in long runs.
-  std::size_t probe_count() const { return entries_.size() + big_.size(); }
+  std::size_t probe_count() const { return placed() + big_.size(); }
   std::uint32_t probe_object(std::size_t k) const {
-    return k < entries_.size() ? entries_[k].index : big_[k - entries_.size()];
+    return k < placed() ? entry_index(k) : big_[k - placed()];
   }
+  /// Not after `slim`.
   const AabbF& probe_box(std::size_t k) const {
     return k < entries_.size() ? entries_[k].box : boxes_[big_[k - entries_.size()]];
   }
+
+  /// Keeps only the entries' object indices (4 bytes an object instead of
+  /// 28): `query` then reads the boxes from the span given to `build`, which
+  /// must stay valid. `probe` and `probe_box` are then unavailable, and the
+  /// grid is not built again (assign a new one instead).
+  void slim() {
+    slim_.resize(entries_.size());
+    for (std::size_t k = 0; k < entries_.size(); ++k) slim_[k] = entries_[k].index;
+    std::vector<GridEntry>().swap(entries_);  // `= {}` would keep the capacity
+    slimmed_ = true;
+  }
+  /// Bytes of the index kept by `slim` (not in `memory_bytes`).
+  std::size_t slim_bytes() const { return slim_.capacity() * sizeof(std::uint32_t); }
+
+  /// Calls `visit(j)` once for every object j whose box, as given to the
+  /// last build, overlaps `box` (every level and the big list).
+  template <class Visit>
+  void query(const AabbF& box, Visit&& visit) const;
+
+  /// The objects whose box was infinite or too wide for any level.
+  std::span<const std::uint32_t> big() const { return big_; }
 
   /// Bytes held (capacities).
   std::size_t memory_bytes() const;
@@ -78,7 +101,15 @@ class ArrayGrid {
   std::vector<std::uint32_t> start_;  // per bucket, then one past the end
   std::vector<GridEntry> entries_;
   std::vector<std::uint32_t> big_;
-  std::span<const AabbF> boxes_;  // the boxes of the last build (for big probes)
+  std::span<const AabbF> boxes_;     // the boxes of the last build (for big probes)
+  std::vector<std::uint32_t> slim_;  // the entries' objects, after `slim`
+  bool slimmed_ = false;
+
+  std::size_t placed() const { return slimmed_ ? slim_.size() : entries_.size(); }
+  std::uint32_t entry_index(std::size_t k) const { return slimmed_ ? slim_[k] : entries_[k].index; }
+  const AabbF& entry_box(std::size_t k) const {
+    return slimmed_ ? boxes_[slim_[k]] : entries_[k].box;
+  }
 };
 
 inline std::int64_t ArrayGrid::cell(double x, double inv) {
@@ -156,6 +187,63 @@ void ArrayGrid::probe(std::uint32_t i, const AabbF& box, Visit&& visit) const {
         }
       }
     }
+  }
+}
+
+template <class Visit>
+void ArrayGrid::query(const AabbF& box, Visit&& visit) const {
+  for (std::uint32_t j : big_)
+    if (box.overlaps(boxes_[j])) visit(j);
+  for (const Level& lv : levels_) {
+    if (lv.count == 0) continue;
+    // As in `probe`: an object on this level overlaps `box` only if its low
+    // corner lies in [box.lo - h, box.hi].
+    const std::int64_t x0 = cell(static_cast<double>(box.lo[0]) - lv.h, lv.inv);
+    const std::int64_t x1 = cell(box.hi[0], lv.inv);
+    const std::int64_t y0 = cell(static_cast<double>(box.lo[1]) - lv.h, lv.inv);
+    const std::int64_t y1 = cell(box.hi[1], lv.inv);
+    const std::int64_t z0 = cell(static_cast<double>(box.lo[2]) - lv.h, lv.inv);
+    const std::int64_t z1 = cell(box.hi[2], lv.inv);
+    const double cells = static_cast<double>(x1 - x0 + 1) * static_cast<double>(y1 - y0 + 1) *
+                         static_cast<double>(z1 - z0 + 1);
+    const std::uint32_t b0 = lv.first_bucket, b1 = lv.first_bucket + lv.mask + 1;
+    if (cells >= static_cast<double>(lv.mask + 1)) {
+      // A box wide against this level's cells: every bucket, once.
+      for (std::uint32_t k = start_[b0]; k < start_[b1]; ++k)
+        if (box.overlaps(entry_box(k))) visit(entry_index(k));
+      continue;
+    }
+    // The hash is linear in x, so a row of cells along x is a run of
+    // consecutive buckets (wrapping at the level's end), whose entries are
+    // consecutive too: one run per (y, z) instead of one lookup per cell
+    // (a wide fat box renewed against a fine level spans 9^3 cells).
+    // Several cells of the range may share a bucket: an entry is then taken
+    // only from its own cell (that of its low corner, which lies in the
+    // range when it overlaps), so each once, without a set of seen buckets.
+    const bool may_share = !lv.distinct || x1 - x0 > 2 || y1 - y0 > 2 || z1 - z0 > 2;
+    const auto len = static_cast<std::uint32_t>(x1 - x0 + 1);
+    auto run = [&](std::uint32_t r0, std::uint32_t r1, std::int64_t cy, std::int64_t cz) {
+      for (std::uint32_t k = start_[b0 + r0]; k < start_[b0 + r1]; ++k) {
+        const AabbF& eb = entry_box(k);
+        if (!box.overlaps(eb)) continue;
+        if (may_share) {
+          const std::int64_t ex = cell(eb.lo[0], lv.inv);
+          if (ex < x0 || ex > x1 || cell(eb.lo[1], lv.inv) != cy || cell(eb.lo[2], lv.inv) != cz)
+            continue;
+        }
+        visit(entry_index(k));
+      }
+    };
+    for (std::int64_t cy = y0; cy <= y1; ++cy)
+      for (std::int64_t cz = z0; cz <= z1; ++cz) {
+        const std::uint32_t h = hash(x0, cy, cz) & lv.mask;
+        if (h + len <= lv.mask + 1) {
+          run(h, h + len, cy, cz);
+        } else {
+          run(h, lv.mask + 1, cy, cz);
+          run(0, h + len - (lv.mask + 1), cy, cz);
+        }
+      }
   }
 }
 
