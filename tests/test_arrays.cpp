@@ -179,8 +179,10 @@ std::vector<Shape> random_world(World w, std::size_t n, Rng& rng) {
   return out;
 }
 
+// Under ThreadSanitizer the seed loops run a tenth of their seeds
+// (testing::repeats): the threaded calls are the same, the worlds fewer.
 TEST(Arrays, OneShotMatchesOracleInEveryLayoutOnEveryThreadCount) {
-  for (std::uint64_t seed = 1; seed <= 6; ++seed) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(6)); ++seed) {
     for (World w : kWorlds) {
       Rng rng(seed * 1000 + static_cast<std::uint64_t>(w));
       const std::size_t n = 1 + rng.below(seed % 2 ? 300 : 2500);
@@ -397,7 +399,7 @@ TEST(Arrays, BadValuesNameTheIndexAndLeaveTheTrackerAsItWas) {
 // appends and removals (swap with the last), told everything or only what
 // changed, on 1, 2 and 3 threads in lockstep.
 TEST(Arrays, TrackerMatchesOracleUnderRandomChanges) {
-  for (std::uint64_t seed = 1; seed <= 12; ++seed) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(12)); ++seed) {
     Rng rng(seed * 7919);
     const World w = kWorlds[seed % std::size(kWorlds)];
     const Layout layout = kLayouts[seed % std::size(kLayouts)];
@@ -500,7 +502,7 @@ TEST(Arrays, TrackerReusesItsWorkUnderSmallMotion) {
 // (no rebuild), and the candidates stay complete and exact call after call
 // (validate checks the renewed objects' loose pairs and the kept grid).
 TEST(Arrays, TrackerRenewsObjectsThatLeaveTheirSkin) {
-  for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(4)); ++seed) {
     Rng rng(seed * 104729);
     const World w =
         seed % 3 == 0 ? World::mixed : (seed % 3 == 1 ? World::spheres : World::decades);

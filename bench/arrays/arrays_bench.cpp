@@ -15,6 +15,7 @@
 // finds the movers itself) instead of passing the movers' indices.
 #include <algorithm>
 #include <broadphase/arrays.hpp>
+#include <broadphase/lab/array_caller.hpp>
 #include <broadphase/lab/replay.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <broadphase/registry.hpp>
@@ -55,58 +56,6 @@ double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v[v.size() / 2];
 }
-
-// The caller's arrays: structure of arrays, doubles.
-struct Caller {
-  std::vector<double> x, y, z, r, hx, hy, hz, vx, vy, vz;
-  std::vector<std::uint8_t> kind;
-  std::vector<std::uint32_t> movers;
-  double world = 0;
-  bool any_box = false;
-
-  explicit Caller(const Scene& s) : world(s.world) {
-    const std::size_t n = s.size();
-    for (auto* v : {&x, &y, &z, &r, &vx, &vy, &vz}) v->resize(n);
-    for (const Shape& o : s.objects) any_box |= !o.is_sphere();
-    if (any_box) {
-      for (auto* v : {&hx, &hy, &hz}) v->resize(n);
-      kind.resize(n);
-    }
-    for (std::size_t i = 0; i < n; ++i) {
-      const Shape& o = s.objects[i];
-      x[i] = o.center.x, y[i] = o.center.y, z[i] = o.center.z, r[i] = o.half.x;
-      vx[i] = s.velocity[i].x, vy[i] = s.velocity[i].y, vz[i] = s.velocity[i].z;
-      if (any_box) {
-        hx[i] = o.half.x, hy[i] = o.half.y, hz[i] = o.half.z;
-        kind[i] = o.is_sphere() ? 0 : 1;
-      }
-      if (s.is_moving(i)) movers.push_back(static_cast<std::uint32_t>(i));
-    }
-  }
-  Objects view() const {
-    Objects o;
-    o.count = x.size();
-    o.x = Column::of(x.data()), o.y = Column::of(y.data()), o.z = Column::of(z.data());
-    o.radius = Column::of(r.data());
-    if (any_box) {
-      o.half_x = Column::of(hx.data()), o.half_y = Column::of(hy.data());
-      o.half_z = Column::of(hz.data());
-      o.kind = kind.data();
-    }
-    return o;
-  }
-  void move() {
-    for (std::uint32_t i : movers) {
-      step_axis(x[i], vx[i], world);
-      step_axis(y[i], vy[i], world);
-      step_axis(z[i], vz[i], world);
-    }
-  }
-  std::size_t bytes() const {
-    // What the tracker reads: centres, radius, and the boxes' columns.
-    return x.size() * (any_box ? 7 * 8 + 1 : 4 * 8);
-  }
-};
 
 }  // namespace
 
@@ -149,11 +98,11 @@ int main(int argc, char** argv) {
   const auto g0 = Clock::now();
   Scene scene = generate(dist, n, seed);
   const double gen_s = std::chrono::duration<double>(Clock::now() - g0).count();
-  Caller caller(scene);
-  scene = Scene{};  // the caller keeps only its arrays
+  ArrayCaller caller(scene);  // the caller's columns (lab/array_caller.hpp)
+  scene = Scene{};            // the caller keeps only its arrays
   std::printf("# %s n=%zu frames=%d threads=%u skin=%g changes=%s generate=%.1fs movers=%zu\n",
               argv[1], n, frames, opt.threads, opt.skin, tell_all ? "all" : "movers", gen_s,
-              caller.movers.size());
+              caller.movers().size());
   const long rss_before = status_kb("VmRSS:");
 
   std::vector<FrameDigest> digests;
@@ -162,17 +111,17 @@ int main(int argc, char** argv) {
   std::size_t rebuilds = 0;
   for (int f = 0; f < frames; ++f) {
     const auto t0 = Clock::now();
-    if (f > 0) caller.move();
+    if (f > 0) caller.step();
     const auto t1 = Clock::now();
     const double c1 = cpu_ms();
     FrameDigest d;
     const auto stats = tracker.find_pairs(
-        caller.view(),
+        caller.objects(),
         [&](std::span<const IndexPair> c) {
           for (const IndexPair& p : c) d.add(p.i, p.j);
           return true;
         },
-        f == 0 || tell_all ? Changes::everything() : Changes::only(caller.movers));
+        f == 0 || tell_all ? Changes::everything() : Changes::only(caller.movers()));
     const auto t2 = Clock::now();
     cpu_call_ms.push_back(cpu_ms() - c1);
     digests.push_back(d);
