@@ -13,20 +13,6 @@ namespace broadphase {
 
 namespace {
 
-// Levels halve in reach from the largest finite extent down; twenty finite
-// levels span six decades of sizes (smaller objects share the lowest level),
-// and one more level of infinite reach takes objects whose float bounds are
-// unbounded (centres beyond the float range). Factor 2 keeps an object's
-// reach within twice its extent, so a scan window stays tight.
-constexpr int kFiniteLevels = 20;
-constexpr int kLevelSlots = kFiniteLevels + 1;
-// An object goes to a level only when its widest extent is at most this
-// fraction of the reach: the 2% margin absorbs the rounding of the cell
-// arithmetic, so the cell bounds of a scan stay conservative.
-constexpr double kFill = 0.98;
-// A level holding less than 1/kSparseLevel of a grid's objects is merged
-// into the next larger one.
-constexpr std::size_t kSparseLevel = 4;
 // Cells per level at most this many times its objects (a level of few
 // objects over a wide world gets larger cells instead of empty ones).
 constexpr double kCellsPerObject = 2;
@@ -50,12 +36,11 @@ constexpr double kMaxMargin = 0.5;
 constexpr double kMinFrames = 2;
 // Threads at most (option threads=N, and hardware concurrency for N = 0).
 constexpr unsigned kMaxThreads = GridVerletOptions::kMaxThreads;
-// Moving entries per share below which work stays on one thread (the
-// default of the option grain=N).
-constexpr std::size_t kMinEntriesPerThread = 2048;
-// Work split over threads comes in this many chunks per thread, taken by
-// whichever thread is free (renewals and list lengths are uneven).
-constexpr unsigned kChunksPerShare = 8;
+constexpr unsigned kChunksPerShare = detail::WorkShares::kChunksPerShare;
+constexpr int kLevelSlots = detail::LevelGrid::kLevelSlots;
+using detail::extent_of;
+using detail::Slice;
+using detail::slice;
 
 // Scratch that holds more than twice what it last held plus this many
 // bytes is released after use.
@@ -65,15 +50,6 @@ template <class T>
 void release_if_oversized(std::vector<T>& v) {
   if (v.capacity() * sizeof(T) > 2 * v.size() * sizeof(T) + kKeepScratchBytes)
     std::vector<T>().swap(v);
-}
-
-// Part k of [0, n) cut into `parts` contiguous ranges of about equal size:
-// how every pass split over threads or chunks divides its work.
-struct Slice {
-  std::size_t begin, end;
-};
-Slice slice(std::size_t n, unsigned k, unsigned parts) {
-  return {n * k / parts, n * (k + 1) / parts};
 }
 
 // A candidate or near pool's capacity for n live entries: room for
@@ -101,21 +77,11 @@ void sort_by_high_word(std::vector<std::uint64_t>& keys) {
   }
 }
 
-double extent_of(const float lo[3], const float hi[3]) {
-  double e = 0;
-  for (int a = 0; a < 3; ++a)
-    e = std::max(e, static_cast<double>(hi[a]) - static_cast<double>(lo[a]));
-  return e;
-}
-
 }  // namespace
 
 struct alignas(64) GridVerlet::ShareStats {  // on lines of its own: each share writes its own
-  double max_e = 0;
-  std::uint32_t count[kLevelSlots] = {};
-  float span_lo[kLevelSlots][3] = {}, span_hi[kLevelSlots][3] = {};
-  std::uint32_t first_cell = 0;  // of the cells the share fills in the scatter
-  ListTotals lists;              // the share's list lengths, before renewals
+  std::uint32_t count[kLevelSlots] = {};     // per level: movers that are not fast
+  ListTotals lists;                          // the share's list lengths, before renewals
 };
 
 void GridVerletOptions::check() const {
@@ -124,14 +90,21 @@ void GridVerletOptions::check() const {
   detail::check_integer("grid-verlet", "grain", grain, 1, std::uint64_t{1} << 24);
 }
 
-GridVerlet::GridVerlet(const Config& c, const GridVerletOptions& o)
-    : world_(check_config(c, "grid-verlet").world) {
+namespace {
+// The configuration and options checked, in that order, then the thread
+// count they ask for.
+unsigned threads_of(const Config& c, const GridVerletOptions& o) {
+  check_config(c, "grid-verlet");
   o.check();
-  threads_ = o.threads;
-  cell_factor_ = o.cell;
-  grain_ = o.grain;
-  if (threads_ == 0) threads_ = std::clamp(std::thread::hardware_concurrency(), 1u, kMaxThreads);
-  if (threads_ > 1) pool_ = std::make_unique<detail::WorkerPool>(threads_ - 1);
+  if (o.threads == 0) return std::clamp(std::thread::hardware_concurrency(), 1u, kMaxThreads);
+  return o.threads;
+}
+}  // namespace
+
+GridVerlet::GridVerlet(const Config& c, const GridVerletOptions& o)
+    : shares_(threads_of(c, o), o.grain),
+      fixed_spec_{c.world, o.cell, kCellsPerObject},
+      moving_spec_{fixed_spec_.world, o.cell, kMovingCellsPerObject} {
   if (c.expected_objects > 0) {
     const std::size_t n = c.expected_objects;
     user_.reserve(n);
@@ -140,24 +113,6 @@ GridVerlet::GridVerlet(const Config& c, const GridVerletOptions& o)
 }
 
 GridVerlet::~GridVerlet() = default;
-
-unsigned GridVerlet::chunks_for(std::size_t entries) const {
-  const unsigned t = shares_for(entries);
-  return t <= 1 ? 1 : t * kChunksPerShare;
-}
-
-unsigned GridVerlet::shares_for(std::size_t entries) const {
-  return static_cast<unsigned>(
-      std::min<std::size_t>(threads_, std::max<std::size_t>(1, entries / grain_)));
-}
-
-void GridVerlet::run_shares(unsigned shares, const std::function<void(unsigned)>& job) const {
-  if (shares <= 1 || !pool_) {
-    for (unsigned k = 0; k < shares; ++k) job(k);
-    return;
-  }
-  pool_->run(shares, job);
-}
 
 std::uint32_t GridVerlet::allocate_slot() {
   std::uint32_t s;
@@ -312,8 +267,8 @@ void GridVerlet::update(std::span<const Move> moves) {
   constexpr std::size_t kAhead = 16;
   const std::size_t m = moving_.entries.size();
   const std::size_t n = moves.size();
-  const unsigned t = shares_for(std::min(n, m));
-  const unsigned chunks = chunks_for(std::min(n, m));
+  const unsigned t = shares_.shares_for(std::min(n, m));
+  const unsigned chunks = shares_.chunks_for(std::min(n, m));
   // Not the grid build's tag array: that one's lines are written pass
   // after pass by the thread that owns the same range of the moving grid,
   // and would cross between the cores were they first written in the
@@ -334,7 +289,7 @@ void GridVerlet::update(std::span<const Move> moves) {
   auto mark = [&](std::uint32_t p) { return std::atomic_ref<std::uint32_t>(mark_[p]); };
   const std::uint32_t round = mark_round_ << 10;
   std::atomic<bool> bad{false}, others{false}, twice{false};
-  run_shares(chunks, [&](unsigned c) {
+  shares_.run(chunks, [&](unsigned c) {
     bool any_other = false, any_twice = false;
     for (auto [j, end] = slice(n, c, chunks); j < end; ++j) {
       if (j + kAhead < end && moves[j + kAhead].handle.index < slots_.size())
@@ -363,7 +318,7 @@ void GridVerlet::update(std::span<const Move> moves) {
     }
   }
   if (marks && !twice)
-    run_shares(chunks, [&](unsigned c) {
+    shares_.run(chunks, [&](unsigned c) {
       bool any_twice = false;
       for (auto [j, end] = slice(n, c, chunks); j < end; ++j)
         any_twice |= target[j] != kOther &&
@@ -388,9 +343,9 @@ void GridVerlet::update(std::span<const Move> moves) {
     }
   };
   if (twice)
-    run_shares(t, [&](unsigned k) { move_range({0, n}, slice(m, k, t)); });
+    shares_.run(t, [&](unsigned k) { move_range({0, n}, slice(m, k, t)); });
   else
-    run_shares(chunks, [&](unsigned c) { move_range(slice(n, c, chunks), {0, m}); });
+    shares_.run(chunks, [&](unsigned c) { move_range(slice(n, c, chunks), {0, m}); });
   if (others)
     for (std::size_t j = 0; j < n; ++j)
       if (target[j] == kOther) move_via_loose(moves[j].handle.index, moves[j].shape);
@@ -442,8 +397,12 @@ void GridVerlet::rebuild(bool fixed_too) {
     take_loose(Motion::fixed, items, src);
     std::vector<LineShape> old_shapes;
     old_shapes.swap(fixed_.shapes);
-    build_grid(fixed_, items, kCellsPerObject, [&](std::size_t i, std::uint32_t k) {
-      fixed_.shapes[k] = shape_from(src[i], old_shapes);
+    Grid::Scratch scratch;
+    const std::span<const std::uint32_t> at = fixed_.build(items, fixed_spec_, shares_, scratch);
+    const unsigned chunks = shares_.chunks_for(items.size());
+    shares_.run(chunks, [&](unsigned c) {
+      for (auto [i, end] = slice(items.size(), c, chunks); i < end; ++i)
+        fixed_.shapes[at[i]] = shape_from(src[i], old_shapes);
     });
     point_slots(fixed_, Home::fixed_grid);
     fixed_count_ = fixed_.entries.size();
@@ -471,9 +430,9 @@ void GridVerlet::rebuild(bool fixed_too) {
     items.clear();
     src.clear();
   }
-  const unsigned parts = chunks_for(m);
+  const unsigned parts = shares_.chunks_for(m);
   share_stats_.resize(parts);
-  run_shares(parts, [&](unsigned share) {
+  shares_.run(parts, [&](unsigned share) {
     ListTotals sum;
     for (auto [k, end] = slice(m, share, parts); k < end; ++k) {
       Entry& e = moving_.entries[k];
@@ -520,19 +479,27 @@ void GridVerlet::rebuild(bool fixed_too) {
   scratch_shapes_.swap(moving_.shapes);
   scratch_movers_.swap(movers_);
   movers_.resize(items.size());
-  build_grid(moving_, items, kMovingCellsPerObject, [&](std::size_t i, std::uint32_t k) {
-    const std::uint32_t from = src[i];
-    moving_.shapes[k] = shape_from(from, scratch_shapes_);
-    if ((from & kFromLoose) != 0) {
-      const std::uint32_t l = from & ~kFromLoose;
-      Mover& mv = movers_[k];
-      mv = Mover{};
-      mv.cur = loose_bounds_[l];
-      mv.speed = loose_speed_[l];
-      mv.guessed = !(mv.speed > 0);
-      mv.fat = items[i].box();
-    } else {
-      movers_[k] = scratch_movers_[from];
+  const std::span<const std::uint32_t> at =
+      moving_.build(items, moving_spec_, shares_, moving_scratch_);
+  // Each item's shape and mover record go where the build put it (the
+  // items of a chunk went to distinct entries).
+  const unsigned chunks = shares_.chunks_for(items.size());
+  shares_.run(chunks, [&](unsigned c) {
+    for (auto [i, end] = slice(items.size(), c, chunks); i < end; ++i) {
+      const std::uint32_t k = at[i];
+      const std::uint32_t from = src[i];
+      moving_.shapes[k] = shape_from(from, scratch_shapes_);
+      if ((from & kFromLoose) != 0) {
+        const std::uint32_t l = from & ~kFromLoose;
+        Mover& mv = movers_[k];
+        mv = Mover{};
+        mv.cur = loose_bounds_[l];
+        mv.speed = loose_speed_[l];
+        mv.guessed = !(mv.speed > 0);
+        mv.fat = items[i].box();
+      } else {
+        movers_[k] = scratch_movers_[from];
+      }
     }
   });
   point_slots(moving_, Home::moving_grid);
@@ -558,9 +525,9 @@ void GridVerlet::rebuild(bool fixed_too) {
 void GridVerlet::count_slow_movers() {
   const std::size_t m = moving_.entries.size();
   const std::size_t levels = moving_.levels.size();
-  const unsigned parts = chunks_for(m);
+  const unsigned parts = shares_.chunks_for(m);
   share_stats_.resize(parts);
-  run_shares(parts, [&](unsigned share) {
+  shares_.run(parts, [&](unsigned share) {
     std::uint32_t* count = share_stats_[share].count;
     std::fill(count, count + levels, 0);
     auto [k, end] = slice(m, share, parts);
@@ -576,8 +543,8 @@ void GridVerlet::count_slow_movers() {
 void GridVerlet::point_slots(const Grid& g, Home home) {
   // Every slot is named by one entry: the shares write distinct records.
   const std::size_t n = g.entries.size();
-  const unsigned parts = chunks_for(n);
-  run_shares(parts, [&](unsigned share) {
+  const unsigned parts = shares_.chunks_for(n);
+  shares_.run(parts, [&](unsigned share) {
     for (auto [k, end] = slice(n, share, parts); k < end; ++k) {
       Slot& sl = slots_[g.entries[k].slot];
       sl.home = home;
@@ -590,187 +557,6 @@ inline const Shape& GridVerlet::shape_from(std::uint32_t src,
                                            const std::vector<LineShape>& old_shapes) const {
   return (src & kFromLoose) != 0 ? loose_shapes_[src & ~kFromLoose]
                                  : static_cast<const Shape&>(old_shapes[src]);
-}
-
-template <class Place>
-void GridVerlet::build_grid(Grid& g, const std::vector<Entry>& items, double cells_per_object,
-                            Place&& place) {
-  const std::size_t n = items.size();
-  g.levels.clear();
-  g.cell_start.clear();
-  // Exact capacities when a grid grows (reserve, unlike resize, does not
-  // double): grids are most of the memory held per object.
-  // assign, not resize: GCC 12's resize under -fsanitize=undefined reports
-  // its own unreachable-point check here (the vectors are sound: ASan is
-  // quiet and the release build exact), and assign costs the same fill.
-  g.entries.reserve(n);
-  g.shapes.reserve(n);
-  g.entries.assign(n, detail::GridEntry{});
-  g.shapes.assign(n, LineShape{});
-  if (n == 0) {
-    g.cell_start.push_back(0);
-    return;
-  }
-  // The passes over the items are split over the threads, in chunks, each
-  // taking a contiguous range and keeping its own totals, merged in chunk
-  // order (sums, minima and maxima: the same for any split); the scatter
-  // in t shares.
-  const unsigned t = shares_for(n);
-  const unsigned parts = chunks_for(n);
-  share_stats_.resize(parts);
-  run_shares(parts, [&](unsigned k) {
-    double m = 0;
-    for (auto [i, end] = slice(n, k, parts); i < end; ++i) {
-      const double e = extent_of(items[i].lo, items[i].hi);
-      if (std::isfinite(e)) m = std::max(m, e);
-    }
-    share_stats_[k].max_e = m;
-  });
-  double max_e = 0;
-  for (const ShareStats& st : share_stats_) max_e = std::max(max_e, st.max_e);
-  // The top level's reach fits the largest finite extent; each level below
-  // halves it.
-  const double top = max_e > 0 ? max_e / (kFill * kFill) : 1;
-  double reach[kLevelSlots];
-  for (int k = 0; k < kFiniteLevels; ++k) reach[k] = std::ldexp(top, k - (kFiniteLevels - 1));
-  reach[kFiniteLevels] = std::numeric_limits<double>::infinity();
-
-  // Pass 1: each item's level, and each level's count and lower-corner span.
-  std::vector<std::uint32_t>& tag = scratch_tag_;
-  tag.resize(n);
-  run_shares(parts, [&](unsigned share) {
-    ShareStats& st = share_stats_[share];
-    for (int k = 0; k < kLevelSlots; ++k) {
-      st.count[k] = 0;
-      std::fill(st.span_lo[k], st.span_lo[k] + 3, std::numeric_limits<float>::infinity());
-      std::fill(st.span_hi[k], st.span_hi[k] + 3, -std::numeric_limits<float>::infinity());
-    }
-    for (auto [i, end] = slice(n, share, parts); i < end; ++i) {
-      const Entry& it = items[i];
-      const double e = extent_of(it.lo, it.hi);
-      int k = kFiniteLevels;
-      if (std::isfinite(e)) {
-        // Start one below the level log2 suggests, then step up to the fit.
-        k = e > 0 ? std::clamp(kFiniteLevels - 2 - std::ilogb(top / e), 0, kFiniteLevels - 1) : 0;
-        while (k < kFiniteLevels - 1 && e > kFill * reach[k]) ++k;
-      }
-      tag[i] = static_cast<std::uint32_t>(k);
-      ++st.count[k];
-      for (int a = 0; a < 3; ++a) {
-        st.span_lo[k][a] = std::min(st.span_lo[k][a], it.lo[a]);
-        st.span_hi[k][a] = std::max(st.span_hi[k][a], it.lo[a]);
-      }
-    }
-  });
-  std::uint32_t count[kLevelSlots] = {};
-  float span_lo[kLevelSlots][3], span_hi[kLevelSlots][3];
-  for (int k = 0; k < kLevelSlots; ++k) {
-    std::fill(span_lo[k], span_lo[k] + 3, std::numeric_limits<float>::infinity());
-    std::fill(span_hi[k], span_hi[k] + 3, -std::numeric_limits<float>::infinity());
-    for (const ShareStats& st : share_stats_) {
-      count[k] += st.count[k];
-      for (int a = 0; a < 3; ++a) {
-        span_lo[k][a] = std::min(span_lo[k][a], st.span_lo[k][a]);
-        span_hi[k][a] = std::max(span_hi[k][a], st.span_hi[k][a]);
-      }
-    }
-  }
-  // A sparse level costs every scan its cell visits but saves few tests:
-  // fold it into the level above (its objects fit there too).
-  int target[kLevelSlots];
-  for (int k = 0; k < kLevelSlots; ++k) target[k] = k;
-  for (int k = 0; k + 1 < kFiniteLevels; ++k) {
-    if (count[k] == 0 || count[k] * kSparseLevel >= n) continue;
-    count[k + 1] += count[k];
-    count[k] = 0;
-    for (int a = 0; a < 3; ++a) {
-      span_lo[k + 1][a] = std::min(span_lo[k + 1][a], span_lo[k][a]);
-      span_hi[k + 1][a] = std::max(span_hi[k + 1][a], span_hi[k][a]);
-    }
-    target[k] = k + 1;
-  }
-  for (int k = kFiniteLevels - 2; k >= 0; --k) target[k] = target[target[k]];
-  int level_index[kLevelSlots];
-  std::uint32_t cells = 0;
-  for (int k = 0; k < kLevelSlots; ++k) {
-    level_index[k] = -1;
-    if (count[k] == 0) continue;
-    Level lv;
-    lv.reach = reach[k];
-    lv.first_cell = cells;
-    if (std::isfinite(reach[k])) {
-      // Cells cover the lower corners of the level's objects inside the
-      // world hint; objects beyond it fall into the border cells (the cell
-      // function clamps, which keeps every bound conservative).
-      double lo[3], span[3];
-      for (int a = 0; a < 3; ++a) {
-        lo[a] = std::max<double>(span_lo[k][a], world_.lo[a]);
-        double hi = std::min<double>(span_hi[k][a], world_.hi[a]);
-        if (hi < lo[a]) {
-          lo[a] = span_lo[k][a];
-          hi = span_hi[k][a];
-        }
-        if (!std::isfinite(lo[a]) || !std::isfinite(hi)) lo[a] = hi = 0;
-        span[a] = hi - lo[a];
-      }
-      // One cell side for all axes: the reach times the factor, grown until
-      // the cells number at most kCellsPerObject per object.
-      double cell = reach[k] * cell_factor_;
-      const double budget = std::max(1.0, cells_per_object * count[k]);
-      auto cells_for = [&](double c) {
-        double total = 1;
-        for (int a = 0; a < 3; ++a) total *= std::floor(span[a] / c) + 1;
-        return total;
-      };
-      if (cells_for(cell) > budget) {
-        const double widest = std::max({span[0], span[1], span[2]});
-        cell = std::max(cell, widest / std::cbrt(budget));
-        while (cells_for(cell) > budget) cell *= 1.125;
-      }
-      lv.inv_cell = 1 / cell;
-      for (int a = 0; a < 3; ++a) {
-        lv.origin[a] = lo[a];
-        lv.n[a] = static_cast<std::uint32_t>(std::floor(span[a] / cell) + 1);
-      }
-    }
-    cells += lv.cells();
-    level_index[k] = static_cast<int>(g.levels.size());
-    g.levels.push_back(lv);
-  }
-  // Pass 2: counting sort by cell, stable, so entries keep their previous
-  // order inside a cell and the result does not depend on anything else.
-  // The cells are counted one place up (cell_start[c + 2]), so that after
-  // the prefix sum cell_start[c + 1] is the start of cell c: the scatter
-  // uses it as the cell's cursor, which leaves it at the start of c + 1.
-  run_shares(parts, [&](unsigned share) {
-    for (auto [i, end] = slice(n, share, parts); i < end; ++i) {
-      const Level& lv = g.levels[static_cast<std::size_t>(level_index[target[tag[i]]])];
-      tag[i] = lv.cell_of(items[i].lo);
-    }
-  });
-  g.cell_start.assign(cells + 2, 0);
-  for (std::size_t i = 0; i < n; ++i) ++g.cell_start[tag[i] + 2];
-  for (std::uint32_t c = 0; c <= cells; ++c) g.cell_start[c + 1] += g.cell_start[c];
-  // The scatter is split by destination: each share takes the cells of
-  // about n/t entries and places, in item order, the items bound for them.
-  // Share k takes the cells from its first_cell to the next share's, found
-  // before any share moves a cursor.
-  const auto starts = g.cell_start.begin() + 1;  // starts[c]: the start of cell c
-  for (unsigned k = 0; k < t; ++k)
-    share_stats_[k].first_cell = static_cast<std::uint32_t>(
-        std::lower_bound(starts, g.cell_start.end(), slice(n, k, t).begin) - starts);
-  share_stats_[0].first_cell = 0;
-  run_shares(t, [&](unsigned share) {
-    const std::uint32_t c_lo = share_stats_[share].first_cell;
-    const std::uint32_t c_hi = share + 1 < t ? share_stats_[share + 1].first_cell : cells;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (tag[i] < c_lo || tag[i] >= c_hi) continue;
-      const std::uint32_t k = g.cell_start[tag[i] + 1]++;
-      g.entries[k] = items[i];
-      place(i, k);
-    }
-  });
-  g.cell_start.pop_back();
 }
 
 AabbF GridVerlet::fat_box(const AabbF& cur, float speed, bool& fast) const {
@@ -842,7 +628,7 @@ void GridVerlet::make_room_for_renewals(const ListTotals& totals) {
 
 void GridVerlet::build_candidate_lists(const ListTotals& totals) {
   const std::size_t m = moving_.entries.size();
-  const unsigned chunks = chunks_for(m);
+  const unsigned chunks = shares_.chunks_for(m);
   // Each chunk renews the lists of a contiguous range of the moving entries
   // into its own parts (distinct entries share no state; the grids are
   // only read); the parts are appended to the pools in order, so the pools
@@ -858,7 +644,7 @@ void GridVerlet::build_candidate_lists(const ListTotals& totals) {
   // The parts are appended as soon as the chunks before them are (while
   // later chunks still renew lists), on whichever thread is free.
   InOrder joined;
-  run_shares(chunks, [&](unsigned c) {
+  shares_.run(chunks, [&](unsigned c) {
     // Chunk 0 appends to the pools themselves (no other chunk reads them).
     // Each chunk works on vectors on its own stack, moved in and out (as in
     // find_pairs: the vector records lie side by side).
@@ -977,7 +763,7 @@ QueryCost GridVerlet::find_pairs(std::vector<HandlePair>& out) const {
   };
 
   const std::size_t m = moving_.entries.size();
-  const unsigned t = shares_for(m);
+  const unsigned t = shares_.shares_for(m);
   if (t <= 1) {
     emit_fixed();
     mover_pairs(0, m, emit_out, cost.tests);
@@ -995,7 +781,7 @@ QueryCost GridVerlet::find_pairs(std::vector<HandlePair>& out) const {
     if (buffers.size() < chunks) buffers.resize(chunks);
     std::vector<std::uint64_t> tests(chunks, 0);
     InOrder joined;
-    run_shares(chunks + 1, [&](unsigned job) {
+    shares_.run(chunks + 1, [&](unsigned job) {
       if (job == 0) {
         emit_fixed();
       } else {
@@ -1033,8 +819,8 @@ std::size_t GridVerlet::memory_bytes() const {
                       held_.capacity() * 4 + fixed_.memory_bytes() + moving_.memory_bytes() +
                       fixed_pairs_.capacity() * sizeof(HandlePair) +
                       scratch_items_.capacity() * sizeof(Entry) + scratch_src_.capacity() * 4 +
-                      scratch_shapes_.capacity() * sizeof(LineShape) + scratch_tag_.capacity() * 4 +
-                      move_target_.capacity() * 4 +
+                      scratch_shapes_.capacity() * sizeof(LineShape) +
+                      moving_scratch_.memory_bytes() + move_target_.capacity() * 4 +
                       (movers_.capacity() + scratch_movers_.capacity()) * sizeof(Mover) +
                       list_pool_.capacity() * sizeof(Candidate) + near_pool_.capacity() * 4 +
                       slow_per_level_.capacity() * 4 + mark_.capacity() * 4;
@@ -1104,7 +890,7 @@ void GridVerlet::validate() const {
           }
           if (slots_[e.slot].home != home || slots_[e.slot].pos != k || slots_[e.slot].gen != e.gen)
             fail(gname + ": entry of an object that left");
-          if (!(extent_of(e.lo, e.hi) <= kFill * lv.reach))
+          if (!(extent_of(e.lo, e.hi) <= Grid::kFill * lv.reach))
             fail(gname + ": entry on a too small level");
           if (lv.cell_of(e.lo) != c) fail(gname + ": entry in the wrong cell");
           ++valid;

@@ -7,10 +7,11 @@
 /// until the mover leaves that box. A frame of the study retests only what
 /// moved, from those lists.
 ///
-/// Parts: the grids are detail::LevelGrid (detail/level_grid.hpp), the
-/// movers' records and list entries detail::VerletMover and
-/// detail::VerletCandidate (detail/verlet_lists.hpp), the threads a
-/// detail::WorkerPool (detail/worker_pool.hpp).
+/// Parts: the grids are detail::LevelGrid (detail/level_grid.hpp), which
+/// build themselves from their items, the movers' records and list entries
+/// detail::VerletMover and detail::VerletCandidate (detail/verlet_lists.hpp),
+/// the threads and the split of every pass a detail::WorkShares
+/// (detail/work_shares.hpp) over a detail::WorkerPool (detail/worker_pool.hpp).
 ///
 /// Layout. Objects live in slot-indexed arrays (shape, user data,
 /// generation, where the object is). Each of the two grids (fixed objects,
@@ -61,6 +62,7 @@
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/level_grid.hpp>
 #include <broadphase/detail/verlet_lists.hpp>
+#include <broadphase/detail/work_shares.hpp>
 #include <broadphase/structure.hpp>
 #include <cmath>
 #include <cstddef>
@@ -74,10 +76,6 @@
 #include <vector>
 
 namespace broadphase {
-
-namespace detail {
-class WorkerPool;
-}  // namespace detail
 
 /// The options of GridVerlet (`grid-verlet:threads=N,cell=F,grain=N`).
 struct GridVerletOptions {
@@ -165,7 +163,7 @@ class GridVerlet {
   /// The user data given at insertion. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return user_[index_of(h)]; }
   /// The number of threads find_pairs and the bulk update use.
-  unsigned threads() const { return threads_; }
+  unsigned threads() const { return shares_.threads(); }
   /// Checks slots, lists, grid order and the pair cache; throws std::logic_error.
   void validate() const;
 
@@ -228,13 +226,6 @@ class GridVerlet {
                    std::vector<std::uint32_t>& near, std::vector<std::uint32_t>& renewed);
   /// The box a mover's lists cover: its bounds grown by a margin.
   AabbF fat_box(const AabbF& cur, float speed, bool& fast) const;
-  /// Fills `g` with `items` in cell order, at most `cells_per_object` cells
-  /// per object on each level, and calls place(i, k) for every item i put at
-  /// entry k (the caller copies what else goes with it: its shape, and in
-  /// the moving grid its mover record). Returns nothing else: the levels and
-  /// cell starts are g's.
-  template <class Place>
-  void build_grid(Grid& g, const std::vector<Entry>& items, double cells_per_object, Place&& place);
   /// The shape an item of a rebuild came from: `src` is an index into
   /// `old_shapes` (the grid's shapes before the build), or kFromLoose | an
   /// index into loose_shapes_.
@@ -244,17 +235,6 @@ class GridVerlet {
   /// Points the slots of a grid's entries at them.
   void point_slots(const Grid& g, Home home);
   void build_fixed_cache();
-  /// Runs job(k) once for every k in [0, shares) (a share, or a chunk of
-  /// the work), each taken by whichever of the caller and the pool's
-  /// workers is free; without workers, in order on the caller. The work of
-  /// a share depends on k alone, so results merged in share order do not
-  /// depend on the thread count or on timing.
-  void run_shares(unsigned shares, const std::function<void(unsigned)>& job) const;
-  unsigned shares_for(std::size_t entries) const;
-  /// Chunks for a pass over that many entries: several per share, taken by
-  /// whichever thread is free, so that a thread slowed down (by the host,
-  /// on a virtual machine) leaves its part to the others.
-  unsigned chunks_for(std::size_t entries) const;
 
   /// Exact test of two shapes, with the sphere–sphere case inline.
   static bool exact(const Shape& a, const Shape& b) {
@@ -281,10 +261,13 @@ class GridVerlet {
   template <class E>
   bool all_pairs(E& emit, std::uint64_t& tests) const;
 
-  Aabb world_;
-  unsigned threads_ = 1;
-  std::size_t grain_ = 1;   // option grain=N: moving objects per share at least
-  double cell_factor_ = 1;  // cell side over reach
+  /// The threads (option threads=N) and the split of every pass (option
+  /// grain=N: moving objects per share at least).
+  detail::WorkShares shares_;
+  // What the grids are built for: the world, the cell side over the reach
+  // (option cell=F), cells per object at most.
+  detail::LevelGridSpec fixed_spec_;
+  detail::LevelGridSpec moving_spec_;
 
   std::vector<std::uint64_t> user_;  // for a free slot: the next free slot
   /// What a handle leads to, in one record (a lookup is one cache line).
@@ -320,13 +303,13 @@ class GridVerlet {
   std::vector<std::uint32_t> scratch_src_;
   std::vector<LineShape> scratch_shapes_;
   std::vector<Mover> scratch_movers_;
-  std::vector<std::uint32_t> scratch_tag_;  // per item: its level, then its cell
+  Grid::Scratch moving_scratch_;            // the moving grid's build scratch
   std::vector<std::uint32_t> move_target_;  // per move in a bulk update: its mover
   // A bulk update on threads: per slot, the mark (update and chunk)
   // of the last chunk of moves that named it, to find a handle named twice.
   std::vector<std::uint32_t> mark_;
   std::uint32_t mark_round_ = 0;
-  struct ShareStats;  // one share's totals in a grid build
+  struct ShareStats;  // one share's totals in the passes over the movers
   std::vector<ShareStats> share_stats_;
 
   // Candidate lists of moving objects. A mover's fixed list holds the fixed
@@ -355,7 +338,6 @@ class GridVerlet {
   /// Per-share pair buffers of find_pairs, reused between frames.
   mutable std::mutex buffers_mutex_;
   mutable std::vector<std::vector<HandlePair>> buffers_;
-  std::unique_ptr<detail::WorkerPool> pool_;
 };
 
 // ---------------------------------------------------------------------------
