@@ -30,6 +30,9 @@ class WorkShares {
   /// Work split over threads comes in this many chunks per thread, taken by
   /// whichever thread is free (renewals and list lengths are uneven).
   static constexpr unsigned kChunksPerShare = 8;
+  /// The most threads: a chunk's mark (in grid-verlet's bulk update) holds
+  /// its chunk in 10 bits, which more than 128 threads would overflow.
+  static constexpr unsigned kMaxThreads = 64;
 
   /// `threads` >= 1 (a pool of threads - 1 workers when more than one);
   /// `grain` >= 1: entries per share at least.
