@@ -614,4 +614,27 @@ void GridVerlet::validate() const {
   }
 }
 
+void GridVerlet::visit_cells(CellVisitor visitor) const {
+  // Cell (x, y, z) of a level is its (y * n[2] + z) * n[0] + x-th: x runs
+  // fastest, so that a row of cells along x is one run of entries.
+  int level = 0;
+  for (const Grid* g : {&fixed_, &moving_}) {
+    for (const Level& lv : g->levels) {
+      const int this_level = level++;
+      if (!(lv.inv_cell > 0)) continue;  // the unbounded objects' level: no box to show
+      const double side = 1 / lv.inv_cell;
+      for (std::uint32_t c = 0; c < lv.cells(); ++c) {
+        std::size_t held = 0;
+        for (std::uint32_t k = g->cell_start[lv.first_cell + c];
+             k < g->cell_start[lv.first_cell + c + 1]; ++k)
+          held += g->entries[k].dead() ? 0 : 1;
+        if (held == 0) continue;
+        const std::uint32_t x = c % lv.n[0], z = c / lv.n[0] % lv.n[2], y = c / lv.n[0] / lv.n[2];
+        const Vec3 lo{lv.origin[0] + x * side, lv.origin[1] + y * side, lv.origin[2] + z * side};
+        visitor(Aabb{lo, {lo.x + side, lo.y + side, lo.z + side}}, this_level, held);
+      }
+    }
+  }
+}
+
 }  // namespace broadphase

@@ -168,6 +168,16 @@ class GridVerlet {
   unsigned threads() const { return shares_.threads(); }
   /// Checks slots, lists, grid order and the pair cache; throws std::logic_error.
   void validate() const;
+  /// Reports the occupied cells of the two grids as built: the fixed
+  /// grid's levels as levels 0, 1, ... (finest first), then the moving
+  /// grid's after them, each cell with the live objects whose lower corner
+  /// it holds (a moving object's is the corner of its fat box, a little
+  /// below its own); an object reaches up to its level's reach beyond its
+  /// cell, and an object whose corner lies beyond the world hint sits in a
+  /// border cell, outside its box. Objects on the list of those inserted or
+  /// moved one at a time since the last rebuild (settle() ends it) and
+  /// unbounded objects are in no cell. O(cells + entries), for pictures.
+  void visit_cells(CellVisitor visitor) const;
 
  private:
   /// Where a slot's object is: which list or grid holds its live entry.
