@@ -67,17 +67,26 @@ GridVerlet::GridVerlet(const Config& c, const GridVerletOptions& o)
 GridVerlet::~GridVerlet() = default;
 
 std::uint32_t GridVerlet::allocate_slot() {
-  const Handle h = slot_map_.allocate();
-  if (h.index == slots_.size()) {
+  std::uint32_t s;
+  if (free_head_ != Handle::kNullIndex) {
+    s = free_head_;
+    free_head_ = static_cast<std::uint32_t>(user_[s]);
+  } else {
+    if (slots_.size() >= Handle::kNullIndex)
+      throw std::length_error("grid-verlet: too many objects");
+    s = static_cast<std::uint32_t>(slots_.size());
     user_.push_back(0);
     slots_.emplace_back();
   }
-  return h.index;
+  ++slots_[s].gen;  // even (free) -> odd (alive)
+  ++live_;
+  return s;
 }
 
 void GridVerlet::free_slot(std::uint32_t s) {
   slots_[s].home = Home::free;
-  slot_map_.release(slot_map_.handle(s));
+  user_[s] = free_head_;
+  free_head_ = s;
 }
 
 void GridVerlet::add_loose(std::uint32_t s, const Shape& shape) {
@@ -129,19 +138,20 @@ Handle GridVerlet::insert(const Shape& s, std::uint64_t user, Motion m) {
   add_loose(i, s);
   if (m == Motion::fixed) fixed_dirty_ = true;
   maybe_rebuild();
-  return slot_map_.handle(i);
+  return {i, slots_[i].gen};
 }
 
 void GridVerlet::remove(Handle h) {
   const std::uint32_t s = index_of(h);
+  ++slots_[s].gen;  // odd -> even: every handle to the object is stale from now on
+  --live_;
   if (slots_[s].home == Home::loose) {
     drop_loose(s);
     free_slot(s);
     return;
   }
   // A grid entry still names this slot: hold the slot back until the grid
-  // is rebuilt, so that it cannot be handed to a new object meanwhile
-  // (contains() already refuses its handles).
+  // is rebuilt, so that it cannot be handed to a new object meanwhile.
   leave_grid(s);
   slots_[s].home = Home::held;
   held_.push_back(s);
@@ -285,7 +295,7 @@ void GridVerlet::settle() {
 }
 
 void GridVerlet::maybe_rebuild() {
-  if (loose_.size() + held_.size() > std::max(kMinLoose, size() / 8)) {
+  if (loose_.size() + held_.size() > std::max(kMinLoose, live_ / 8)) {
     // The pair cache waits for the next bulk update: while objects stream
     // in, every threshold rebuild would otherwise recompute it.
     rebuild(fixed_dirty_);
@@ -301,7 +311,7 @@ void GridVerlet::rebuild(bool fixed_too) {
       std::copy(loose_bounds_[k].lo, loose_bounds_[k].lo + 3, e.lo);
       std::copy(loose_bounds_[k].hi, loose_bounds_[k].hi + 3, e.hi);
       e.slot = s;
-      e.gen = slot_map_.handle(s).generation;
+      e.gen = slots_[s].gen;
       items.push_back(e);
       src.push_back(kFromLoose | static_cast<std::uint32_t>(k));
     }
@@ -506,10 +516,10 @@ QueryCost GridVerlet::find_pairs(std::vector<HandlePair>& out) const {
 
 std::size_t GridVerlet::memory_bytes() const {
   std::size_t bytes = loose_shapes_.capacity() * sizeof(Shape) + user_.capacity() * 8 +
-                      slots_.capacity() * sizeof(Slot) + slot_map_.memory_bytes() +
-                      loose_.capacity() * 4 + loose_bounds_.capacity() * sizeof(AabbF) +
-                      loose_speed_.capacity() * 4 + held_.capacity() * 4 + fixed_.memory_bytes() +
-                      moving_.memory_bytes() + fixed_pairs_.capacity() * sizeof(HandlePair) +
+                      slots_.capacity() * sizeof(Slot) + loose_.capacity() * 4 +
+                      loose_bounds_.capacity() * sizeof(AabbF) + loose_speed_.capacity() * 4 +
+                      held_.capacity() * 4 + fixed_.memory_bytes() + moving_.memory_bytes() +
+                      fixed_pairs_.capacity() * sizeof(HandlePair) +
                       scratch_items_.capacity() * sizeof(Entry) + scratch_src_.capacity() * 4 +
                       scratch_shapes_.capacity() * sizeof(LineShape) +
                       moving_scratch_.memory_bytes() + move_target_.capacity() * 4 +
@@ -522,20 +532,25 @@ std::size_t GridVerlet::memory_bytes() const {
 void GridVerlet::validate() const {
   auto fail = [](const std::string& what) { throw std::logic_error("grid-verlet: " + what); };
   const std::size_t slots = slots_.size();
-  if (user_.size() != slots || slot_map_.slot_count() != slots)
-    fail("slot arrays differ in length");
-  try {
-    slot_map_.validate();
-  } catch (const std::logic_error& e) {
-    fail(e.what());
-  }
-  std::size_t held = 0;
-  for (std::uint32_t s = 0; s < slots; ++s) {
+  if (user_.size() != slots) fail("slot arrays differ in length");
+  std::size_t alive = 0, free = 0, held = 0;
+  for (std::size_t s = 0; s < slots; ++s) {
+    const bool odd = (slots_[s].gen & 1u) != 0;
+    alive += odd;
+    if (slots_[s].home == Home::free) ++free;
     if (slots_[s].home == Home::held) ++held;
-    if (slot_map_.alive(s) != (slots_[s].home != Home::free))
+    if (odd != (slots_[s].home != Home::free && slots_[s].home != Home::held))
       fail("slot " + std::to_string(s) + ": generation and home disagree");
   }
+  if (alive != live_) fail("live count");
   if (held != held_.size()) fail("held-back list");
+  std::size_t free_list = 0;
+  for (std::uint32_t s = free_head_; s != Handle::kNullIndex;
+       s = static_cast<std::uint32_t>(user_[s])) {
+    if (s >= slots || slots_[s].home != Home::free || ++free_list > slots)
+      fail("corrupt free list");
+  }
+  if (free_list != free) fail("free list misses free slots");
   if (loose_.size() != loose_bounds_.size() || loose_.size() != loose_shapes_.size() ||
       loose_.size() != loose_speed_.size())
     fail("loose arrays differ in length");
@@ -570,8 +585,7 @@ void GridVerlet::validate() const {
               fail(gname + ": live entry marked dead");
             continue;
           }
-          if (slots_[e.slot].home != home || slots_[e.slot].pos != k ||
-              slot_map_.handle(e.slot).generation != e.gen)
+          if (slots_[e.slot].home != home || slots_[e.slot].pos != k || slots_[e.slot].gen != e.gen)
             fail(gname + ": entry of an object that left");
           if (!(extent_of(e.lo, e.hi) <= Grid::kFill * lv.reach))
             fail(gname + ": entry on a too small level");
@@ -601,14 +615,13 @@ void GridVerlet::validate() const {
     if (slots_[s].home != Home::fixed_grid) return std::nullopt;
     return slots_[s].pos;
   });
-  if (fixed_count_ + moving_count_ + loose_.size() != size()) fail("objects lost between lists");
+  if (fixed_count_ + moving_count_ + loose_.size() != live_) fail("objects lost between lists");
   if (!cache_built_ && !fixed_pairs_.empty()) fail("a stale pair cache");
   for (const HandlePair& p : fixed_pairs_) {
     const std::uint32_t a = p.a.index, b = p.b.index;
     if (a >= slots || b >= slots || a == b) fail("bad cached pair");
     if (slots_[a].home != Home::fixed_grid || slots_[b].home != Home::fixed_grid) continue;
-    if (slot_map_.handle(a).generation != p.a.generation ||
-        slot_map_.handle(b).generation != p.b.generation)
+    if (slots_[a].gen != p.a.generation || slots_[b].gen != p.b.generation)
       fail("cached pair with a stale generation");
     if (!overlaps(shape_of(a), shape_of(b))) fail("cached pair no longer overlaps");
   }

@@ -149,15 +149,13 @@ class GridVerlet {
   QueryCost find_pairs(std::vector<HandlePair>& out) const;
 
   /// The number of live objects. O(1).
-  std::size_t size() const { return slot_map_.size() - held_.size(); }
+  std::size_t size() const { return live_; }
   /// Bytes held: the capacity of every container, pair buffers included.
   std::size_t memory_bytes() const;
   /// True when `h` names a live object of this structure. O(1).
   bool contains(Handle h) const {
-    // A held-back slot is not released to the map before the next rebuild
-    // (no new object may take it while a grid entry names it): its
-    // handles are stale from its removal on.
-    return slot_map_.contains(h) && slots_[h.index].home != Home::held;
+    return h.index < slots_.size() && slots_[h.index].gen == h.generation &&
+           (h.generation & 1u) != 0;
   }
   /// The object's shape. Throws InvalidHandle. The reference lives until
   /// the next mutation.
@@ -199,7 +197,7 @@ class GridVerlet {
     if (!contains(h)) throw InvalidHandle(h);
     return h.index;
   }
-  Handle handle_of(std::uint32_t s) const { return slot_map_.handle(s); }
+  Handle handle_of(std::uint32_t s) const { return {s, slots_[s].gen}; }
   /// The shape of a live object: each is held once, by its grid or list.
   const Shape& shape_of(std::uint32_t s) const {
     switch (slots_[s].home) {
@@ -264,22 +262,26 @@ class GridVerlet {
   detail::LevelGridSpec fixed_spec_;
   detail::LevelGridSpec moving_spec_;
 
-  /// The slots and their generations; a removed grid object's slot is
-  /// released to it at the next rebuild (held back until then). Measured
-  /// against a record of its own holding the generation beside the home
-  /// and entry (one line per lookup, the free list threaded through the
-  /// user data), side by side (tools/ab/ab.sh, scaled-even 102 400, 100
-  /// frames, 2-core EPYC VM, load 4.6): frame time 1.01x with one thread,
-  /// 1.04x with two, within this machine's noise; 4 more bytes per slot.
-  SlotMap slot_map_;
-  std::vector<std::uint64_t> user_;  // per slot
-  /// Where a slot's object is, in one record per slot.
+  std::vector<std::uint64_t> user_;  // for a free slot: the next free slot
+  /// What a handle leads to, in one record (a lookup is one cache line).
+  /// Kept instead of the shared SlotMap (handle.hpp), whose generations lie
+  /// in an array of their own: a lookup then reads two lines (in the bulk
+  /// update's check of every move, and for each near-list hit), the map
+  /// keeps a free-list link per slot (4 bytes) where this record threads
+  /// its free list through the user data, and it has no held-back state.
+  /// Measured side by side, SlotMap version over this one (tools/ab/ab.sh,
+  /// scaled-even 102 400, 100 frames, 4 interleaved runs, 2-core EPYC VM
+  /// at load 5-10): frame time 0.97-1.11x (middle two 1.01x and 1.08x)
+  /// with one thread, 0.98-1.09x (1.04x and 1.06x) with two.
   struct Slot {
+    std::uint32_t gen = 0;  // odd while alive
     std::uint32_t pos = 0;  // a loose object's index in loose_, a grid object's entry
     Home home = Home::free;
     Motion motion = Motion::dynamic;
   };
   std::vector<Slot> slots_;
+  std::uint32_t free_head_ = Handle::kNullIndex;
+  std::size_t live_ = 0;
 
   std::vector<std::uint32_t> loose_;  // loose slots
   std::vector<AabbF> loose_bounds_;   // parallel to loose_
@@ -494,7 +496,7 @@ bool GridVerlet::mover_pairs(std::size_t begin, std::size_t end, E& emit,
       const std::uint32_t os = movers[o.pos].stamp;
       if (os > mv.stamp || (os == mv.stamp && *n < me.slot)) continue;
       ++tests;
-      if (exact(sm, moving_.shapes[o.pos]) && !emit(hm, slot_map_.handle(*n))) return false;
+      if (exact(sm, moving_.shapes[o.pos]) && !emit(hm, Handle{*n, o.gen})) return false;
     }
   }
   return true;
