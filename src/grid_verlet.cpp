@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -13,20 +14,6 @@ namespace broadphase {
 
 namespace {
 
-// Levels halve in reach from the largest finite extent down; twenty finite
-// levels span six decades of sizes (smaller objects share the lowest level),
-// and one more level of infinite reach takes objects whose float bounds are
-// unbounded (centres beyond the float range). Factor 2 keeps an object's
-// reach within twice its extent, so a scan window stays tight.
-constexpr int kFiniteLevels = 20;
-constexpr int kLevelSlots = kFiniteLevels + 1;
-// An object goes to a level only when its widest extent is at most this
-// fraction of the reach: the 2% margin absorbs the rounding of the cell
-// arithmetic, so the cell bounds of a scan stay conservative.
-constexpr double kFill = 0.98;
-// A level holding less than 1/kSparseLevel of a grid's objects is merged
-// into the next larger one.
-constexpr std::size_t kSparseLevel = 4;
 // Cells per level at most this many times its objects (a level of few
 // objects over a wide world gets larger cells instead of empty ones).
 constexpr double kCellsPerObject = 2;
@@ -35,88 +22,19 @@ constexpr double kCellsPerObject = 2;
 constexpr double kMovingCellsPerObject = 8;
 // Loose and held-back objects tolerated before a mutation rebuilds.
 constexpr std::size_t kMinLoose = 64;
-// Candidate-list margins: the last displacement times kMarginFrames, at
-// least kMinMargin of the object's extent, and at most kMaxMargin of the
-// larger of its extent and the fixed grid's finest cell. The cell term
-// lets tiny fast objects keep a list for several frames (cells that fine
-// hold few objects), the extent term keeps lists short in dense crowds.
-constexpr double kMarginFrames = 12;
-constexpr double kMinMargin = 0.02;
-constexpr double kMaxMargin = 0.5;
-// A fat box that would not hold a mover for this many frames is not worth
-// its margin: the mover is "fast", probes the moving grid every frame and
-// keeps no near list (2 against 1.5, 3 and 5: all-moving 20 000
-// 2.7 ms against 2.6-4.7, explosion 5.3-5.9 against 4.6-6.2, noisy).
-constexpr double kMinFrames = 2;
 // Threads at most (option threads=N, and hardware concurrency for N = 0).
 constexpr unsigned kMaxThreads = GridVerletOptions::kMaxThreads;
-// Moving entries per share below which work stays on one thread (the
-// default of the option grain=N).
-constexpr std::size_t kMinEntriesPerThread = 2048;
-// Work split over threads comes in this many chunks per thread, taken by
-// whichever thread is free (renewals and list lengths are uneven).
-constexpr unsigned kChunksPerShare = 8;
-
-// Scratch that holds more than twice what it last held plus this many
-// bytes is released after use.
-constexpr std::size_t kKeepScratchBytes = 64 * 1024;
-
-template <class T>
-void release_if_oversized(std::vector<T>& v) {
-  if (v.capacity() * sizeof(T) > 2 * v.size() * sizeof(T) + kKeepScratchBytes)
-    std::vector<T>().swap(v);
-}
-
-// Part k of [0, n) cut into `parts` contiguous ranges of about equal size:
-// how every pass split over threads or chunks divides its work.
-struct Slice {
-  std::size_t begin, end;
-};
-Slice slice(std::size_t n, unsigned k, unsigned parts) {
-  return {n * k / parts, n * (k + 1) / parts};
-}
-
-// A candidate or near pool's capacity for n live entries: room for
-// renewals of half as many again.
-std::size_t with_room(std::size_t n) { return n + n / 2 + 1024; }
+constexpr unsigned kChunksPerShare = detail::WorkShares::kChunksPerShare;
+using detail::displacement;
+using detail::extent_of;
+using detail::release_if_oversized;
+using detail::Slice;
+using detail::slice;
 
 // Pieces joined in order: every chunk of every pass, and one more.
 using InOrder = detail::InOrder<kMaxThreads * kChunksPerShare + 1>;
 
-// Sorts keys by their high 32 bits, stably: an LSD radix sort, 11 bits a
-// pass, as many passes as the largest key needs (std::sort took half of a
-// pool compaction's time at 102 400 objects).
-void sort_by_high_word(std::vector<std::uint64_t>& keys) {
-  constexpr int kBits = 11;
-  constexpr std::size_t kBuckets = std::size_t{1} << kBits;
-  std::uint64_t top = 0;
-  for (const std::uint64_t k : keys) top = std::max(top, k >> 32);
-  std::vector<std::uint64_t> out(keys.size());
-  for (int shift = 32; shift < 64 && (top >> (shift - 32)) > 0; shift += kBits) {
-    std::vector<std::uint32_t> start(kBuckets + 1, 0);
-    for (const std::uint64_t k : keys) ++start[((k >> shift) & (kBuckets - 1)) + 1];
-    for (std::size_t b = 0; b < kBuckets; ++b) start[b + 1] += start[b];
-    for (const std::uint64_t k : keys) out[start[(k >> shift) & (kBuckets - 1)]++] = k;
-    keys.swap(out);
-  }
-}
-
-double extent_of(const float lo[3], const float hi[3]) {
-  double e = 0;
-  for (int a = 0; a < 3; ++a)
-    e = std::max(e, static_cast<double>(hi[a]) - static_cast<double>(lo[a]));
-  return e;
-}
-
 }  // namespace
-
-struct alignas(64) GridVerlet::ShareStats {  // on lines of its own: each share writes its own
-  double max_e = 0;
-  std::uint32_t count[kLevelSlots] = {};
-  float span_lo[kLevelSlots][3] = {}, span_hi[kLevelSlots][3] = {};
-  std::uint32_t first_cell = 0;  // of the cells the share fills in the scatter
-  ListTotals lists;              // the share's list lengths, before renewals
-};
 
 void GridVerletOptions::check() const {
   detail::check_integer("grid-verlet", "threads", threads, 0, kMaxThreads);
@@ -124,14 +42,21 @@ void GridVerletOptions::check() const {
   detail::check_integer("grid-verlet", "grain", grain, 1, std::uint64_t{1} << 24);
 }
 
-GridVerlet::GridVerlet(const Config& c, const GridVerletOptions& o)
-    : world_(check_config(c, "grid-verlet").world) {
+namespace {
+// The configuration and options checked, in that order, then the thread
+// count they ask for.
+unsigned threads_of(const Config& c, const GridVerletOptions& o) {
+  check_config(c, "grid-verlet");
   o.check();
-  threads_ = o.threads;
-  cell_factor_ = o.cell;
-  grain_ = o.grain;
-  if (threads_ == 0) threads_ = std::clamp(std::thread::hardware_concurrency(), 1u, kMaxThreads);
-  if (threads_ > 1) pool_ = std::make_unique<detail::WorkerPool>(threads_ - 1);
+  if (o.threads == 0) return std::clamp(std::thread::hardware_concurrency(), 1u, kMaxThreads);
+  return o.threads;
+}
+}  // namespace
+
+GridVerlet::GridVerlet(const Config& c, const GridVerletOptions& o)
+    : shares_(threads_of(c, o), o.grain),
+      fixed_spec_{c.world, o.cell, kCellsPerObject},
+      moving_spec_{fixed_spec_.world, o.cell, kMovingCellsPerObject} {
   if (c.expected_objects > 0) {
     const std::size_t n = c.expected_objects;
     user_.reserve(n);
@@ -140,24 +65,6 @@ GridVerlet::GridVerlet(const Config& c, const GridVerletOptions& o)
 }
 
 GridVerlet::~GridVerlet() = default;
-
-unsigned GridVerlet::chunks_for(std::size_t entries) const {
-  const unsigned t = shares_for(entries);
-  return t <= 1 ? 1 : t * kChunksPerShare;
-}
-
-unsigned GridVerlet::shares_for(std::size_t entries) const {
-  return static_cast<unsigned>(
-      std::min<std::size_t>(threads_, std::max<std::size_t>(1, entries / grain_)));
-}
-
-void GridVerlet::run_shares(unsigned shares, const std::function<void(unsigned)>& job) const {
-  if (shares <= 1 || !pool_) {
-    for (unsigned k = 0; k < shares; ++k) job(k);
-    return;
-  }
-  pool_->run(shares, job);
-}
 
 std::uint32_t GridVerlet::allocate_slot() {
   std::uint32_t s;
@@ -181,17 +88,6 @@ void GridVerlet::free_slot(std::uint32_t s) {
   user_[s] = free_head_;
   free_head_ = s;
 }
-
-namespace {
-// The largest move of a bound along any axis: the displacement that sets
-// a mover's margin.
-float displacement(const AabbF& from, const AabbF& to) {
-  float d = 0;
-  for (int a = 0; a < 3; ++a)
-    d = std::max(d, std::max(std::fabs(to.lo[a] - from.lo[a]), std::fabs(to.hi[a] - from.hi[a])));
-  return d;
-}
-}  // namespace
 
 void GridVerlet::add_loose(std::uint32_t s, const Shape& shape) {
   slots_[s].home = Home::loose;
@@ -271,11 +167,7 @@ void GridVerlet::update(Handle h, const Shape& s) {
 }
 
 void GridVerlet::move_mover(std::uint32_t k, const Shape& shape) {
-  // The grid entry keeps the fat box; the rebuild renews it if needed.
-  Mover& mv = movers_[k];
-  const AabbF b = bounds_f(shape);
-  mv.speed = displacement(mv.cur, b);
-  mv.cur = b;
+  lists_.move(k, bounds_f(shape));
   moving_.shapes[k] = shape;
 }
 
@@ -312,8 +204,8 @@ void GridVerlet::update(std::span<const Move> moves) {
   constexpr std::size_t kAhead = 16;
   const std::size_t m = moving_.entries.size();
   const std::size_t n = moves.size();
-  const unsigned t = shares_for(std::min(n, m));
-  const unsigned chunks = chunks_for(std::min(n, m));
+  const unsigned t = shares_.shares_for(std::min(n, m));
+  const unsigned chunks = shares_.chunks_for(std::min(n, m));
   // Not the grid build's tag array: that one's lines are written pass
   // after pass by the thread that owns the same range of the moving grid,
   // and would cross between the cores were they first written in the
@@ -334,7 +226,7 @@ void GridVerlet::update(std::span<const Move> moves) {
   auto mark = [&](std::uint32_t p) { return std::atomic_ref<std::uint32_t>(mark_[p]); };
   const std::uint32_t round = mark_round_ << 10;
   std::atomic<bool> bad{false}, others{false}, twice{false};
-  run_shares(chunks, [&](unsigned c) {
+  shares_.run(chunks, [&](unsigned c) {
     bool any_other = false, any_twice = false;
     for (auto [j, end] = slice(n, c, chunks); j < end; ++j) {
       if (j + kAhead < end && moves[j + kAhead].handle.index < slots_.size())
@@ -363,7 +255,7 @@ void GridVerlet::update(std::span<const Move> moves) {
     }
   }
   if (marks && !twice)
-    run_shares(chunks, [&](unsigned c) {
+    shares_.run(chunks, [&](unsigned c) {
       bool any_twice = false;
       for (auto [j, end] = slice(n, c, chunks); j < end; ++j)
         any_twice |= target[j] != kOther &&
@@ -378,8 +270,8 @@ void GridVerlet::update(std::span<const Move> moves) {
       if (j + kAhead < last) {
         const std::uint32_t a = target[j + kAhead];
         if (a >= lo && a < hi) {
-          detail::prefetch(&movers_[a].cur);
-          detail::prefetch(&movers_[a].speed);  // often on the record's second line
+          detail::prefetch(&lists_.movers()[a].cur);
+          detail::prefetch(&lists_.movers()[a].speed);  // often on the record's second line
           detail::prefetch(&moving_.shapes[a]);
         }
       }
@@ -388,9 +280,9 @@ void GridVerlet::update(std::span<const Move> moves) {
     }
   };
   if (twice)
-    run_shares(t, [&](unsigned k) { move_range({0, n}, slice(m, k, t)); });
+    shares_.run(t, [&](unsigned k) { move_range({0, n}, slice(m, k, t)); });
   else
-    run_shares(chunks, [&](unsigned c) { move_range(slice(n, c, chunks), {0, m}); });
+    shares_.run(chunks, [&](unsigned c) { move_range(slice(n, c, chunks), {0, m}); });
   if (others)
     for (std::size_t j = 0; j < n; ++j)
       if (target[j] == kOther) move_via_loose(moves[j].handle.index, moves[j].shape);
@@ -442,8 +334,12 @@ void GridVerlet::rebuild(bool fixed_too) {
     take_loose(Motion::fixed, items, src);
     std::vector<LineShape> old_shapes;
     old_shapes.swap(fixed_.shapes);
-    build_grid(fixed_, items, kCellsPerObject, [&](std::size_t i, std::uint32_t k) {
-      fixed_.shapes[k] = shape_from(src[i], old_shapes);
+    Grid::Scratch scratch;
+    const std::span<const std::uint32_t> at = fixed_.build(items, fixed_spec_, shares_, scratch);
+    const unsigned chunks = shares_.chunks_for(items.size());
+    shares_.run(chunks, [&](unsigned c) {
+      for (auto [i, end] = slice(items.size(), c, chunks); i < end; ++i)
+        fixed_.shapes[at[i]] = shape_from(src[i], old_shapes);
     });
     point_slots(fixed_, Home::fixed_grid);
     fixed_count_ = fixed_.entries.size();
@@ -451,15 +347,12 @@ void GridVerlet::rebuild(bool fixed_too) {
     fixed_pairs_.shrink_to_fit();
     cache_built_ = false;
     fixed_dirty_ = false;
-    ++epoch_;  // every candidate list names entries of the old fixed grid
+    lists_.fixed_grid_rebuilt(fixed_);  // every list names entries of the old grid
   }
   // The moving grid holds fat boxes: a mover whose bounds left its box gets
-  // a new one now (and new lists below), a new mover its first.
-  ++stamp_;
-  // The same pass sums the lengths of the lists that stay and of those to
-  // be renewed (movers from the loose list have none), for the pools, and,
-  // while no entry is dead, copies each entry to the build's input, at its
-  // own index (else a pass on one thread gathers the live ones).
+  // a new one now (and new lists below), a new mover its first. The same
+  // pass, while no entry is dead, copies each entry to the build's input,
+  // at its own index (else a pass on one thread gathers the live ones).
   const std::size_t m = moving_.entries.size();
   const bool none_dead = moving_count_ == m;
   std::vector<Entry>& items = scratch_items_;
@@ -471,74 +364,42 @@ void GridVerlet::rebuild(bool fixed_too) {
     items.clear();
     src.clear();
   }
-  const unsigned parts = chunks_for(m);
-  share_stats_.resize(parts);
-  run_shares(parts, [&](unsigned share) {
-    ListTotals sum;
-    for (auto [k, end] = slice(m, share, parts); k < end; ++k) {
-      Entry& e = moving_.entries[k];
-      if (e.dead()) continue;
-      Mover& mv = movers_[k];
-      // A box made before the speed was known is renewed as soon as it is
-      // known (in the first bulk update after the inserts, rather than in
-      // a wave over the next frames).
-      if ((mv.guessed && mv.speed > 0) || !mv.fat.contains(mv.cur)) {
-        mv.fat = fat_box(mv.cur, mv.speed, mv.fast);
-        mv.guessed = !(mv.speed > 0);
-        mv.epoch = 0;
-        std::copy(mv.fat.lo, mv.fat.lo + 3, e.lo);
-        std::copy(mv.fat.hi, mv.fat.hi + 3, e.hi);
-      }
-      const bool keep = mv.epoch == epoch_;
-      (keep ? sum.kept : sum.renewing) += mv.list_count;
-      (keep ? sum.near_kept : sum.near_renewing) += mv.near_count;
-      if (none_dead) {
-        items[k] = e;
-        src[k] = static_cast<std::uint32_t>(k);
-      }
-    }
-    share_stats_[share].lists = sum;
-  });
-  ListTotals totals;
-  for (unsigned k = 0; k < parts; ++k) {
-    const ListTotals& sum = share_stats_[k].lists;
-    totals.kept += sum.kept;
-    totals.renewing += sum.renewing;
-    totals.near_kept += sum.near_kept;
-    totals.near_renewing += sum.near_renewing;
-  }
+  const detail::VerletLists::Totals totals =
+      none_dead ? lists_.refresh_boxes(moving_, items, src, shares_)
+                : lists_.refresh_boxes(moving_, {}, {}, shares_);
   if (!none_dead) take_grid(moving_, items, src);
   const std::size_t first_loose = items.size();
   take_loose(Motion::dynamic, items, src);
   for (std::size_t i = first_loose; i < items.size(); ++i) {
     // A loose object that moved since it was inserted has a known speed.
     bool fast;
-    const AabbF f = fat_box(items[i].box(), loose_speed_[src[i] & ~kFromLoose], fast);
+    const AabbF f = lists_.fat_box(items[i].box(), loose_speed_[src[i] & ~kFromLoose], fast);
     std::copy(f.lo, f.lo + 3, items[i].lo);
     std::copy(f.hi, f.hi + 3, items[i].hi);
   }
   scratch_shapes_.swap(moving_.shapes);
-  scratch_movers_.swap(movers_);
-  movers_.resize(items.size());
-  build_grid(moving_, items, kMovingCellsPerObject, [&](std::size_t i, std::uint32_t k) {
-    const std::uint32_t from = src[i];
-    moving_.shapes[k] = shape_from(from, scratch_shapes_);
-    if ((from & kFromLoose) != 0) {
-      const std::uint32_t l = from & ~kFromLoose;
-      Mover& mv = movers_[k];
-      mv = Mover{};
-      mv.cur = loose_bounds_[l];
-      mv.speed = loose_speed_[l];
-      mv.guessed = !(mv.speed > 0);
-      mv.fat = items[i].box();
-    } else {
-      movers_[k] = scratch_movers_[from];
+  lists_.reorder(items.size());
+  const std::span<const std::uint32_t> at =
+      moving_.build(items, moving_spec_, shares_, moving_scratch_);
+  // Each item's shape and mover record go where the build put it (the
+  // items of a chunk went to distinct entries).
+  const unsigned chunks = shares_.chunks_for(items.size());
+  shares_.run(chunks, [&](unsigned c) {
+    for (auto [i, end] = slice(items.size(), c, chunks); i < end; ++i) {
+      const std::uint32_t k = at[i];
+      const std::uint32_t from = src[i];
+      moving_.shapes[k] = shape_from(from, scratch_shapes_);
+      if ((from & kFromLoose) != 0) {
+        const std::uint32_t l = from & ~kFromLoose;
+        lists_.start(k, loose_bounds_[l], loose_speed_[l], items[i].box());
+      } else {
+        lists_.keep(k, from);
+      }
     }
   });
   point_slots(moving_, Home::moving_grid);
   moving_count_ = moving_.entries.size();
-  count_slow_movers();
-  build_candidate_lists(totals);
+  lists_.renew(fixed_, moving_, totals, shares_);
   // The loose list can grow to an eighth of the objects while a scene is
   // inserted; kept after the build it would hold 11 bytes per object for
   // single inserts that seldom come.
@@ -555,29 +416,11 @@ void GridVerlet::rebuild(bool fixed_too) {
   release_if_oversized(held_);
 }
 
-void GridVerlet::count_slow_movers() {
-  const std::size_t m = moving_.entries.size();
-  const std::size_t levels = moving_.levels.size();
-  const unsigned parts = chunks_for(m);
-  share_stats_.resize(parts);
-  run_shares(parts, [&](unsigned share) {
-    std::uint32_t* count = share_stats_[share].count;
-    std::fill(count, count + levels, 0);
-    auto [k, end] = slice(m, share, parts);
-    for (std::size_t l = 0; l < levels && k < end; ++l)
-      for (const std::size_t e = std::min(end, moving_.level_end(l)); k < e; ++k)
-        count[l] += movers_[k].fast ? 0 : 1;
-  });
-  slow_per_level_.assign(levels, 0);
-  for (unsigned k = 0; k < parts; ++k)
-    for (std::size_t l = 0; l < levels; ++l) slow_per_level_[l] += share_stats_[k].count[l];
-}
-
 void GridVerlet::point_slots(const Grid& g, Home home) {
   // Every slot is named by one entry: the shares write distinct records.
   const std::size_t n = g.entries.size();
-  const unsigned parts = chunks_for(n);
-  run_shares(parts, [&](unsigned share) {
+  const unsigned parts = shares_.chunks_for(n);
+  shares_.run(parts, [&](unsigned share) {
     for (auto [k, end] = slice(n, share, parts); k < end; ++k) {
       Slot& sl = slots_[g.entries[k].slot];
       sl.home = home;
@@ -590,361 +433,6 @@ inline const Shape& GridVerlet::shape_from(std::uint32_t src,
                                            const std::vector<LineShape>& old_shapes) const {
   return (src & kFromLoose) != 0 ? loose_shapes_[src & ~kFromLoose]
                                  : static_cast<const Shape&>(old_shapes[src]);
-}
-
-template <class Place>
-void GridVerlet::build_grid(Grid& g, const std::vector<Entry>& items, double cells_per_object,
-                            Place&& place) {
-  const std::size_t n = items.size();
-  g.levels.clear();
-  g.cell_start.clear();
-  // Exact capacities when a grid grows (reserve, unlike resize, does not
-  // double): grids are most of the memory held per object.
-  // assign, not resize: GCC 12's resize under -fsanitize=undefined reports
-  // its own unreachable-point check here (the vectors are sound: ASan is
-  // quiet and the release build exact), and assign costs the same fill.
-  g.entries.reserve(n);
-  g.shapes.reserve(n);
-  g.entries.assign(n, detail::GridEntry{});
-  g.shapes.assign(n, LineShape{});
-  if (n == 0) {
-    g.cell_start.push_back(0);
-    return;
-  }
-  // The passes over the items are split over the threads, in chunks, each
-  // taking a contiguous range and keeping its own totals, merged in chunk
-  // order (sums, minima and maxima: the same for any split); the scatter
-  // in t shares.
-  const unsigned t = shares_for(n);
-  const unsigned parts = chunks_for(n);
-  share_stats_.resize(parts);
-  run_shares(parts, [&](unsigned k) {
-    double m = 0;
-    for (auto [i, end] = slice(n, k, parts); i < end; ++i) {
-      const double e = extent_of(items[i].lo, items[i].hi);
-      if (std::isfinite(e)) m = std::max(m, e);
-    }
-    share_stats_[k].max_e = m;
-  });
-  double max_e = 0;
-  for (const ShareStats& st : share_stats_) max_e = std::max(max_e, st.max_e);
-  // The top level's reach fits the largest finite extent; each level below
-  // halves it.
-  const double top = max_e > 0 ? max_e / (kFill * kFill) : 1;
-  double reach[kLevelSlots];
-  for (int k = 0; k < kFiniteLevels; ++k) reach[k] = std::ldexp(top, k - (kFiniteLevels - 1));
-  reach[kFiniteLevels] = std::numeric_limits<double>::infinity();
-
-  // Pass 1: each item's level, and each level's count and lower-corner span.
-  std::vector<std::uint32_t>& tag = scratch_tag_;
-  tag.resize(n);
-  run_shares(parts, [&](unsigned share) {
-    ShareStats& st = share_stats_[share];
-    for (int k = 0; k < kLevelSlots; ++k) {
-      st.count[k] = 0;
-      std::fill(st.span_lo[k], st.span_lo[k] + 3, std::numeric_limits<float>::infinity());
-      std::fill(st.span_hi[k], st.span_hi[k] + 3, -std::numeric_limits<float>::infinity());
-    }
-    for (auto [i, end] = slice(n, share, parts); i < end; ++i) {
-      const Entry& it = items[i];
-      const double e = extent_of(it.lo, it.hi);
-      int k = kFiniteLevels;
-      if (std::isfinite(e)) {
-        // Start one below the level log2 suggests, then step up to the fit.
-        k = e > 0 ? std::clamp(kFiniteLevels - 2 - std::ilogb(top / e), 0, kFiniteLevels - 1) : 0;
-        while (k < kFiniteLevels - 1 && e > kFill * reach[k]) ++k;
-      }
-      tag[i] = static_cast<std::uint32_t>(k);
-      ++st.count[k];
-      for (int a = 0; a < 3; ++a) {
-        st.span_lo[k][a] = std::min(st.span_lo[k][a], it.lo[a]);
-        st.span_hi[k][a] = std::max(st.span_hi[k][a], it.lo[a]);
-      }
-    }
-  });
-  std::uint32_t count[kLevelSlots] = {};
-  float span_lo[kLevelSlots][3], span_hi[kLevelSlots][3];
-  for (int k = 0; k < kLevelSlots; ++k) {
-    std::fill(span_lo[k], span_lo[k] + 3, std::numeric_limits<float>::infinity());
-    std::fill(span_hi[k], span_hi[k] + 3, -std::numeric_limits<float>::infinity());
-    for (const ShareStats& st : share_stats_) {
-      count[k] += st.count[k];
-      for (int a = 0; a < 3; ++a) {
-        span_lo[k][a] = std::min(span_lo[k][a], st.span_lo[k][a]);
-        span_hi[k][a] = std::max(span_hi[k][a], st.span_hi[k][a]);
-      }
-    }
-  }
-  // A sparse level costs every scan its cell visits but saves few tests:
-  // fold it into the level above (its objects fit there too).
-  int target[kLevelSlots];
-  for (int k = 0; k < kLevelSlots; ++k) target[k] = k;
-  for (int k = 0; k + 1 < kFiniteLevels; ++k) {
-    if (count[k] == 0 || count[k] * kSparseLevel >= n) continue;
-    count[k + 1] += count[k];
-    count[k] = 0;
-    for (int a = 0; a < 3; ++a) {
-      span_lo[k + 1][a] = std::min(span_lo[k + 1][a], span_lo[k][a]);
-      span_hi[k + 1][a] = std::max(span_hi[k + 1][a], span_hi[k][a]);
-    }
-    target[k] = k + 1;
-  }
-  for (int k = kFiniteLevels - 2; k >= 0; --k) target[k] = target[target[k]];
-  int level_index[kLevelSlots];
-  std::uint32_t cells = 0;
-  for (int k = 0; k < kLevelSlots; ++k) {
-    level_index[k] = -1;
-    if (count[k] == 0) continue;
-    Level lv;
-    lv.reach = reach[k];
-    lv.first_cell = cells;
-    if (std::isfinite(reach[k])) {
-      // Cells cover the lower corners of the level's objects inside the
-      // world hint; objects beyond it fall into the border cells (the cell
-      // function clamps, which keeps every bound conservative).
-      double lo[3], span[3];
-      for (int a = 0; a < 3; ++a) {
-        lo[a] = std::max<double>(span_lo[k][a], world_.lo[a]);
-        double hi = std::min<double>(span_hi[k][a], world_.hi[a]);
-        if (hi < lo[a]) {
-          lo[a] = span_lo[k][a];
-          hi = span_hi[k][a];
-        }
-        if (!std::isfinite(lo[a]) || !std::isfinite(hi)) lo[a] = hi = 0;
-        span[a] = hi - lo[a];
-      }
-      // One cell side for all axes: the reach times the factor, grown until
-      // the cells number at most kCellsPerObject per object.
-      double cell = reach[k] * cell_factor_;
-      const double budget = std::max(1.0, cells_per_object * count[k]);
-      auto cells_for = [&](double c) {
-        double total = 1;
-        for (int a = 0; a < 3; ++a) total *= std::floor(span[a] / c) + 1;
-        return total;
-      };
-      if (cells_for(cell) > budget) {
-        const double widest = std::max({span[0], span[1], span[2]});
-        cell = std::max(cell, widest / std::cbrt(budget));
-        while (cells_for(cell) > budget) cell *= 1.125;
-      }
-      lv.inv_cell = 1 / cell;
-      for (int a = 0; a < 3; ++a) {
-        lv.origin[a] = lo[a];
-        lv.n[a] = static_cast<std::uint32_t>(std::floor(span[a] / cell) + 1);
-      }
-    }
-    cells += lv.cells();
-    level_index[k] = static_cast<int>(g.levels.size());
-    g.levels.push_back(lv);
-  }
-  // Pass 2: counting sort by cell, stable, so entries keep their previous
-  // order inside a cell and the result does not depend on anything else.
-  // The cells are counted one place up (cell_start[c + 2]), so that after
-  // the prefix sum cell_start[c + 1] is the start of cell c: the scatter
-  // uses it as the cell's cursor, which leaves it at the start of c + 1.
-  run_shares(parts, [&](unsigned share) {
-    for (auto [i, end] = slice(n, share, parts); i < end; ++i) {
-      const Level& lv = g.levels[static_cast<std::size_t>(level_index[target[tag[i]]])];
-      tag[i] = lv.cell_of(items[i].lo);
-    }
-  });
-  g.cell_start.assign(cells + 2, 0);
-  for (std::size_t i = 0; i < n; ++i) ++g.cell_start[tag[i] + 2];
-  for (std::uint32_t c = 0; c <= cells; ++c) g.cell_start[c + 1] += g.cell_start[c];
-  // The scatter is split by destination: each share takes the cells of
-  // about n/t entries and places, in item order, the items bound for them.
-  // Share k takes the cells from its first_cell to the next share's, found
-  // before any share moves a cursor.
-  const auto starts = g.cell_start.begin() + 1;  // starts[c]: the start of cell c
-  for (unsigned k = 0; k < t; ++k)
-    share_stats_[k].first_cell = static_cast<std::uint32_t>(
-        std::lower_bound(starts, g.cell_start.end(), slice(n, k, t).begin) - starts);
-  share_stats_[0].first_cell = 0;
-  run_shares(t, [&](unsigned share) {
-    const std::uint32_t c_lo = share_stats_[share].first_cell;
-    const std::uint32_t c_hi = share + 1 < t ? share_stats_[share + 1].first_cell : cells;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (tag[i] < c_lo || tag[i] >= c_hi) continue;
-      const std::uint32_t k = g.cell_start[tag[i] + 1]++;
-      g.entries[k] = items[i];
-      place(i, k);
-    }
-  });
-  g.cell_start.pop_back();
-}
-
-AabbF GridVerlet::fat_box(const AabbF& cur, float speed, bool& fast) const {
-  // A margin that covers several frames of the last displacement, within
-  // the limits above.
-  const double finest_cell =
-      fixed_.levels.empty() || !(fixed_.levels[0].inv_cell > 0) ? 0 : 1 / fixed_.levels[0].inv_cell;
-  const double extent = extent_of(cur.lo, cur.hi);
-  const double cap = kMaxMargin * std::max(extent, finest_cell);
-  const double travel = static_cast<double>(speed);
-  double margin = kMarginFrames * travel;
-  fast = false;
-  if (margin > cap) {
-    // A box that would not hold the object for kMinFrames frames only makes
-    // every scan wider: such a fast object renews its lists every frame
-    // anyway, from a box barely larger than itself.
-    fast = cap < kMinFrames * travel;
-    margin = fast ? 0 : cap;
-  }
-  margin = std::max(margin, kMinMargin * extent);
-  if (!(margin >= 0)) margin = 0;  // unbounded objects
-  AabbF g;
-  for (int a = 0; a < 3; ++a) {
-    g.lo[a] = round_down(static_cast<double>(cur.lo[a]) - margin);
-    g.hi[a] = round_up(static_cast<double>(cur.hi[a]) + margin);
-  }
-  return g;
-}
-
-void GridVerlet::make_room_for_renewals(const ListTotals& totals) {
-  // Renewed lists are appended to the pools. When the lists about to be
-  // renewed (estimated by their present lengths) would not fit, the lists
-  // that stay are moved to the front of each pool, in pool order, in place:
-  // the pools keep their memory, so a frame never allocates (nor touches
-  // fresh pages) once they have grown to the scene's needs.
-  auto stays = [&](std::size_t k) {
-    return movers_[k].epoch == epoch_ && !moving_.entries[k].dead();
-  };
-  auto compact = [&](auto& pool, std::uint32_t Mover::*begin, std::uint32_t Mover::*count,
-                     std::size_t keep_size, std::size_t add) {
-    if (pool.size() + add <= pool.capacity()) return;
-    // The lists that stay, in pool order: (begin, mover) keys sorted by
-    // begin.
-    std::vector<std::uint64_t> order;
-    for (std::size_t k = 0; k < movers_.size(); ++k) {
-      Mover& mv = movers_[k];
-      if (stays(k) && mv.*count > 0)
-        order.push_back(std::uint64_t{mv.*begin} << 32 | k);
-      else
-        mv.*begin = mv.*count = 0;  // empty, renewed below, or dead
-    }
-    sort_by_high_word(order);
-    std::uint32_t w = 0;
-    for (const std::uint64_t key : order) {
-      Mover& mv = movers_[static_cast<std::uint32_t>(key)];
-      std::copy(pool.begin() + mv.*begin, pool.begin() + mv.*begin + mv.*count, pool.begin() + w);
-      mv.*begin = w;
-      w += mv.*count;
-    }
-    pool.resize(w);
-    // Growth (more or longer lists than before): one allocation with room,
-    // rather than doubling.
-    if (keep_size + add > pool.capacity()) pool.reserve(with_room(keep_size + add));
-  };
-  compact(list_pool_, &Mover::list_begin, &Mover::list_count, totals.kept, totals.renewing);
-  compact(near_pool_, &Mover::near_begin, &Mover::near_count, totals.near_kept,
-          totals.near_renewing);
-}
-
-void GridVerlet::build_candidate_lists(const ListTotals& totals) {
-  const std::size_t m = moving_.entries.size();
-  const unsigned chunks = chunks_for(m);
-  // Each chunk renews the lists of a contiguous range of the moving entries
-  // into its own parts (distinct entries share no state; the grids are
-  // only read); the parts are appended to the pools in order, so the pools
-  // are the same for every thread count.
-  make_room_for_renewals(totals);
-  const std::size_t list_capacity = list_pool_.capacity();
-  const std::size_t near_capacity = near_pool_.capacity();
-  if (list_parts_.size() < chunks) {
-    list_parts_.resize(chunks);
-    near_parts_.resize(chunks);
-    renewed_.resize(chunks);
-  }
-  // The parts are appended as soon as the chunks before them are (while
-  // later chunks still renew lists), on whichever thread is free.
-  InOrder joined;
-  run_shares(chunks, [&](unsigned c) {
-    // Chunk 0 appends to the pools themselves (no other chunk reads them).
-    // Each chunk works on vectors on its own stack, moved in and out (as in
-    // find_pairs: the vector records lie side by side).
-    std::vector<Candidate>& part_home = c == 0 ? list_pool_ : list_parts_[c];
-    std::vector<std::uint32_t>& near_home = c == 0 ? near_pool_ : near_parts_[c];
-    std::vector<Candidate> part = std::move(part_home);
-    std::vector<std::uint32_t> near = std::move(near_home);
-    std::vector<std::uint32_t> renewed = std::move(renewed_[c]);
-    if (c > 0) {
-      part.clear();
-      near.clear();
-    }
-    renewed.clear();
-    const auto [begin, end] = slice(m, c, chunks);
-    build_lists(begin, end, part, near, renewed);
-    part_home = std::move(part);
-    near_home = std::move(near);
-    renewed_[c] = std::move(renewed);
-    joined.finish(c, [&](unsigned k) {
-      if (k == 0) return;  // made in the pools
-      const auto offset = static_cast<std::uint32_t>(list_pool_.size());
-      const auto near_offset = static_cast<std::uint32_t>(near_pool_.size());
-      for (std::uint32_t i : renewed_[k]) {
-        movers_[i].list_begin += offset;
-        movers_[i].near_begin += near_offset;
-      }
-      list_pool_.insert(list_pool_.end(), list_parts_[k].begin(), list_parts_[k].end());
-      near_pool_.insert(near_pool_.end(), near_parts_[k].begin(), near_parts_[k].end());
-      // A wave of renewals (every list after a fixed-grid rebuild) leaves
-      // parts far larger than a frame's renewals need: let them go, so
-      // that they do not double the lists' memory; the next frames regrow
-      // them to their steady size once.
-      release_if_oversized(list_parts_[k]);
-      release_if_oversized(near_parts_[k]);
-      release_if_oversized(renewed_[k]);
-    });
-  });
-  // A pool that had to grow while lists were appended (the first lists, or
-  // all of them after a fixed-grid rebuild) keeps room for renewals of half
-  // its lists, not what doubling left.
-  auto trim = [](auto& pool, std::size_t capacity_before) {
-    const std::size_t room = with_room(pool.size());
-    if (pool.capacity() == capacity_before || pool.capacity() <= room) return;
-    std::remove_reference_t<decltype(pool)> copy;
-    copy.reserve(room);
-    copy.assign(pool.begin(), pool.end());
-    pool.swap(copy);
-  };
-  trim(list_pool_, list_capacity);
-  trim(near_pool_, near_capacity);
-}
-
-void GridVerlet::build_lists(std::size_t begin, std::size_t end, std::vector<Candidate>& part,
-                             std::vector<std::uint32_t>& near,
-                             std::vector<std::uint32_t>& renewed) {
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (std::size_t i = begin; i < end; ++i) {
-    const Entry& e = moving_.entries[i];
-    Mover& mv = movers_[i];
-    if (e.dead()) {
-      mv.list_count = mv.near_count = 0;
-      continue;
-    }
-    if (mv.epoch == epoch_) continue;  // the lists cover the object where it is now
-    mv.epoch = epoch_;
-    mv.stamp = stamp_;
-    mv.list_begin = static_cast<std::uint32_t>(part.size());
-    fixed_.scan(mv.fat, 0, kNoMinX, [&](std::uint32_t k) {
-      const Shape& s = fixed_.shapes[k];
-      part.push_back({{s.center.x, s.center.y, s.center.z},
-                      s.kind == ShapeKind::sphere ? s.half.x : nan,
-                      fixed_.entries[k].handle()});
-      return true;
-    });
-    mv.list_count = static_cast<std::uint32_t>(part.size()) - mv.list_begin;
-    // Moving grid entries are fat boxes: this finds every mover whose box
-    // overlaps this one's. A fast mover probes the grid every frame instead.
-    mv.near_begin = static_cast<std::uint32_t>(near.size());
-    if (!mv.fast)
-      moving_.scan(mv.fat, 0, kNoMinX, [&](std::uint32_t k) {
-        if (k != i && !movers_[k].fast) near.push_back(moving_.entries[k].slot);
-        return true;
-      });
-    mv.near_count = static_cast<std::uint32_t>(near.size()) - mv.near_begin;
-    renewed.push_back(static_cast<std::uint32_t>(i));
-  }
 }
 
 void GridVerlet::build_fixed_cache() {
@@ -977,7 +465,7 @@ QueryCost GridVerlet::find_pairs(std::vector<HandlePair>& out) const {
   };
 
   const std::size_t m = moving_.entries.size();
-  const unsigned t = shares_for(m);
+  const unsigned t = shares_.shares_for(m);
   if (t <= 1) {
     emit_fixed();
     mover_pairs(0, m, emit_out, cost.tests);
@@ -995,7 +483,7 @@ QueryCost GridVerlet::find_pairs(std::vector<HandlePair>& out) const {
     if (buffers.size() < chunks) buffers.resize(chunks);
     std::vector<std::uint64_t> tests(chunks, 0);
     InOrder joined;
-    run_shares(chunks + 1, [&](unsigned job) {
+    shares_.run(chunks + 1, [&](unsigned job) {
       if (job == 0) {
         emit_fixed();
       } else {
@@ -1033,14 +521,9 @@ std::size_t GridVerlet::memory_bytes() const {
                       held_.capacity() * 4 + fixed_.memory_bytes() + moving_.memory_bytes() +
                       fixed_pairs_.capacity() * sizeof(HandlePair) +
                       scratch_items_.capacity() * sizeof(Entry) + scratch_src_.capacity() * 4 +
-                      scratch_shapes_.capacity() * sizeof(LineShape) + scratch_tag_.capacity() * 4 +
-                      move_target_.capacity() * 4 +
-                      (movers_.capacity() + scratch_movers_.capacity()) * sizeof(Mover) +
-                      list_pool_.capacity() * sizeof(Candidate) + near_pool_.capacity() * 4 +
-                      slow_per_level_.capacity() * 4 + mark_.capacity() * 4;
-  for (const auto& p : list_parts_) bytes += p.capacity() * sizeof(Candidate);
-  for (const auto& p : near_parts_) bytes += p.capacity() * 4;
-  for (const auto& r : renewed_) bytes += r.capacity() * 4;
+                      scratch_shapes_.capacity() * sizeof(LineShape) +
+                      moving_scratch_.memory_bytes() + move_target_.capacity() * 4 +
+                      lists_.memory_bytes() + mark_.capacity() * 4;
   std::lock_guard lock(buffers_mutex_);
   for (const auto& b : buffers_) bytes += b.capacity() * sizeof(HandlePair);
   return bytes;
@@ -1104,14 +587,14 @@ void GridVerlet::validate() const {
           }
           if (slots_[e.slot].home != home || slots_[e.slot].pos != k || slots_[e.slot].gen != e.gen)
             fail(gname + ": entry of an object that left");
-          if (!(extent_of(e.lo, e.hi) <= kFill * lv.reach))
+          if (!(extent_of(e.lo, e.hi) <= Grid::kFill * lv.reach))
             fail(gname + ": entry on a too small level");
           if (lv.cell_of(e.lo) != c) fail(gname + ": entry in the wrong cell");
           ++valid;
           const AabbF b = bounds_f(g.shapes[k]);
           if (home == Home::moving_grid) {
             // Moving entries hold the fat box, around the bounds now.
-            const Mover& mv = movers_[k];
+            const Mover& mv = lists_.movers()[k];
             if (std::memcmp(&b, &mv.cur, sizeof b) != 0) fail(gname + ": stale mover bounds");
             if (std::memcmp(mv.fat.lo, e.lo, sizeof b.lo) != 0 ||
                 std::memcmp(mv.fat.hi, e.hi, sizeof b.hi) != 0)
@@ -1128,49 +611,10 @@ void GridVerlet::validate() const {
   };
   check_grid(fixed_, Home::fixed_grid, fixed_count_, "fixed grid");
   check_grid(moving_, Home::moving_grid, moving_count_, "moving grid");
-  if (movers_.size() != moving_.entries.size()) fail("mover states and moving grid differ");
-  for (std::size_t k = 0; k < movers_.size(); ++k) {
-    const Mover& mv = movers_[k];
-    if (moving_.entries[k].dead()) continue;
-    if (mv.epoch != epoch_ || mv.stamp > stamp_) fail("a mover's lists were not renewed");
-    if (static_cast<std::size_t>(mv.near_begin) + mv.near_count > near_pool_.size())
-      fail("near list out of the pool");
-    if (static_cast<std::size_t>(mv.list_begin) + mv.list_count > list_pool_.size())
-      fail("candidate list out of the pool");
-    for (std::uint32_t j = 0; j < mv.list_count; ++j) {
-      const Candidate& c = list_pool_[mv.list_begin + j];
-      if (c.handle.index >= slots) fail("candidate names no slot");
-      if (slots_[c.handle.index].home != Home::fixed_grid) continue;
-      const std::uint32_t k = slots_[c.handle.index].pos;
-      const Entry& o = fixed_.entries[k];
-      const Shape& sh = fixed_.shapes[k];
-      if (!(c.handle == o.handle()) || sh.center.x != c.c[0] || sh.center.y != c.c[1] ||
-          sh.center.z != c.c[2] || (sh.is_sphere() ? sh.half.x != c.r : c.r == c.r))
-        fail("candidate copy differs from its fixed object");
-      if (!o.overlaps(mv.fat)) fail("candidate outside its list's box");
-    }
-  }
-  // Every two movers whose fat boxes overlap are in the near list of the
-  // one renewed last (the lower slot on a tie): that is what makes the
-  // frames exact.
-  for (std::size_t i = 0; i < movers_.size(); ++i) {
-    const Entry& me = moving_.entries[i];
-    if (me.dead() || movers_[i].fast) continue;
-    moving_.scan(movers_[i].fat, 0, kNoMinX, [&](std::uint32_t j) {
-      if (j == i || movers_[j].fast) return true;
-      const Mover& a = movers_[i];
-      const Mover& b = movers_[j];
-      const std::uint32_t sa = me.slot, sb = moving_.entries[j].slot;
-      const bool a_holds = a.stamp > b.stamp || (a.stamp == b.stamp && sa < sb);
-      const Mover& holder = a_holds ? a : b;
-      const std::uint32_t other = a_holds ? sb : sa;
-      const std::uint32_t* n = near_pool_.data() + holder.near_begin;
-      if (std::find(n, n + holder.near_count, other) == n + holder.near_count)
-        fail("movers " + std::to_string(sa) + " and " + std::to_string(sb) +
-             " overlap in fat boxes but neither near list holds the pair");
-      return true;
-    });
-  }
+  lists_.validate(fixed_, moving_, slots, [this](std::uint32_t s) -> std::optional<std::uint32_t> {
+    if (slots_[s].home != Home::fixed_grid) return std::nullopt;
+    return slots_[s].pos;
+  });
   if (fixed_count_ + moving_count_ + loose_.size() != live_) fail("objects lost between lists");
   if (!cache_built_ && !fixed_pairs_.empty()) fail("a stale pair cache");
   for (const HandlePair& p : fixed_pairs_) {
@@ -1180,6 +624,29 @@ void GridVerlet::validate() const {
     if (slots_[a].gen != p.a.generation || slots_[b].gen != p.b.generation)
       fail("cached pair with a stale generation");
     if (!overlaps(shape_of(a), shape_of(b))) fail("cached pair no longer overlaps");
+  }
+}
+
+void GridVerlet::visit_cells(CellVisitor visitor) const {
+  // Cell (x, y, z) of a level is its (y * n[2] + z) * n[0] + x-th: x runs
+  // fastest, so that a row of cells along x is one run of entries.
+  int level = 0;
+  for (const Grid* g : {&fixed_, &moving_}) {
+    for (const Level& lv : g->levels) {
+      const int this_level = level++;
+      if (!(lv.inv_cell > 0)) continue;  // the unbounded objects' level: no box to show
+      const double side = 1 / lv.inv_cell;
+      for (std::uint32_t c = 0; c < lv.cells(); ++c) {
+        std::size_t held = 0;
+        for (std::uint32_t k = g->cell_start[lv.first_cell + c];
+             k < g->cell_start[lv.first_cell + c + 1]; ++k)
+          held += g->entries[k].dead() ? 0 : 1;
+        if (held == 0) continue;
+        const std::uint32_t x = c % lv.n[0], z = c / lv.n[0] % lv.n[2], y = c / lv.n[0] / lv.n[2];
+        const Vec3 lo{lv.origin[0] + x * side, lv.origin[1] + y * side, lv.origin[2] + z * side};
+        visitor(Aabb{lo, {lo.x + side, lo.y + side, lo.z + side}}, this_level, held);
+      }
+    }
   }
 }
 

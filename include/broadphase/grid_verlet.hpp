@@ -7,10 +7,11 @@
 /// until the mover leaves that box. A frame of the study retests only what
 /// moved, from those lists.
 ///
-/// Parts: the grids are detail::LevelGrid (detail/level_grid.hpp), the
-/// movers' records and list entries detail::VerletMover and
-/// detail::VerletCandidate (detail/verlet_lists.hpp), the threads a
-/// detail::WorkerPool (detail/worker_pool.hpp).
+/// Parts: the grids are detail::LevelGrid (detail/level_grid.hpp), which
+/// build themselves from their items, the movers' fat boxes and candidate
+/// lists a detail::VerletLists (detail/verlet_lists.hpp),
+/// the threads and the split of every pass a detail::WorkShares
+/// (detail/work_shares.hpp) over a detail::WorkerPool (detail/worker_pool.hpp).
 ///
 /// Layout. Objects live in slot-indexed arrays (shape, user data,
 /// generation, where the object is). Each of the two grids (fixed objects,
@@ -61,6 +62,7 @@
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/level_grid.hpp>
 #include <broadphase/detail/verlet_lists.hpp>
+#include <broadphase/detail/work_shares.hpp>
 #include <broadphase/structure.hpp>
 #include <cmath>
 #include <cstddef>
@@ -75,15 +77,11 @@
 
 namespace broadphase {
 
-namespace detail {
-class WorkerPool;
-}  // namespace detail
-
 /// The options of GridVerlet (`grid-verlet:threads=N,cell=F,grain=N`).
 struct GridVerletOptions {
   /// The most threads: a chunk's mark holds its chunk in 10 bits, which
   /// more than 128 threads would overflow.
-  static constexpr unsigned kMaxThreads = 64;
+  static constexpr unsigned kMaxThreads = detail::WorkShares::kMaxThreads;
   /// Threads the bulk update and find_pairs split their work over, with the
   /// same results and pair order for every count, in [0, 64]; 0: the
   /// hardware concurrency (at most 64). Default 1.
@@ -165,9 +163,19 @@ class GridVerlet {
   /// The user data given at insertion. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return user_[index_of(h)]; }
   /// The number of threads find_pairs and the bulk update use.
-  unsigned threads() const { return threads_; }
+  unsigned threads() const { return shares_.threads(); }
   /// Checks slots, lists, grid order and the pair cache; throws std::logic_error.
   void validate() const;
+  /// Reports the occupied cells of the two grids as built: the fixed
+  /// grid's levels as levels 0, 1, ... (finest first), then the moving
+  /// grid's after them, each cell with the live objects whose lower corner
+  /// it holds (a moving object's is the corner of its fat box, a little
+  /// below its own); an object reaches up to its level's reach beyond its
+  /// cell, and an object whose corner lies beyond the world hint sits in a
+  /// border cell, outside its box. Objects on the list of those inserted or
+  /// moved one at a time since the last rebuild (settle() ends it) and
+  /// unbounded objects are in no cell. O(cells + entries), for pictures.
+  void visit_cells(CellVisitor visitor) const;
 
  private:
   /// Where a slot's object is: which list or grid holds its live entry.
@@ -179,10 +187,8 @@ class GridVerlet {
   using Mover = detail::VerletMover;
   using Candidate = detail::VerletCandidate;
 
-  // Candidate pools larger than this are taken to be out of cache (a
-  // typical second-level cache), and so many candidates of a list at most
-  // are prefetched ahead of the pair pass.
-  static constexpr std::size_t kCachedListBytes = std::size_t{2} << 20;
+  // So many candidates of a list at most are prefetched ahead of the pair
+  // pass, when the lists are out of cache.
   static constexpr std::uint32_t kPrefetchCandidates = 128;
   static constexpr double kNoMinX = Grid::kNoMinX;
   static constexpr std::uint32_t kFromLoose = 0x80000000u;
@@ -215,46 +221,13 @@ class GridVerlet {
   void move_via_loose(std::uint32_t i, const Shape& shape);
   void maybe_rebuild();
   void rebuild(bool fixed_too);
-  /// List lengths of the movers whose lists stay and of those whose lists
-  /// are renewed (by their present lengths), fixed and near.
-  struct ListTotals {
-    std::size_t kept = 0, renewing = 0, near_kept = 0, near_renewing = 0;
-  };
-  void build_candidate_lists(const ListTotals& totals);
-  /// Before renewals: when the lists about to be renewed would not fit in
-  /// a pool, moves the lists that stay to its front, in place.
-  void make_room_for_renewals(const ListTotals& totals);
-  void build_lists(std::size_t begin, std::size_t end, std::vector<Candidate>& part,
-                   std::vector<std::uint32_t>& near, std::vector<std::uint32_t>& renewed);
-  /// The box a mover's lists cover: its bounds grown by a margin.
-  AabbF fat_box(const AabbF& cur, float speed, bool& fast) const;
-  /// Fills `g` with `items` in cell order, at most `cells_per_object` cells
-  /// per object on each level, and calls place(i, k) for every item i put at
-  /// entry k (the caller copies what else goes with it: its shape, and in
-  /// the moving grid its mover record). Returns nothing else: the levels and
-  /// cell starts are g's.
-  template <class Place>
-  void build_grid(Grid& g, const std::vector<Entry>& items, double cells_per_object, Place&& place);
   /// The shape an item of a rebuild came from: `src` is an index into
   /// `old_shapes` (the grid's shapes before the build), or kFromLoose | an
   /// index into loose_shapes_.
   const Shape& shape_from(std::uint32_t src, const std::vector<LineShape>& old_shapes) const;
-  /// Counts, per level of the moving grid, the movers that are not fast.
-  void count_slow_movers();
   /// Points the slots of a grid's entries at them.
   void point_slots(const Grid& g, Home home);
   void build_fixed_cache();
-  /// Runs job(k) once for every k in [0, shares) (a share, or a chunk of
-  /// the work), each taken by whichever of the caller and the pool's
-  /// workers is free; without workers, in order on the caller. The work of
-  /// a share depends on k alone, so results merged in share order do not
-  /// depend on the thread count or on timing.
-  void run_shares(unsigned shares, const std::function<void(unsigned)>& job) const;
-  unsigned shares_for(std::size_t entries) const;
-  /// Chunks for a pass over that many entries: several per share, taken by
-  /// whichever thread is free, so that a thread slowed down (by the host,
-  /// on a virtual machine) leaves its part to the others.
-  unsigned chunks_for(std::size_t entries) const;
 
   /// Exact test of two shapes, with the sphere–sphere case inline.
   static bool exact(const Shape& a, const Shape& b) {
@@ -281,13 +254,25 @@ class GridVerlet {
   template <class E>
   bool all_pairs(E& emit, std::uint64_t& tests) const;
 
-  Aabb world_;
-  unsigned threads_ = 1;
-  std::size_t grain_ = 1;   // option grain=N: moving objects per share at least
-  double cell_factor_ = 1;  // cell side over reach
+  /// The threads (option threads=N) and the split of every pass (option
+  /// grain=N: moving objects per share at least).
+  detail::WorkShares shares_;
+  // What the grids are built for: the world, the cell side over the reach
+  // (option cell=F), cells per object at most.
+  detail::LevelGridSpec fixed_spec_;
+  detail::LevelGridSpec moving_spec_;
 
   std::vector<std::uint64_t> user_;  // for a free slot: the next free slot
   /// What a handle leads to, in one record (a lookup is one cache line).
+  /// Kept instead of the shared SlotMap (handle.hpp), whose generations lie
+  /// in an array of their own: a lookup then reads two lines (in the bulk
+  /// update's check of every move, and for each near-list hit), the map
+  /// keeps a free-list link per slot (4 bytes) where this record threads
+  /// its free list through the user data, and it has no held-back state.
+  /// Measured side by side, SlotMap version over this one (tools/ab/ab.sh,
+  /// scaled-even 102 400, 100 frames, 4 interleaved runs, 2-core EPYC VM
+  /// at load 5-10): frame time 0.97-1.11x (middle two 1.01x and 1.08x)
+  /// with one thread, 0.98-1.09x (1.04x and 1.06x) with two.
   struct Slot {
     std::uint32_t gen = 0;  // odd while alive
     std::uint32_t pos = 0;  // a loose object's index in loose_, a grid object's entry
@@ -319,43 +304,19 @@ class GridVerlet {
   std::vector<Entry> scratch_items_;
   std::vector<std::uint32_t> scratch_src_;
   std::vector<LineShape> scratch_shapes_;
-  std::vector<Mover> scratch_movers_;
-  std::vector<std::uint32_t> scratch_tag_;  // per item: its level, then its cell
+  Grid::Scratch moving_scratch_;            // the moving grid's build scratch
   std::vector<std::uint32_t> move_target_;  // per move in a bulk update: its mover
   // A bulk update on threads: per slot, the mark (update and chunk)
   // of the last chunk of moves that named it, to find a handle named twice.
   std::vector<std::uint32_t> mark_;
   std::uint32_t mark_round_ = 0;
-  struct ShareStats;  // one share's totals in a grid build
-  std::vector<ShareStats> share_stats_;
 
-  // Candidate lists of moving objects. A mover's fixed list holds the fixed
-  // objects whose bounds overlap its fat box; its near list holds the
-  // movers whose fat boxes overlapped its own when it was renewed. A pair
-  // of movers is tested from the list of the one renewed last (by the lower
-  // slot when both were renewed by the same rebuild): that list was made
-  // against the other's current fat box, so it holds the pair whenever the
-  // two objects can touch. A frame thus reads lists front to back and
-  // probes grids only for the movers that left their fat boxes. A list that
-  // stays valid stays where it is; renewed lists are appended, and when
-  // they would not fit in a pool's memory the lists that stay are first
-  // moved to its front in place (the pools never shrink, so a steady frame
-  // allocates nothing). Every list is renewed when the fixed grid is
-  // rebuilt.
-  std::vector<Mover> movers_;                           // parallel to moving_.entries
-  std::vector<Candidate> list_pool_;                    // fixed candidates
-  std::vector<std::uint32_t> near_pool_;                // moving neighbours (slots)
-  std::vector<std::vector<Candidate>> list_parts_;      // per share, its renewed lists
-  std::vector<std::vector<std::uint32_t>> near_parts_;  // per share, its renewed near lists
-  std::vector<std::vector<std::uint32_t>> renewed_;     // per share, the movers it renewed
-  std::uint32_t epoch_ = 1;                             // bumped at every fixed-grid rebuild
-  std::uint32_t stamp_ = 0;                             // bumped at every rebuild
-  std::vector<std::uint32_t> slow_per_level_;           // per moving-grid level: movers not fast
+  // The movers' fat boxes and candidate lists, in the moving grid's order.
+  detail::VerletLists lists_;
 
   /// Per-share pair buffers of find_pairs, reused between frames.
   mutable std::mutex buffers_mutex_;
   mutable std::vector<std::vector<HandlePair>> buffers_;
-  std::unique_ptr<detail::WorkerPool> pool_;
 };
 
 // ---------------------------------------------------------------------------
@@ -413,13 +374,16 @@ bool GridVerlet::mover_pairs(std::size_t begin, std::size_t end, E& emit,
   // While no fixed object has left the grid since it was built, every
   // candidate is live and fixed lists are read alone.
   const bool all_live = fixed_count_ == fixed_.entries.size();
-  const bool far = list_pool_.size() * sizeof(Candidate) > kCachedListBytes;
+  const bool far = lists_.lists_out_of_cache();
+  const std::vector<Mover>& movers = lists_.movers();
+  const Candidate* const list_pool = lists_.list_data();
+  const std::uint32_t* const near_pool = lists_.near_data();
   std::size_t level = 0;
   for (std::size_t i = begin; i < end; ++i) {
     const Entry& me = moving_.entries[i];
     if (me.dead()) continue;
     const Shape& sm = moving_.shapes[i];
-    const Mover& mv = movers_[i];
+    const Mover& mv = movers[i];
     // Prefetch ahead: the lists of the movers a few entries on (lists
     // renewed since the last compaction lie elsewhere in the pool), then
     // the slots their near lists name, then those neighbours' records.
@@ -430,37 +394,37 @@ bool GridVerlet::mover_pairs(std::size_t begin, std::size_t end, E& emit,
       // first lines (prefetching every line costs more than it saves).
       // Only lines of the list itself: an address past a list (or into an
       // empty pool, whose data() may be null) is not computed.
-      const Mover& ahead = movers_[i + 8];
+      const Mover& ahead = movers[i + 8];
       const std::uint32_t count =
           std::min<std::uint32_t>(ahead.list_count, far ? kPrefetchCandidates : 2);
       if (count > 0) {
-        const char* l = reinterpret_cast<const char*>(list_pool_.data() + ahead.list_begin);
+        const char* l = reinterpret_cast<const char*>(list_pool + ahead.list_begin);
         for (const char* l_end = l + count * sizeof(Candidate); l < l_end; l += 64)
           detail::prefetch(l);
       }
-      if (ahead.near_count > 0) detail::prefetch(near_pool_.data() + ahead.near_begin);
+      if (ahead.near_count > 0) detail::prefetch(near_pool + ahead.near_begin);
     }
     if (i + 4 < end) {
-      const Mover& ahead = movers_[i + 4];
-      const std::uint32_t* n = near_pool_.data() + ahead.near_begin;
+      const Mover& ahead = movers[i + 4];
+      const std::uint32_t* n = near_pool + ahead.near_begin;
       for (std::uint32_t k = 0; k < ahead.near_count; ++k) detail::prefetch(&slots_[n[k]]);
     }
     if (i + 2 < end) {
-      const Mover& ahead = movers_[i + 2];
-      const std::uint32_t* n = near_pool_.data() + ahead.near_begin;
+      const Mover& ahead = movers[i + 2];
+      const std::uint32_t* n = near_pool + ahead.near_begin;
       for (std::uint32_t k = 0; k < ahead.near_count; ++k) {
         const std::uint32_t p = slots_[n[k]].pos;
-        if (p < movers_.size()) {
+        if (p < movers.size()) {
           // The fields read (an 80-byte record often spans two lines;
           // prefetching the shape's second line too cost more than it
           // saved), and the shape.
-          detail::prefetch(&movers_[p].stamp);
+          detail::prefetch(&movers[p].stamp);
           detail::prefetch(&moving_.shapes[p].center);
         }
       }
     }
     const Handle hm = me.handle();
-    const Candidate* c = list_pool_.data() + mv.list_begin;
+    const Candidate* c = list_pool + mv.list_begin;
     const Candidate* c_end = c + mv.list_count;
     tests += mv.list_count;
     if (all_live && sm.kind == ShapeKind::sphere) {
@@ -503,7 +467,7 @@ bool GridVerlet::mover_pairs(std::size_t begin, std::size_t end, E& emit,
       auto test = [&](std::uint32_t k) {
         if (k == i) return true;
         const Entry& o = moving_.entries[k];
-        if (movers_[k].fast &&
+        if (movers[k].fast &&
             (k < own_end && (k < moving_.cell_start[moving_.levels[level].first_cell] ||
                              o.lo[0] < me_x || (o.lo[0] == me_x && k < i))))
           return true;
@@ -512,23 +476,24 @@ bool GridVerlet::mover_pairs(std::size_t begin, std::size_t end, E& emit,
       };
       bool go = true;
       for (std::size_t l = 0; go && l < level; ++l)
-        if (slow_per_level_[l] > 0) go = moving_.scan_level(mv.cur, l, kNoMinX, test);
+        if (lists_.slow_on_level(l) > 0) go = moving_.scan_level(mv.cur, l, kNoMinX, test);
       if (go)
-        go = moving_.scan_level(mv.cur, level, slow_per_level_[level] > 0 ? kNoMinX : me_x, test);
+        go = moving_.scan_level(mv.cur, level, lists_.slow_on_level(level) > 0 ? kNoMinX : me_x,
+                                test);
       for (std::size_t l = level + 1; go && l < moving_.levels.size(); ++l)
         go = moving_.scan_level(mv.cur, l, kNoMinX, test);
       if (!go) return false;
       continue;
     }
-    const std::uint32_t* n = near_pool_.data() + mv.near_begin;
+    const std::uint32_t* n = near_pool + mv.near_begin;
     const std::uint32_t* n_end = n + mv.near_count;
     for (; n != n_end; ++n) {
       const Slot& o = slots_[*n];
       // A neighbour that left the moving grid is met elsewhere (loose
       // list); one renewed later holds this pair in its own list. A slot
       // reused by another object always carries a later stamp.
-      if (o.home != Home::moving_grid || movers_[o.pos].fast) continue;
-      const std::uint32_t os = movers_[o.pos].stamp;
+      if (o.home != Home::moving_grid || movers[o.pos].fast) continue;
+      const std::uint32_t os = movers[o.pos].stamp;
       if (os > mv.stamp || (os == mv.stamp && *n < me.slot)) continue;
       ++tests;
       if (exact(sm, moving_.shapes[o.pos]) && !emit(hm, Handle{*n, o.gen})) return false;

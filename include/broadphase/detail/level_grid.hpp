@@ -4,16 +4,20 @@
 /// holds the objects whose widest extent fits its reach; an object is in
 /// exactly one cell of one level, the cell of its lower corner, and cells
 /// along x are contiguous, so a box visits on each level one contiguous run
-/// of entries per (y, z) row of cells. The grid is filled by its owner
-/// (grid-verlet's counting sort); this header holds the layout and the scans.
+/// of entries per (y, z) row of cells. The grid builds itself from its
+/// items (a counting sort, split over the structure's threads) and tells
+/// its owner where each item went, so the owner can place what goes with
+/// it (the shape copies, grid-verlet's mover records).
 #pragma once
 
 #include <algorithm>
+#include <broadphase/detail/work_shares.hpp>
 #include <broadphase/geometry.hpp>
 #include <broadphase/handle.hpp>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <span>
 #include <vector>
 
 namespace broadphase::detail {
@@ -27,6 +31,14 @@ inline void prefetch(const void* p) {
 #else
   (void)p;
 #endif
+}
+
+/// The widest extent of a float box (infinite for unbounded objects).
+inline double extent_of(const float lo[3], const float hi[3]) {
+  double e = 0;
+  for (int a = 0; a < 3; ++a)
+    e = std::max(e, static_cast<double>(hi[a]) - static_cast<double>(lo[a]));
+  return e;
 }
 
 /// One object in a grid: its float bounds, slot and generation. A dead
@@ -78,6 +90,15 @@ struct alignas(64) LineShape : Shape {
   LineShape(const Shape& s) : Shape(s) {}  // NOLINT(google-explicit-constructor)
 };
 
+/// What a grid's builds are made for: the world hint (cells cover the
+/// objects inside it), a cell's side over its level's reach, and the cells
+/// per object at most on each level.
+struct LevelGridSpec {
+  Aabb world;
+  double cell_factor = 1;
+  double cells_per_object = 2;
+};
+
 /// The levels, cell starts, entries and shape copies of one grid.
 struct LevelGrid {
   /// A cell probe (two index loads) costs about as much as testing this many
@@ -85,6 +106,40 @@ struct LevelGrid {
   static constexpr std::uint64_t kProbeCost = 2;
   /// "No lower bound on x" for scan's first level.
   static constexpr double kNoMinX = -std::numeric_limits<double>::infinity();
+  /// Levels halve in reach from the largest finite extent down; twenty
+  /// finite levels span six decades of sizes (smaller objects share the
+  /// lowest level), and one more level of infinite reach takes objects
+  /// whose float bounds are unbounded (centres beyond the float range).
+  /// Factor 2 keeps an object's reach within twice its extent, so a scan
+  /// window stays tight.
+  static constexpr int kFiniteLevels = 20;
+  static constexpr int kLevelSlots = kFiniteLevels + 1;
+  /// An object goes to a level only when its widest extent is at most this
+  /// fraction of the reach: the 2% margin absorbs the rounding of the cell
+  /// arithmetic, so the cell bounds of a scan stay conservative.
+  static constexpr double kFill = 0.98;
+  /// A level holding less than 1/kSparseLevel of a grid's objects is
+  /// merged into the next larger one.
+  static constexpr std::size_t kSparseLevel = 4;
+
+  /// One share's totals in a build, on cache lines of its own (each share
+  /// writes its own).
+  struct alignas(64) ShareTotals {
+    double max_e = 0;
+    std::uint32_t count[kLevelSlots] = {};
+    float span_lo[kLevelSlots][3] = {}, span_hi[kLevelSlots][3] = {};
+    std::uint32_t first_cell = 0;  // of the cells the share fills in the scatter
+  };
+  /// A build's scratch, kept by the caller between builds (one for grids
+  /// rebuilt every frame, temporaries for grids rebuilt rarely).
+  struct Scratch {
+    std::vector<std::uint32_t> tag;  // per item: its level, then its cell
+    std::vector<std::uint32_t> at;   // per item: its entry
+    std::vector<ShareTotals> shares;
+    std::size_t memory_bytes() const {
+      return (tag.capacity() + at.capacity()) * 4 + shares.capacity() * sizeof(ShareTotals);
+    }
+  };
 
   std::vector<GridLevel> levels;
   std::vector<std::uint32_t> cell_start{0};  // per cell, into entries; one extra at the end
@@ -93,6 +148,18 @@ struct LevelGrid {
   // read this array in the grid's spatial order instead of the slot array
   // in insertion order (a cache miss per test on large scenes).
   std::vector<LineShape> shapes;
+
+  /// Refills the grid with `items` (their float boxes, slots and
+  /// generations) in cell order: each goes to the level whose reach covers
+  /// its widest extent, the cell of its lower corner; inside a cell the
+  /// items keep their order (a stable counting sort), so the result
+  /// depends on the items and `spec` alone, not on the thread count. The
+  /// passes are split over `shares`. The shape copies are sized but not
+  /// filled: returns, per item, the entry it went to (valid until the next
+  /// build with `scratch`), for the caller to place its shape and whatever
+  /// else goes with it.
+  std::span<const std::uint32_t> build(std::span<const GridEntry> items, const LevelGridSpec& spec,
+                                       const WorkShares& shares, Scratch& scratch);
 
   std::size_t level_end(std::size_t l) const {
     return cell_start[levels[l].first_cell + levels[l].cells()];
