@@ -95,6 +95,12 @@ class ArrayGrid {
 
   static std::int64_t cell(double x, double inv);
   static std::uint32_t hash(std::int64_t cx, std::int64_t cy, std::int64_t cz);
+  // The cells of `lv` that can hold the low corner of an object whose box
+  // overlaps `box`: x0..x1, y0..y1, z0..z1.
+  struct Block {
+    std::int64_t x0, x1, y0, y1, z0, z1;
+  };
+  static Block block(const AabbF& box, const Level& lv);
 
   std::vector<Level> levels_;
   std::vector<std::uint8_t> level_of_;
@@ -134,6 +140,16 @@ inline std::uint32_t ArrayGrid::hash(std::int64_t cx, std::int64_t cy, std::int6
   return static_cast<std::uint32_t>(h);
 }
 
+inline ArrayGrid::Block ArrayGrid::block(const AabbF& box, const Level& lv) {
+  // Object j on level lv has its low corner in its cell and
+  // hi_j <= lo_j + h (1 - 2^-20), so it overlaps `box` only if lo_j lies in
+  // [box.lo - h, box.hi]; rounding box.lo - h moves it by less than that
+  // margin (cells are at least a float ulp of the coordinates wide).
+  return {cell(static_cast<double>(box.lo[0]) - lv.h, lv.inv), cell(box.hi[0], lv.inv),
+          cell(static_cast<double>(box.lo[1]) - lv.h, lv.inv), cell(box.hi[1], lv.inv),
+          cell(static_cast<double>(box.lo[2]) - lv.h, lv.inv), cell(box.hi[2], lv.inv)};
+}
+
 template <class Visit>
 void ArrayGrid::probe(std::uint32_t i, const AabbF& box, Visit&& visit) const {
   const std::uint8_t li = level_of_[i];
@@ -152,16 +168,8 @@ void ArrayGrid::probe(std::uint32_t i, const AabbF& box, Visit&& visit) const {
   for (std::size_t b = li; b < levels_.size(); ++b) {
     const Level& lv = levels_[b];
     if (lv.count == 0) continue;
-    // Object j on level b has its low corner in its cell and
-    // hi_j <= lo_j + h (1 - 2^-20), so it overlaps `box` only if lo_j lies in
-    // [box.lo - h, box.hi]; rounding box.lo - h moves it by less than that
-    // margin (cells are at least a float ulp of the coordinates wide).
-    const std::int64_t x0 = cell(static_cast<double>(box.lo[0]) - lv.h, lv.inv);
-    const std::int64_t x1 = cell(box.hi[0], lv.inv);
-    const std::int64_t y0 = cell(static_cast<double>(box.lo[1]) - lv.h, lv.inv);
-    const std::int64_t y1 = cell(box.hi[1], lv.inv);
-    const std::int64_t z0 = cell(static_cast<double>(box.lo[2]) - lv.h, lv.inv);
-    const std::int64_t z1 = cell(box.hi[2], lv.inv);
+    const Block blk = block(box, lv);
+    const std::int64_t x0 = blk.x0, x1 = blk.x1, y0 = blk.y0, y1 = blk.y1, z0 = blk.z0, z1 = blk.z1;
     int nseen = 0;
     const bool check_dup = !lv.distinct || x1 - x0 > 2 || y1 - y0 > 2 || z1 - z0 > 2;
     if ((x1 - x0 + 1) * (y1 - y0 + 1) * (z1 - z0 + 1) > 64) std::abort();  // cannot happen
@@ -196,14 +204,10 @@ void ArrayGrid::query(const AabbF& box, Visit&& visit) const {
     if (box.overlaps(boxes_[j])) visit(j);
   for (const Level& lv : levels_) {
     if (lv.count == 0) continue;
-    // As in `probe`: an object on this level overlaps `box` only if its low
-    // corner lies in [box.lo - h, box.hi].
-    const std::int64_t x0 = cell(static_cast<double>(box.lo[0]) - lv.h, lv.inv);
-    const std::int64_t x1 = cell(box.hi[0], lv.inv);
-    const std::int64_t y0 = cell(static_cast<double>(box.lo[1]) - lv.h, lv.inv);
-    const std::int64_t y1 = cell(box.hi[1], lv.inv);
-    const std::int64_t z0 = cell(static_cast<double>(box.lo[2]) - lv.h, lv.inv);
-    const std::int64_t z1 = cell(box.hi[2], lv.inv);
+    // Plain variables, not a structured binding: clang 14 (the fuzz
+    // build) cannot capture bindings in a lambda.
+    const Block blk = block(box, lv);
+    const std::int64_t x0 = blk.x0, x1 = blk.x1, y0 = blk.y0, y1 = blk.y1, z0 = blk.z0, z1 = blk.z1;
     const double cells = static_cast<double>(x1 - x0 + 1) * static_cast<double>(y1 - y0 + 1) *
                          static_cast<double>(z1 - z0 + 1);
     const std::uint32_t b0 = lv.first_bucket, b1 = lv.first_bucket + lv.mask + 1;
