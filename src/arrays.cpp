@@ -49,8 +49,8 @@ struct Source {
   Shape shape(std::size_t k) const { return k < na ? a->shape(k) : b->shape(k - na); }
 };
 
-std::vector<AabbF> float_bounds(const Source& src) {
-  std::vector<AabbF> boxes(src.n);
+detail::BigVector<AabbF> float_bounds(const Source& src) {
+  detail::BigVector<AabbF> boxes(src.n);
   for (std::size_t k = 0; k < src.n; ++k) boxes[k] = bounds_f(src.shape(k));
   return boxes;
 }
@@ -116,11 +116,19 @@ IndexPair ordered(std::uint32_t p, std::uint32_t q) {
 ArrayCallStats one_shot(const Source& src, bool bipartite, const PairSink& sink,
                         const ArrayOptions& options) {
   ArrayCallStats stats;
-  const std::vector<AabbF> boxes = float_bounds(src);
+  const detail::BigVector<AabbF> boxes = float_bounds(src);
   ArrayGrid grid;
-  grid.build(boxes);
+  // Up to 8 bucket starts an object (32 bytes, freed with the call) buy
+  // the row-by-row layout on most levels (see ArrayGrid::build).
+  grid.build(boxes, 8);
+
   Emitter emit(sink, options.sorted, stats);
   const auto na = static_cast<std::uint32_t>(src.na);
+  // The shapes in the probing order, so that a probe's exact tests read
+  // its partners from nearby memory rather than from the caller's order
+  // (perf at 1 000 000 spheres: 28% of the call on those reads before).
+  detail::BigVector<Shape> placed(grid.probe_count());
+  for (std::size_t k = 0; k < placed.size(); ++k) placed[k] = src.shape(grid.probe_object(k));
   run_in_order<PairChunk>(
       grid.probe_count(), thread_count(options.threads),
       [&](std::size_t begin, std::size_t end, PairChunk& out) {
@@ -128,11 +136,11 @@ ArrayCallStats one_shot(const Source& src, bool bipartite, const PairSink& sink,
         out.tests = 0;
         for (std::size_t k = begin; k < end; ++k) {
           const std::uint32_t i = grid.probe_object(k);
-          const Shape si = src.shape(i);
-          grid.probe(i, grid.probe_box(k), [&](std::uint32_t j) {
+          const Shape& si = placed[k];
+          grid.probe(k, [&](std::uint32_t j, std::uint32_t p) {
             if (bipartite && ((i < na) == (j < na))) return;
             ++out.tests;
-            if (!overlaps(si, src.shape(j))) return;
+            if (!overlaps(si, p == ArrayGrid::kNoPlace ? src.shape(j) : placed[p])) return;
             if (bipartite)
               out.pairs.push_back(i < na ? IndexPair{i, j - na} : IndexPair{j, i - na});
             else
@@ -396,8 +404,7 @@ void PairTracker::Impl::rebuild(const Objects& o) {
         out.partners.clear();
         for (std::size_t k = begin; k < end; ++k) {
           const std::size_t before = out.partners.size();
-          const std::uint32_t i = grid.probe_object(k);
-          grid.probe(i, grid.probe_box(k), [&](std::uint32_t j) { out.partners.push_back(j); });
+          grid.probe(k, [&](std::uint32_t j) { out.partners.push_back(j); });
           out.counts.push_back(static_cast<std::uint32_t>(out.partners.size() - before));
         }
       },

@@ -1,7 +1,9 @@
 #include "array_grid.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
+#include <climits>
 
 namespace broadphase::detail {
 namespace {
@@ -27,7 +29,7 @@ bool finite_box(const AabbF& b) {
 
 }  // namespace
 
-void ArrayGrid::build(std::span<const AabbF> boxes) {
+void ArrayGrid::build(std::span<const AabbF> boxes, std::uint32_t dense) {
   boxes_ = boxes;
   const std::size_t n = boxes.size();
   levels_.clear();
@@ -60,6 +62,9 @@ void ArrayGrid::build(std::span<const AabbF> boxes) {
   if (!std::isfinite(base) || base <= 0) base = 1;
 
   std::vector<std::uint32_t> count(kMaxLevels, 0);
+  // Each level's occupied cells: low and high cell per axis.
+  std::vector<std::array<std::int64_t, 6>> span(
+      kMaxLevels, {INT64_MAX, INT64_MIN, INT64_MAX, INT64_MIN, INT64_MAX, INT64_MIN});
   int top = -1;
   for (std::size_t i = 0; i < n; ++i) {
     const AabbF& b = boxes[i];
@@ -82,38 +87,94 @@ void ArrayGrid::build(std::span<const AabbF> boxes) {
     }
     level_of_[i] = static_cast<std::uint8_t>(k);
     ++count[k];
+    const double inv = 1 / h;
+    auto& sp = span[k];
+    for (int a = 0; a < 3; ++a) {
+      const std::int64_t c = cell(b.lo[a], inv);
+      sp[2 * a] = std::min(sp[2 * a], c);
+      sp[2 * a + 1] = std::max(sp[2 * a + 1], c);
+    }
     top = std::max(top, k);
   }
 
   std::uint32_t buckets = 0;
+  std::size_t summary_words = 0;
   for (int k = 0; k <= top; ++k) {
     Level lv;
     lv.h = std::ldexp(base, k);
     lv.inv = 1 / lv.h;
     lv.count = count[k];
-    const std::uint32_t size = lv.count == 0 ? 0 : std::bit_ceil(lv.count);
+    std::uint32_t size = lv.count == 0 ? 0 : std::bit_ceil(lv.count);
+    if (lv.count > 0) {
+      // Bits per axis for the occupied span and a probe's margin of two
+      // cells either side: the cells of the span then never share a bucket.
+      int bits[3];
+      for (int a = 0; a < 3; ++a) {
+        const std::uint64_t extent =
+            static_cast<std::uint64_t>(span[k][2 * a + 1] - span[k][2 * a]) + 5;
+        bits[a] = std::bit_width(extent - 1);
+      }
+      const int total = bits[0] + bits[1] + bits[2];
+      if (total <= 30 && (std::uint64_t{1} << total) <= std::uint64_t{dense} * size) {
+        lv.ky = std::uint64_t{1} << bits[0];
+        lv.kz = std::uint64_t{1} << (bits[0] + bits[1]);
+        lv.shift = 0 - (static_cast<std::uint64_t>(span[k][0] - 2) +
+                        static_cast<std::uint64_t>(span[k][2] - 2) * lv.ky +
+                        static_cast<std::uint64_t>(span[k][4] - 2) * lv.kz);
+        lv.dense = true;
+        size = std::uint32_t{1} << total;
+      }
+      for (int a = 0; a < 3; ++a) {
+        lv.lo[a] = span[k][2 * a];
+        lv.hi[a] = span[k][2 * a + 1];
+      }
+      if (!lv.dense) {
+        // A hashed level's cells are sparse: a bit per block of 2^s cells
+        // a side, about 8 bits an object, tells a probe whether anything
+        // of the level lies near before it reads the level's buckets.
+        const std::uint64_t budget = 8 * std::uint64_t{lv.count} + 64;
+        for (lv.sum_shift = 0; lv.sum_shift < 62; ++lv.sum_shift) {
+          const double cells = static_cast<double>(((lv.hi[0] - lv.lo[0]) >> lv.sum_shift) + 1) *
+                               static_cast<double>(((lv.hi[1] - lv.lo[1]) >> lv.sum_shift) + 1) *
+                               static_cast<double>(((lv.hi[2] - lv.lo[2]) >> lv.sum_shift) + 1);
+          if (cells <= static_cast<double>(budget)) break;
+        }
+        lv.sum_nx = static_cast<std::uint64_t>((lv.hi[0] - lv.lo[0]) >> lv.sum_shift) + 1;
+        lv.sum_ny = static_cast<std::uint64_t>((lv.hi[1] - lv.lo[1]) >> lv.sum_shift) + 1;
+        const std::uint64_t nz =
+            static_cast<std::uint64_t>((lv.hi[2] - lv.lo[2]) >> lv.sum_shift) + 1;
+        lv.sum_first = summary_words;
+        summary_words += (lv.sum_nx * lv.sum_ny * nz + 63) / 64;
+      }
+    }
     lv.first_bucket = buckets;
     lv.mask = size == 0 ? 0 : size - 1;
     lv.distinct = true;
     for (int dx = -2; dx <= 2; ++dx)
       for (int dy = -2; dy <= 2; ++dy)
         for (int dz = -2; dz <= 2; ++dz)
-          if ((dx || dy || dz) && (hash(dx, dy, dz) & lv.mask) == 0) lv.distinct = false;
+          if ((dx || dy || dz) && (hash(lv, dx, dy, dz) & lv.mask) == 0) lv.distinct = false;
     buckets += size;
     levels_.push_back(lv);
   }
 
   // Counting sort of the indices by bucket; stable, so a bucket lists its
   // objects in increasing index order whatever the thread count.
-  std::vector<std::uint32_t> key(n);
+  BigVector<std::uint32_t> key(n);
   start_.assign(static_cast<std::size_t>(buckets) + 1, 0);
+  summary_.assign(summary_words, 0);
   for (std::size_t i = 0; i < n; ++i) {
     if (level_of_[i] == kBig) continue;
     const Level& lv = levels_[level_of_[i]];
     const AabbF& b = boxes[i];
-    key[i] = lv.first_bucket +
-             (hash(cell(b.lo[0], lv.inv), cell(b.lo[1], lv.inv), cell(b.lo[2], lv.inv)) & lv.mask);
+    const std::int64_t cx = cell(b.lo[0], lv.inv), cy = cell(b.lo[1], lv.inv),
+                       cz = cell(b.lo[2], lv.inv);
+    key[i] = lv.first_bucket + (hash(lv, cx, cy, cz) & lv.mask);
     ++start_[key[i] + 1];
+    if (!lv.dense) {
+      const std::uint64_t bit = summary_bit(lv, cx, cy, cz);
+      summary_[lv.sum_first + bit / 64] |= std::uint64_t{1} << (bit % 64);
+    }
   }
   for (std::size_t b = 1; b < start_.size(); ++b) start_[b] += start_[b - 1];
   entries_.resize(n - big_.size());
@@ -128,7 +189,7 @@ void ArrayGrid::build(std::span<const AabbF> boxes) {
 std::size_t ArrayGrid::memory_bytes() const {
   return levels_.capacity() * sizeof(Level) + level_of_.capacity() +
          start_.capacity() * sizeof(std::uint32_t) + entries_.capacity() * sizeof(GridEntry) +
-         big_.capacity() * sizeof(std::uint32_t);
+         big_.capacity() * sizeof(std::uint32_t) + summary_.capacity() * sizeof(std::uint64_t);
 }
 
 void ArrayGrid::release() {
@@ -137,6 +198,7 @@ void ArrayGrid::release() {
   start_ = {};
   entries_ = {};
   big_ = {};
+  summary_ = {};
   boxes_ = {};
 }
 

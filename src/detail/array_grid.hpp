@@ -2,12 +2,19 @@
 // 32-bit object indices: the index behind the lean path (arrays.hpp).
 //
 // Each object sits once, in the cell of its box's low corner, on the finest
-// level whose cells are at least as wide as its widest side. A probe from object
-// i visits its own level (partners j > i only) and every coarser level (any
-// partner), so each pair whose boxes overlap is visited exactly once, from
-// the object on the finer level (or the lower index on the same level).
-// Objects whose box is infinite or wider than the coarsest level sit in a
-// "big" list and are tested against every object.
+// level whose cells are at least as wide as its widest side. A probe from
+// object i visits its own level (half of it, below) and every coarser level
+// (any partner), so each pair whose boxes overlap is visited exactly once,
+// from the object on the finer level; on one level, from the object whose
+// cell comes first in (z, y, x) order on a dense level, or from the lower
+// index (in one cell, or on a hashed level). Objects whose box is infinite
+// or wider than the coarsest level sit in a "big" list and are tested
+// against every object.
+//
+// A level is dense when its occupied cells span few more cells than it has
+// objects: a bucket per cell, rows of cells along x as runs of buckets. The
+// others are hashed, a bucket per object, with a bitmap of occupied blocks
+// of cells that lets a probe skip the level where nothing lies near.
 #pragma once
 
 #include <algorithm>
@@ -16,7 +23,10 @@
 #include <cstdint>
 #include <cstdlib>
 #include <span>
+#include <type_traits>
 #include <vector>
+
+#include "big_vector.hpp"
 
 namespace broadphase::detail {
 
@@ -30,15 +40,23 @@ struct GridEntry {
 class ArrayGrid {
  public:
   /// Builds over `boxes` (object i's box at i). Keeps what it needs.
-  void build(std::span<const AabbF> boxes);
+  /// A level whose occupied cells span a box of at most `dense` times its
+  /// object count (rounded up to a power of two) gets one bucket per cell
+  /// of that box, laid out row by row (see `Level::ky`); others are hashed
+  /// into one bucket per object.
+  void build(std::span<const AabbF> boxes, std::uint32_t dense = 1);
 
-  /// Calls `visit(j)` once for every object j whose box overlaps `box`,
-  /// where i is the probing object (its box is `box`): j on i's level with
-  /// j > i, j on a coarser level, and, when i is big, every other object
-  /// (big ones with j > i). Objects on finer levels are not visited: they
-  /// find i themselves.
+  /// Calls `visit(j)` once for every object j whose box overlaps the box of
+  /// i = probe_object(k) (probe_box(k)): j on i's level when the pair is
+  /// i's to find (see the top of this file), j on a coarser level, and,
+  /// when i is big, every other object (big ones with j > i). Objects on
+  /// finer levels are not visited: they find i themselves. A
+  /// `visit(j, place)` is also told j's place in the probing order
+  /// (j == probe_object(place)), or kNoPlace when i is big, so that a caller
+  /// can keep its objects' data in that order.
+  static constexpr std::uint32_t kNoPlace = 0xFFFFFFFFu;
   template <class Visit>
-  void probe(std::uint32_t i, const AabbF& box, Visit&& visit) const;
+  void probe(std::size_t k, Visit&& visit) const;
 
   /// The probing order: the objects in bucket order (neighbours in space
   /// close together), then the big ones. Probing in this order reads the
@@ -59,7 +77,7 @@ class ArrayGrid {
   void slim() {
     slim_.resize(entries_.size());
     for (std::size_t k = 0; k < entries_.size(); ++k) slim_[k] = entries_[k].index;
-    std::vector<GridEntry>().swap(entries_);  // `= {}` would keep the capacity
+    BigVector<GridEntry>().swap(entries_);  // `= {}` would keep the capacity
     slimmed_ = true;
   }
   /// Bytes of the index kept by `slim` (not in `memory_bytes`).
@@ -85,30 +103,60 @@ class ArrayGrid {
     std::uint32_t first_bucket = 0;
     std::uint32_t mask = 0;
     std::uint32_t count = 0;
+    // The cell hash is cx + cy ky + cz kz (mod 2^32, then the mask). When
+    // the level's occupied cells fit, ky and kz are powers of two that lay
+    // its cells out row by row without two sharing a bucket, and a probe's
+    // 9 rows are read as 9 streams when probing in bucket order; otherwise
+    // they are odd multipliers that scatter the rows.
+    std::uint64_t ky = 0x9E3779B1ull;
+    std::uint64_t kz = 0x85EBCA77C2B2AE63ull;
+    std::uint64_t shift = 0;  // dense: the occupied cells' buckets do not wrap
+    bool dense = false;
+    std::int64_t lo[3] = {0, 0, 0};  // the occupied cells, per axis
+    std::int64_t hi[3] = {0, 0, 0};
+    // Hashed levels: the summary's blocks of 2^sum_shift cells a side, its
+    // width and depth in blocks and its first word in `summary_`.
+    int sum_shift = 0;
+    std::uint64_t sum_nx = 0, sum_ny = 0;
+    std::size_t sum_first = 0;
     // No two cells of a probe's block (offsets up to 2 per axis) share a
     // bucket, so a probe needs no check for buckets seen twice.
     bool distinct = false;
   };
   static constexpr std::uint8_t kBig = 0xFF;
-  static constexpr std::uint64_t kHashY = 0x9E3779B1ull;
-  static constexpr std::uint64_t kHashZ = 0x85EBCA77C2B2AE63ull;
 
   static std::int64_t cell(double x, double inv);
-  static std::uint32_t hash(std::int64_t cx, std::int64_t cy, std::int64_t cz);
+  static std::uint32_t hash(const Level& lv, std::int64_t cx, std::int64_t cy, std::int64_t cz);
   // The cells of `lv` that can hold the low corner of an object whose box
   // overlaps `box`: x0..x1, y0..y1, z0..z1.
   struct Block {
     std::int64_t x0, x1, y0, y1, z0, z1;
   };
   static Block block(const AabbF& box, const Level& lv);
+  static std::uint64_t summary_bit(const Level& lv, std::int64_t cx, std::int64_t cy,
+                                   std::int64_t cz) {
+    return ((static_cast<std::uint64_t>(cz - lv.lo[2]) >> lv.sum_shift) * lv.sum_ny +
+            (static_cast<std::uint64_t>(cy - lv.lo[1]) >> lv.sum_shift)) *
+               lv.sum_nx +
+           (static_cast<std::uint64_t>(cx - lv.lo[0]) >> lv.sum_shift);
+  }
+  // False when the summary shows no object of hashed level `lv` with its
+  // cell in x0..x1, y0..y1, z0..z1 (clipped to the occupied cells).
+  bool may_hold(const Level& lv, std::int64_t x0, std::int64_t x1, std::int64_t y0, std::int64_t y1,
+                std::int64_t z0, std::int64_t z1) const;
+  // Calls `take(p)` once for every entry p of `lv` whose box overlaps `box`
+  // and whose cell lies in `blk` (the block of `box`).
+  template <class Take>
+  void scan_block(const Level& lv, const AabbF& box, const Block& blk, Take&& take) const;
 
   std::vector<Level> levels_;
-  std::vector<std::uint8_t> level_of_;
-  std::vector<std::uint32_t> start_;  // per bucket, then one past the end
-  std::vector<GridEntry> entries_;
+  BigVector<std::uint8_t> level_of_;
+  BigVector<std::uint32_t> start_;  // per bucket, then one past the end
+  BigVector<GridEntry> entries_;
   std::vector<std::uint32_t> big_;
-  std::span<const AabbF> boxes_;     // the boxes of the last build (for big probes)
-  std::vector<std::uint32_t> slim_;  // the entries' objects, after `slim`
+  std::vector<std::uint64_t> summary_;  // a bit per block of cells, hashed levels
+  std::span<const AabbF> boxes_;        // the boxes of the last build (for big probes)
+  std::vector<std::uint32_t> slim_;     // the entries' objects, after `slim`
   bool slimmed_ = false;
 
   std::size_t placed() const { return slimmed_ ? slim_.size() : entries_.size(); }
@@ -128,15 +176,16 @@ inline std::int64_t ArrayGrid::cell(double x, double inv) {
   return static_cast<std::int64_t>(c);
 }
 
-inline std::uint32_t ArrayGrid::hash(std::int64_t cx, std::int64_t cy, std::int64_t cz) {
+inline std::uint32_t ArrayGrid::hash(const Level& lv, std::int64_t cx, std::int64_t cy,
+                                     std::int64_t cz) {
   // Linear in x: cells next to each other along x share or neighbour a
   // bucket, so probes made in bucket order read memory close to the last
   // probe's (measured at scaled-even 102 400: a mixing hash left the probes
   // waiting on a cache miss per bucket).
   // Linear modulo 2^32, so two cells of one probe share a bucket exactly
   // when their offset maps to 0 under the level's mask (see `distinct`).
-  const std::uint64_t h = static_cast<std::uint64_t>(cx) + static_cast<std::uint64_t>(cy) * kHashY +
-                          static_cast<std::uint64_t>(cz) * kHashZ;
+  const std::uint64_t h = static_cast<std::uint64_t>(cx) + static_cast<std::uint64_t>(cy) * lv.ky +
+                          static_cast<std::uint64_t>(cz) * lv.kz + lv.shift;
   return static_cast<std::uint32_t>(h);
 }
 
@@ -151,50 +200,67 @@ inline ArrayGrid::Block ArrayGrid::block(const AabbF& box, const Level& lv) {
 }
 
 template <class Visit>
-void ArrayGrid::probe(std::uint32_t i, const AabbF& box, Visit&& visit) const {
+void ArrayGrid::probe(std::size_t k, Visit&& visit) const {
+  const std::uint32_t i = probe_object(k);
+  const AabbF& box = probe_box(k);
+  auto emit = [&](std::uint32_t j, std::uint32_t place) {
+    if constexpr (std::is_invocable_v<Visit&, std::uint32_t, std::uint32_t>)
+      visit(j, place);
+    else
+      visit(j);
+  };
   const std::uint8_t li = level_of_[i];
   if (li == kBig) {
     const std::size_t n = level_of_.size();
     for (std::uint32_t j = 0; j < n; ++j) {
       if (j == i || (level_of_[j] == kBig && j < i)) continue;
-      if (box.overlaps(boxes_[j])) visit(j);
+      if (box.overlaps(boxes_[j])) emit(j, kNoPlace);
     }
     return;
   }
+  // The entries from place p to e whose box overlaps.
+  auto scan = [&](std::uint32_t p, std::uint32_t e) {
+    for (; p < e; ++p)
+      if (box.overlaps(entries_[p].box)) emit(entries_[p].index, p);
+  };
   // A probe covers at most 3 cells per axis on each level (cells are at
-  // least as wide as the widest box on them), so at most 27 buckets per level;
-  // the room for 64 leaves a margin for rounding.
-  std::uint32_t seen[64];
+  // least as wide as the widest box on them): 9 rows of cells per level.
   for (std::size_t b = li; b < levels_.size(); ++b) {
     const Level& lv = levels_[b];
     if (lv.count == 0) continue;
     const Block blk = block(box, lv);
     const std::int64_t x0 = blk.x0, x1 = blk.x1, y0 = blk.y0, y1 = blk.y1, z0 = blk.z0, z1 = blk.z1;
-    int nseen = 0;
-    const bool check_dup = !lv.distinct || x1 - x0 > 2 || y1 - y0 > 2 || z1 - z0 > 2;
-    if ((x1 - x0 + 1) * (y1 - y0 + 1) * (z1 - z0 + 1) > 64) std::abort();  // cannot happen
-    for (std::int64_t cx = x0; cx <= x1; ++cx) {
-      for (std::int64_t cy = y0; cy <= y1; ++cy) {
-        for (std::int64_t cz = z0; cz <= z1; ++cz) {
-          const std::uint32_t bucket = lv.first_bucket + (hash(cx, cy, cz) & lv.mask);
-          const std::uint32_t s = start_[bucket];
-          const std::uint32_t e = start_[bucket + 1];
-          if (s == e) continue;
-          if (check_dup) {
-            // Two cells of one probe can share a bucket: visit it once.
-            bool dup = false;
-            for (int k = 0; k < nseen; ++k) dup |= seen[k] == bucket;
-            if (dup) continue;
-            seen[nseen++] = bucket;
-          }
-          for (std::uint32_t k = s; k < e; ++k) {
-            const GridEntry& en = entries_[k];
-            if (b == li && en.index <= i) continue;
-            if (box.overlaps(en.box)) visit(en.index);
-          }
-        }
+    if (lv.dense) {
+      // One bucket per cell, a row of cells along x a run of buckets: one
+      // run of entries per row of the block, clipped to the level's
+      // occupied cells (inside which no run wraps).
+      const std::uint32_t* st = start_.data() + lv.first_bucket;
+      const std::int64_t xa = std::max(x0, lv.lo[0]), xb = std::min(x1, lv.hi[0]);
+      if (xa > xb) continue;
+      auto row = [&](std::int64_t cy, std::int64_t cz) {
+        if (cy < lv.lo[1] || cy > lv.hi[1] || cz < lv.lo[2] || cz > lv.hi[2]) return;
+        const std::uint32_t h = hash(lv, xa, cy, cz) & lv.mask;
+        scan(st[h], st[h + static_cast<std::uint32_t>(xb - xa) + 1]);
+      };
+      if (b != li) {
+        for (std::int64_t cz = z0; cz <= z1; ++cz)
+          for (std::int64_t cy = y0; cy <= y1; ++cy) row(cy, cz);
+        continue;
       }
+      // On its own level a pair is found once, by the object whose cell
+      // comes first in (z, y, x) order, or the lower index in one cell:
+      // the probe reads its own row from just after itself (a cell lists
+      // its objects by index) and the rows after it, half the block.
+      const std::int64_t oy = cell(box.lo[1], lv.inv), oz = cell(box.lo[2], lv.inv);
+      scan(static_cast<std::uint32_t>(k) + 1, st[(hash(lv, xb, oy, oz) & lv.mask) + 1]);
+      for (std::int64_t cy = oy + 1; cy <= y1; ++cy) row(cy, oz);
+      for (std::int64_t cz = oz + 1; cz <= z1; ++cz)
+        for (std::int64_t cy = y0; cy <= y1; ++cy) row(cy, cz);
+      continue;
     }
+    scan_block(lv, box, blk, [&](std::uint32_t p) {
+      if (b != li || entries_[p].index > i) emit(entries_[p].index, p);
+    });
   }
 }
 
@@ -204,51 +270,78 @@ void ArrayGrid::query(const AabbF& box, Visit&& visit) const {
     if (box.overlaps(boxes_[j])) visit(j);
   for (const Level& lv : levels_) {
     if (lv.count == 0) continue;
-    // Plain variables, not a structured binding: clang 14 (the fuzz
-    // build) cannot capture bindings in a lambda.
-    const Block blk = block(box, lv);
-    const std::int64_t x0 = blk.x0, x1 = blk.x1, y0 = blk.y0, y1 = blk.y1, z0 = blk.z0, z1 = blk.z1;
-    const double cells = static_cast<double>(x1 - x0 + 1) * static_cast<double>(y1 - y0 + 1) *
-                         static_cast<double>(z1 - z0 + 1);
-    const std::uint32_t b0 = lv.first_bucket, b1 = lv.first_bucket + lv.mask + 1;
-    if (cells >= static_cast<double>(lv.mask + 1)) {
-      // A box wide against this level's cells: every bucket, once.
-      for (std::uint32_t k = start_[b0]; k < start_[b1]; ++k)
-        if (box.overlaps(entry_box(k))) visit(entry_index(k));
-      continue;
-    }
-    // The hash is linear in x, so a row of cells along x is a run of
-    // consecutive buckets (wrapping at the level's end), whose entries are
-    // consecutive too: one run per (y, z) instead of one lookup per cell
-    // (a wide fat box renewed against a fine level spans 9^3 cells).
-    // Several cells of the range may share a bucket: an entry is then taken
-    // only from its own cell (that of its low corner, which lies in the
-    // range when it overlaps), so each once, without a set of seen buckets.
-    const bool may_share = !lv.distinct || x1 - x0 > 2 || y1 - y0 > 2 || z1 - z0 > 2;
-    const auto len = static_cast<std::uint32_t>(x1 - x0 + 1);
-    auto run = [&](std::uint32_t r0, std::uint32_t r1, std::int64_t cy, std::int64_t cz) {
-      for (std::uint32_t k = start_[b0 + r0]; k < start_[b0 + r1]; ++k) {
-        const AabbF& eb = entry_box(k);
-        if (!box.overlaps(eb)) continue;
-        if (may_share) {
-          const std::int64_t ex = cell(eb.lo[0], lv.inv);
-          if (ex < x0 || ex > x1 || cell(eb.lo[1], lv.inv) != cy || cell(eb.lo[2], lv.inv) != cz)
-            continue;
-        }
-        visit(entry_index(k));
-      }
-    };
-    for (std::int64_t cy = y0; cy <= y1; ++cy)
-      for (std::int64_t cz = z0; cz <= z1; ++cz) {
-        const std::uint32_t h = hash(x0, cy, cz) & lv.mask;
-        if (h + len <= lv.mask + 1) {
-          run(h, h + len, cy, cz);
-        } else {
-          run(h, lv.mask + 1, cy, cz);
-          run(0, h + len - (lv.mask + 1), cy, cz);
-        }
-      }
+    scan_block(lv, box, block(box, lv), [&](std::uint32_t p) { visit(entry_index(p)); });
   }
+}
+
+template <class Take>
+void ArrayGrid::scan_block(const Level& lv, const AabbF& box, const Block& blk, Take&& take) const {
+  // Cells outside the level's occupied ones hold nothing: clip to them.
+  const std::int64_t x0 = std::max(blk.x0, lv.lo[0]), x1 = std::min(blk.x1, lv.hi[0]);
+  const std::int64_t y0 = std::max(blk.y0, lv.lo[1]), y1 = std::min(blk.y1, lv.hi[1]);
+  const std::int64_t z0 = std::max(blk.z0, lv.lo[2]), z1 = std::min(blk.z1, lv.hi[2]);
+  if (x0 > x1 || y0 > y1 || z0 > z1) return;
+  if (!lv.dense && !may_hold(lv, x0, x1, y0, y1, z0, z1)) return;
+  const double cells = static_cast<double>(x1 - x0 + 1) * static_cast<double>(y1 - y0 + 1) *
+                       static_cast<double>(z1 - z0 + 1);
+  const std::uint32_t size = lv.mask + 1;
+  const std::uint32_t* st = start_.data() + lv.first_bucket;
+  if (cells >= static_cast<double>(size)) {
+    // A box wide against this level's cells: every bucket, once.
+    for (std::uint32_t p = st[0]; p < st[size]; ++p)
+      if (box.overlaps(entry_box(p))) take(p);
+    return;
+  }
+  // The hash is linear in x, so a row of cells along x is a run of
+  // consecutive buckets (wrapping at the level's end), whose entries are
+  // consecutive too: one run per (y, z) instead of one lookup per cell.
+  // Several cells of the range may share a bucket: an entry is then taken
+  // only from its own cell (that of its low corner, which lies in the
+  // range when it overlaps), so each once, without a set of seen buckets.
+  const bool may_share = !lv.distinct || x1 - x0 > 2 || y1 - y0 > 2 || z1 - z0 > 2;
+  const auto len = static_cast<std::uint32_t>(x1 - x0 + 1);
+  auto run = [&](std::uint32_t p, std::uint32_t e, std::int64_t cy, std::int64_t cz) {
+    for (; p < e; ++p) {
+      const AabbF& eb = entry_box(p);
+      if (!box.overlaps(eb)) continue;
+      if (may_share) {
+        const std::int64_t ex = cell(eb.lo[0], lv.inv);
+        if (ex < x0 || ex > x1 || cell(eb.lo[1], lv.inv) != cy || cell(eb.lo[2], lv.inv) != cz)
+          continue;
+      }
+      take(p);
+    }
+  };
+  for (std::int64_t cz = z0; cz <= z1; ++cz)
+    for (std::int64_t cy = y0; cy <= y1; ++cy) {
+      const std::uint32_t h = hash(lv, x0, cy, cz) & lv.mask;
+      if (h + len <= size) {
+        run(st[h], st[h + len], cy, cz);
+      } else {
+        run(st[h], st[size], cy, cz);
+        run(st[0], st[h + len - size], cy, cz);
+      }
+    }
+}
+
+inline bool ArrayGrid::may_hold(const Level& lv, std::int64_t x0, std::int64_t x1, std::int64_t y0,
+                                std::int64_t y1, std::int64_t z0, std::int64_t z1) const {
+  const int s = lv.sum_shift;
+  const auto bx0 = static_cast<std::uint64_t>(x0 - lv.lo[0]) >> s,
+             bx1 = static_cast<std::uint64_t>(x1 - lv.lo[0]) >> s;
+  const auto by0 = static_cast<std::uint64_t>(y0 - lv.lo[1]) >> s,
+             by1 = static_cast<std::uint64_t>(y1 - lv.lo[1]) >> s;
+  const auto bz0 = static_cast<std::uint64_t>(z0 - lv.lo[2]) >> s,
+             bz1 = static_cast<std::uint64_t>(z1 - lv.lo[2]) >> s;
+  // A wide box covers many blocks: reading the level is then no waste.
+  if ((bx1 - bx0 + 1) * (by1 - by0 + 1) * (bz1 - bz0 + 1) > 64) return true;
+  for (std::uint64_t bz = bz0; bz <= bz1; ++bz)
+    for (std::uint64_t by = by0; by <= by1; ++by)
+      for (std::uint64_t bx = bx0; bx <= bx1; ++bx) {
+        const std::uint64_t bit = (bz * lv.sum_ny + by) * lv.sum_nx + bx;
+        if (summary_[lv.sum_first + bit / 64] >> (bit % 64) & 1) return true;
+      }
+  return false;
 }
 
 }  // namespace broadphase::detail
