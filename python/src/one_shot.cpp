@@ -1,0 +1,61 @@
+/// \file one_shot.cpp
+/// The one-shot calls: the caller's arrays read and checked, the pairs found
+/// with the GIL released, and handed back as an `IntArray`.
+#include "one_shot.hpp"
+
+#include "input.hpp"
+
+namespace broadphase_python {
+
+bp::ArrayOptions array_options(unsigned threads, bool sorted, double skin) {
+  bp::ArrayOptions o;
+  o.threads = threads;
+  o.sorted = sorted;
+  o.skin = skin;
+  return o;
+}
+
+IntArray find_pairs_once(const py::buffer& centers, const py::object& radii, const py::object& half,
+                         const py::object& kinds, bool sorted, unsigned threads) {
+  ObjectArrays o = object_arrays(centers, radii, half, kinds);
+  IntArray out;
+  out.cols = 2;
+  {
+    py::gil_scoped_release nogil;
+    bp::find_pairs(
+        o.objects,
+        [&out](std::span<const bp::IndexPair> chunk) {
+          append_pairs(out.data, chunk);
+          return true;
+        },
+        array_options(threads, sorted));
+  }
+  out.rows = out.data.size() / 2;
+  return out;
+}
+
+IntArray find_pairs_between(const py::buffer& a_centers, const py::object& a_radii,
+                            const py::object& a_half, const py::object& a_kinds,
+                            const py::buffer& b_centers, const py::object& b_radii,
+                            const py::object& b_half, const py::object& b_kinds, unsigned threads) {
+  ObjectArrays a =
+      object_arrays(a_centers, a_radii, a_half, a_kinds, "centers", "radii", "half_extents");
+  ObjectArrays b = object_arrays(b_centers, b_radii, b_half, b_kinds, "other_centers",
+                                 "other_radii", "other_half_extents");
+  IntArray out;
+  out.cols = 2;
+  {
+    py::gil_scoped_release nogil;
+    bp::find_pairs(
+        a.objects, b.objects,
+        [&out](std::span<const bp::IndexPair> chunk) {
+          append_pairs(out.data, chunk);
+          return true;
+        },
+        array_options(threads, true));
+  }
+  out.rows = out.data.size() / 2;
+  return out;
+}
+
+}  // namespace broadphase_python
