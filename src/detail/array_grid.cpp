@@ -36,9 +36,13 @@ void ArrayGrid::build(std::span<const AabbF> boxes, std::uint32_t dense) {
   big_.clear();
   level_of_.assign(n, kBig);
 
-  // The base cell: the width of a small object (the 1st percentile of a
-  // sample), so that the finest level fits the small objects and a few
-  // tiny outliers do not open many empty levels below them.
+  // The base cell: about the width of a small object (the 1st percentile
+  // of a sample), so that the finest level fits the small objects and a few
+  // tiny outliers do not open many empty levels below them. Levels double
+  // from it; of four bases a quarter octave apart, the one that gives the
+  // sample the smallest total cell volume is taken: with all objects of one
+  // size a power-of-two base would leave cells up to twice their width
+  // (27 cells of a probe's block then hold up to 8 times the partners).
   std::vector<double> sample;
   const std::size_t step = std::max<std::size_t>(1, n / 4096);
   for (std::size_t i = 0; i < n; i += step)
@@ -57,6 +61,23 @@ void ArrayGrid::build(std::span<const AabbF> boxes, std::uint32_t dense) {
       int e = 0;
       std::frexp(w, &e);  // w in [2^(e-1), 2^e)
       base = std::ldexp(1.0, e);
+      double best = HUGE_VAL;
+      const double first = base;
+      for (int q = 0; q < 4; ++q) {
+        // Smaller bases down to the 1st percentile's width (+ the margin).
+        const double b = first * std::exp2(-0.25 * q);
+        if (b < w * (1 + 0x1p-20)) break;
+        double volume = 0;
+        for (double s : sample) {
+          double h = b;
+          for (int lv = 0; h < s * (1 + 0x1p-20) && lv < kMaxLevels; ++lv) h *= 2;
+          volume += h * h * h;
+        }
+        if (volume < best) {
+          best = volume;
+          base = b;
+        }
+      }
     }
   }
   if (!std::isfinite(base) || base <= 0) base = 1;
