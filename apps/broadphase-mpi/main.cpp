@@ -62,6 +62,7 @@ struct Common {
   bool bisect = false;
   double margin = 0;
   double threshold = 1.1;
+  std::string balance_by = "objects";
   int max_ghost_ranks = 4;
   bool json = false;
   bool skip_local = false;
@@ -84,6 +85,11 @@ void add_common(CLI::App* cmd, Common& o) {
                   "Bisection: rebalance when the most loaded rank exceeds the mean times this")
       ->default_val(1.1)
       ->check(CLI::Range(1.0, 1e300));
+  cmd->add_option("--balance-by", o.balance_by,
+                  "Bisection: what the cuts balance, 'objects' (counts, deterministic) or "
+                  "'measured' (each rank's last local-pairs time over its objects)")
+      ->default_val("objects")
+      ->check(CLI::IsMember({"objects", "measured"}));
   cmd->add_option("--max-ghost-ranks", o.max_ghost_ranks,
                   "Objects reaching more ranks go to the list every rank holds")
       ->default_val(4)
@@ -95,6 +101,7 @@ dist::Options domain_options(const Common& o) {
   d.algo = o.algo;
   d.margin = o.margin;
   d.rebalance_threshold = o.threshold;
+  d.balance_by = o.balance_by == "measured" ? dist::BalanceBy::measured : dist::BalanceBy::objects;
   d.max_ghost_ranks = o.max_ghost_ranks;
   d.local_pairs = !o.skip_local;
   if (o.bisect) {
@@ -249,6 +256,7 @@ void run(const Common& o) {
                            : std::to_string(used.dims[0]) + "x" + std::to_string(used.dims[1]) +
                                  "x" + std::to_string(used.dims[2]);
   j["margin"] = o.margin;
+  j["balance_by"] = o.balance_by;
   j["pairs_total"] = total.pairs;
   j["hash_total"] = hex16(total.hash);
   j["median_frame_ms"] = median(frame_ms);

@@ -65,6 +65,12 @@ enum class Decomposition : std::uint8_t {
   bisection,  ///< weighted recursive coordinate bisection of the centres
 };
 
+/// What the bisection balances.
+enum class BalanceBy : std::uint8_t {
+  objects,   ///< the number of objects (deterministic: the default)
+  measured,  ///< each rank's last measured local time, spread over its objects
+};
+
 /// The `Options::algo` that finds each rank's local pairs with the lean
 /// path (arrays.hpp's one-shot `find_pairs`), reading the received objects
 /// in place instead of building a structure.
@@ -92,6 +98,12 @@ struct Options {
   /// Bisection: `rebalance` rebuilds the cuts when the most loaded rank
   /// holds more than the mean times this.
   double rebalance_threshold = 1.1;
+  /// Bisection: what `balance` and `rebalance` weigh when the caller gives
+  /// no weights. `measured` gives each object its rank's last local-pairs
+  /// time over its object count (zero before the first find_pairs: then
+  /// one each), so cuts follow the measured cost and change with timing
+  /// noise; the pairs found never depend on the cuts.
+  BalanceBy balance_by = BalanceBy::objects;
   /// An object whose bounds reach more ranks than this goes to the shared
   /// list every rank holds, instead of one message per rank.
   int max_ghost_ranks = 4;
@@ -170,13 +182,17 @@ class Domain {
   std::vector<int> destinations(std::span<const Shape> shapes) const;
 
   /// Collective. Rebuilds the bisection from the centres of every rank's
-  /// `shapes` (weight one each, so results do not depend on timing noise).
-  /// Deterministic: the same objects give the same cuts whatever rank holds
-  /// them. No effect with a grid decomposition.
-  void balance(std::span<const Shape> shapes);
-  /// Collective. Calls `balance` when the most loaded rank holds more than
-  /// the mean times `rebalance_threshold`; returns true when it did.
-  bool rebalance(std::span<const Shape> shapes);
+  /// `shapes`, each cut splitting the total weight in proportion to the
+  /// ranks on either side. `weights[i]` is object i's weight (finite,
+  /// >= 0); empty: as `Options::balance_by` says (one each by default, so
+  /// results do not depend on timing noise). With integer weights the cuts
+  /// are deterministic: the same objects give the same cuts whatever rank
+  /// holds them. No effect with a grid decomposition.
+  void balance(std::span<const Shape> shapes, std::span<const double> weights = {});
+  /// Collective. Calls `balance` when the most loaded rank (by weight, as
+  /// for `balance`) holds more than the mean times `rebalance_threshold`;
+  /// returns true when it did.
+  bool rebalance(std::span<const Shape> shapes, std::span<const double> weights = {});
 
   /// Collective. Sends `items[i]` to rank `dest[i]` (an all-to-all, so an
   /// item may go to any rank, not only a neighbour) and returns what this
@@ -210,6 +226,12 @@ class Domain {
   void agree(const std::string& error) const;
 
  private:
+  // The weights `balance` uses: `weights` checked (on every rank), or as
+  // Options::balance_by says.
+  std::vector<double> weights_for(std::span<const Shape> shapes,
+                                  std::span<const double> weights) const;
+  // Rebuilds the bisection's cuts, object i weighing w[i].
+  void cut(std::span<const Shape> shapes, const std::vector<double>& w);
   // Sends count items of `size` bytes; the result goes to the buffer that
   // resize(out, bytes) returns (the caller's vector, resized).
   void exchange_bytes(const void* data, std::size_t size, std::size_t count, const int* dest,

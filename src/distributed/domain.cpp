@@ -158,8 +158,38 @@ void Domain::exchange_bytes(const void* data, std::size_t size, std::size_t coun
     }
 }
 
-void Domain::balance(std::span<const Shape> shapes) {
+std::vector<double> Domain::weights_for(std::span<const Shape> shapes,
+                                        std::span<const double> weights) const {
+  std::string error;
+  if (!weights.empty() && weights.size() != shapes.size())
+    error = "rank " + std::to_string(rank_) + ": " + std::to_string(weights.size()) +
+            " weights for " + std::to_string(shapes.size()) + " objects";
+  for (std::size_t i = 0; error.empty() && i < weights.size(); ++i)
+    if (!std::isfinite(weights[i]) || weights[i] < 0)
+      error = "rank " + std::to_string(rank_) + ": weight " + std::to_string(i) + " is " +
+              std::to_string(weights[i]) + " (finite and >= 0 wanted)";
+  agree(error);
+  if (!weights.empty()) return {weights.begin(), weights.end()};
+  const bool measured =
+      options_.balance_by == BalanceBy::measured && stats_.owned > 0 && stats_.local_seconds > 0;
+  // Every rank must use one scale: a rank that has measured nothing yet
+  // weighs its objects as the mean of the ranks that have.
+  double each = measured ? stats_.local_seconds / static_cast<double>(stats_.owned) : 0;
+  double mine[2] = {each, measured ? 1.0 : 0.0};
+  double sum[2] = {0, 0};
+  if (options_.balance_by == BalanceBy::measured)
+    MPI_Allreduce(mine, sum, 2, MPI_DOUBLE, MPI_SUM, comm_);
+  if (sum[1] == 0) return std::vector<double>(shapes.size(), 1.0);
+  if (!measured) each = sum[0] / sum[1];
+  return std::vector<double>(shapes.size(), each);
+}
+
+void Domain::balance(std::span<const Shape> shapes, std::span<const double> weights) {
   if (options_.decomposition != Decomposition::bisection) return;
+  cut(shapes, weights_for(shapes, weights));
+}
+
+void Domain::cut(std::span<const Shape> shapes, const std::vector<double>& w) {
   // Open items of one level of the tree: ranks [r0, r1) in a finite box,
   // and where their node index goes in the parent.
   struct Item {
@@ -214,7 +244,9 @@ void Domain::balance(std::span<const Shape> shapes) {
     // Each round: per item, how many centres lie below a, in each bin of
     // [a, b), and at or above b; summed over the ranks.
     const std::size_t width = kBins + 2;
-    std::vector<std::uint64_t> local(m * width), global(m * width);
+    // Sums of weights; sums of integer weights (counts) are exact in a
+    // double up to 2^53, whatever order MPI adds them in.
+    std::vector<double> local(m * width), global(m * width);
     for (int round = 0; round < kRounds; ++round) {
       std::fill(local.begin(), local.end(), 0);
       for (std::size_t i = 0; i < shapes.size(); ++i) {
@@ -234,14 +266,14 @@ void Domain::balance(std::span<const Shape> shapes) {
           while (j < kBins - 1 && x >= edge(a[k], b[k], j + 1)) ++j;
           slot = static_cast<std::size_t>(j) + 1;
         }
-        ++local[k * width + slot];
+        local[k * width + slot] += w[i];
       }
-      MPI_Allreduce(local.data(), global.data(), static_cast<int>(local.size()), MPI_UINT64_T,
+      MPI_Allreduce(local.data(), global.data(), static_cast<int>(local.size()), MPI_DOUBLE,
                     MPI_SUM, comm_);
       bool all_done = true;
       for (std::size_t k = 0; k < m; ++k) {
         if (done[k]) continue;
-        const std::uint64_t* h = &global[k * width];
+        const double* h = &global[k * width];
         double total = 0;
         for (std::size_t s = 0; s < width; ++s) total += static_cast<double>(h[s]);
         const int ranks = open[k].r1 - open[k].r0;
@@ -301,19 +333,23 @@ void Domain::balance(std::span<const Shape> shapes) {
   partition_ = Partition(std::move(nodes), size_);
 }
 
-bool Domain::rebalance(std::span<const Shape> shapes) {
+bool Domain::rebalance(std::span<const Shape> shapes, std::span<const double> weights) {
   if (options_.decomposition != Decomposition::bisection) return false;
-  const std::uint64_t mine = shapes.size();
-  std::uint64_t most = 0, sum = 0;
-  MPI_Allreduce(&mine, &most, 1, MPI_UINT64_T, MPI_MAX, comm_);
-  MPI_Allreduce(&mine, &sum, 1, MPI_UINT64_T, MPI_SUM, comm_);
-  const double mean = static_cast<double>(sum) / size_;
-  // One object above the mean is the best a count can do (8 objects on 8
+  const std::vector<double> w = weights_for(shapes, weights);
+  double mine = 0, heaviest = 0;
+  for (double x : w) {
+    mine += x;
+    heaviest = std::max(heaviest, x);
+  }
+  double most = 0, sum = 0, top = 0;
+  MPI_Allreduce(&mine, &most, 1, MPI_DOUBLE, MPI_MAX, comm_);
+  MPI_Allreduce(&mine, &sum, 1, MPI_DOUBLE, MPI_SUM, comm_);
+  MPI_Allreduce(&heaviest, &top, 1, MPI_DOUBLE, MPI_MAX, comm_);
+  const double mean = sum / size_;
+  // One object above the mean is the best cuts can do (8 objects on 8
   // ranks, objects on one point): no rebuild for that.
-  if (sum == 0 || static_cast<double>(most) <= mean * options_.rebalance_threshold ||
-      static_cast<double>(most) <= mean + 1)
-    return false;
-  balance(shapes);
+  if (sum == 0 || most <= mean * options_.rebalance_threshold || most <= mean + top) return false;
+  cut(shapes, w);
   return true;
 }
 
