@@ -346,9 +346,14 @@ void prepare(Run& run) {
   // Most structures stop well short of the cap at most sizes, so a full run
   // affords each up to 1.5 shares of the study's budget at one size; the
   // budget itself still bounds the whole run.
-  info.cell_cap_seconds = std::min(
-      info.study_budget_seconds / static_cast<double>(structures.size()) * (o.quick ? 0.5 : 1.5),
-      o.quick ? 5.0 : 60.0);
+  // The lean path takes no share: it runs only frames, a small part of
+  // what a structure's cell costs, so adding it leaves the others' caps.
+  const auto shares =
+      std::max<std::ptrdiff_t>(1, std::count_if(structures.begin(), structures.end(),
+                                                [](const Selected& s) { return !s.lean; }));
+  info.cell_cap_seconds =
+      std::min(info.study_budget_seconds / static_cast<double>(shares) * (o.quick ? 0.5 : 1.5),
+               o.quick ? 5.0 : 60.0);
   info.study_sizes = study_sizes;
   info.scaled_sizes = scaled_sizes;
   for (const Selected& s : structures) {
