@@ -1,9 +1,12 @@
 #include "paper_measure.hpp"
 
 #include <algorithm>
+#include <broadphase/arrays.hpp>
+#include <broadphase/lab/array_caller.hpp>
 #include <broadphase/lab/replay.hpp>
 #include <chrono>
 #include <numeric>
+#include <stdexcept>
 
 #include "lab_data.hpp"
 
@@ -84,6 +87,31 @@ std::size_t churn_batch(std::size_t n) {
   return std::clamp<std::size_t>(n / 10, std::min<std::size_t>(4, n), 1024);
 }
 
+namespace {
+
+// A row of one metric of lab/metrics.json, which gives its unit and the
+// study's test number (an unlisted name throws: the list comes first).
+Row make_row(const std::string& structure, bool peer, const PaperScene& ps, const std::string& test,
+             std::vector<double> samples, const std::string& note) {
+  const std::string placement = ps.even ? "even" : "uneven";
+  const Metric& m = metric(test);
+  Row r;
+  r.structure = structure;
+  r.peer = peer;
+  r.test = test;
+  r.study_test = m.study_test_for(placement);
+  r.placement = placement;
+  r.dist = std::string(to_string(ps.dist));
+  r.n = ps.n;
+  r.world = ps.scene.world;
+  r.unit = m.unit;
+  r.stat = summarize(std::move(samples));
+  r.note = note;
+  return r;
+}
+
+}  // namespace
+
 SceneResult measure_scene(const Registry& registry, const std::string& structure, bool peer,
                           const PaperScene& ps, const MeasureOptions& o,
                           const std::function<void(const std::string&)>& tick) {
@@ -91,25 +119,10 @@ SceneResult measure_scene(const Registry& registry, const std::string& structure
   const auto t_cell = Clock::now();
   const std::size_t n = ps.n;
   const double L = ps.scene.world;
-  const std::string placement = ps.even ? "even" : "uneven";
-  // A row of one metric of lab/metrics.json, which gives its unit and the
-  // study's test number (an unlisted name throws: the list comes first).
+  // A row of one metric of lab/metrics.json (make_row).
   auto add_row = [&](const std::string& test, std::vector<double> samples,
                      const std::string& note = {}) {
-    const Metric& m = metric(test);
-    Row r;
-    r.structure = structure;
-    r.peer = peer;
-    r.test = test;
-    r.study_test = m.study_test_for(placement);
-    r.placement = placement;
-    r.dist = std::string(to_string(ps.dist));
-    r.n = n;
-    r.world = L;
-    r.unit = m.unit;
-    r.stat = summarize(std::move(samples));
-    r.note = note;
-    out.rows.push_back(std::move(r));
+    out.rows.push_back(make_row(structure, peer, ps, test, std::move(samples), note));
   };
   auto over_cap = [&] { return since(t_cell) > 1.5 * o.cell_cap_seconds; };
   // A timed loop goes on until it has run the minimum time, and for at
@@ -237,6 +250,70 @@ SceneResult measure_scene(const Registry& registry, const std::string& structure
     add_row("insert_time", insert_ns, churn_note);
     add_row("remove_time", remove_ns, churn_note);
   }
+  out.costs.total = since(t_cell);
+  return out;
+}
+
+SceneResult measure_arrays(const PaperScene& ps, const MeasureOptions& o,
+                           const std::function<void(const std::string&)>& tick) {
+  SceneResult out;
+  const auto t_cell = Clock::now();
+  auto add_row = [&](const std::string& test, std::vector<double> samples,
+                     const std::string& note = {}) {
+    out.rows.push_back(make_row(kArraysSeries, false, ps, test, std::move(samples), note));
+  };
+  ArrayCaller caller(ps.scene);
+  PairTracker tracker;
+  const Objects objects = caller.objects();
+  std::vector<IndexPair> pairs;
+  // One call: timed from the call to its return, the digest taken after,
+  // as Replay::next() times update + find_pairs and hashes outside.
+  auto call = [&](const Changes& changes, double& seconds) {
+    pairs.clear();
+    const auto t0 = Clock::now();
+    tracker.find_pairs(objects, pairs, changes);
+    seconds = since(t0);
+    FrameDigest d;
+    for (const IndexPair& p : pairs) d.add(p.i, p.j);
+    out.digests.push_back(d);
+  };
+
+  tick("build");
+  double build = 0;
+  call(Changes::everything(), build);  // frame 0: the build, not a frame
+  out.costs.build = build;
+  add_row("build_time", {build / static_cast<double>(std::max<std::size_t>(ps.n, 1)) * 1e9});
+
+  std::vector<double> frame_ms, frame_wall;
+  int reps_done = 0;
+  for (int rep = 0; rep < o.reps; ++rep) {
+    tick("frame " + std::to_string(rep + 1) + "/" + std::to_string(o.reps));
+    const auto t_frame = Clock::now();
+    // The replay's motion (ArrayCaller::step moves the movers exactly as
+    // step(Scene&) does), not timed, as the replay's is not.
+    if (const std::size_t bad = caller.step(); bad != SIZE_MAX)
+      throw std::runtime_error("frame " + std::to_string(rep + 1) + ": object " +
+                               std::to_string(bad) +
+                               " moves beyond the range of doubles (its motion overflows)");
+    double seconds = 0;
+    call(Changes::only(caller.movers()), seconds);
+    frame_wall.push_back(since(t_frame));
+    frame_ms.push_back(seconds * 1e3);
+    ++reps_done;
+    if (since(t_cell) > 1.5 * o.cell_cap_seconds && rep + 1 < o.reps) {
+      out.note = "stopped after " + std::to_string(reps_done) + " of " + std::to_string(o.reps) +
+                 " reps: over the time cap";
+      break;
+    }
+  }
+  out.costs.frame = summarize(frame_wall).median;
+  add_row("frame_time", frame_ms, out.note);
+  // Own bytes (the tracker's index and candidate lists), and with the
+  // caller's arrays the tracker reads (the handle structures hold their
+  // own copy of every shape, so the second is the like-for-like figure).
+  const double own = static_cast<double>(tracker.memory_bytes());
+  add_row("memory", {own});
+  add_row("memory_with_arrays", {own + static_cast<double>(caller.bytes())});
   out.costs.total = since(t_cell);
   return out;
 }

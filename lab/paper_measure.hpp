@@ -84,6 +84,23 @@ SceneResult measure_scene(const Registry& registry, const std::string& structure
                           const PaperScene& ps, const MeasureOptions& options,
                           const std::function<void(const std::string&)>& tick);
 
+/// The name of the lean path's series (arrays.hpp: a PairTracker over the
+/// caller's arrays) in the tables and figures. It is not a registry name:
+/// the handle API's measurements never make it.
+inline constexpr const char* kArraysSeries = "arrays";
+
+/// The lean path on `ps`, as its caller runs it (ArrayCaller: the scene as
+/// columns the caller owns). Frame 0 builds the tracker (Changes::everything,
+/// the `build_time` row, not a frame); then `options.reps` frames, each
+/// moving the movers (not timed, as the replay's motion is not) and timing
+/// one PairTracker call told Changes::only(movers), pairs appended to a
+/// vector as the handle structures' find_pairs does. Rows `frame_time`,
+/// `build_time`, `memory` (the tracker's own bytes) and `memory_with_arrays`
+/// (plus the caller's arrays it reads); digests per frame, frame 0 first,
+/// comparable with measure_scene's. Throws when a motion overflows.
+SceneResult measure_arrays(const PaperScene& ps, const MeasureOptions& options,
+                           const std::function<void(const std::string&)>& tick);
+
 /// The batch size of Tests 5 and 6 at `n` objects: 5% of n, in [1, 1024].
 std::size_t churn_batch(std::size_t n);
 

@@ -64,6 +64,15 @@ for s in j["run"]["structures"]:
 for k in j["skipped"]:
     if k["structure"] not in report.split("## Skipped")[1]:
         errors.append("skip of %s not reported" % k["structure"])
+# The lean path (arrays) is one more series of the default run: frame
+# times and memory at every size it ran, its pairs compared with the rest.
+if "arrays" not in j["run"]["structures"]:
+    errors.append("the default run lacks the lean path (arrays)")
+arrays_tests = {r["test"] for r in rows if r["structure"] == "arrays"}
+if arrays_tests != {"build_time", "frame_time", "memory", "memory_with_arrays"}:
+    errors.append("arrays rows are of %s" % sorted(arrays_tests))
+if "| arrays with the caller's arrays |" not in report:
+    errors.append("the memory table lacks the lean path with the caller's arrays")
 if j["mismatches"]:
     errors.append("structures disagree: %s" % j["mismatches"][:3])
 if j["comparisons"] <= 0:

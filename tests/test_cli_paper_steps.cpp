@@ -3,11 +3,16 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 #include <string>
 
+#include "commands.hpp"
 #include "paper_steps.hpp"
 
 namespace broadphase::app {
@@ -147,6 +152,82 @@ TEST_F(PaperStepsTest, AnUnwritableDirectoryIsRefusedWithTheReason) {
     EXPECT_NE(std::string(e.what()).find("Not a directory"), std::string::npos) << e.what();
   }
   EXPECT_THROW(PaperSteps::recorded_options(dir_), std::runtime_error);
+}
+
+// A small `paper` run, in process (no experiments are linked into this
+// test): the lean path is a series of its own, with frame-time and memory
+// rows at every size and placement, and its pairs are checked against the
+// other structures' on every frame of every scene.
+TEST_F(PaperStepsTest, ASmallRunMeasuresTheLeanPathAndChecksItsPairs) {
+  const fs::path out = dir_ / "run";
+  CLI::App app;
+  add_paper_command(app);
+  // No spaces in the path (a temporary directory and the test's name).
+  const std::string args =
+      "paper --quick --algos naive,grid-hashed,arrays --no-peers --max-n 800 "
+      "--budget 20 --out " +
+      out.string();
+  std::string error;
+  try {
+    app.parse(args);
+  } catch (const std::exception& e) {
+    error = e.what();  // a disagreement: results.json below says which
+  }
+  const nlohmann::json j = nlohmann::json::parse(read(out / "results.json"));
+  EXPECT_EQ(error, "");
+  EXPECT_TRUE(j.at("mismatches").empty()) << j.at("mismatches").dump(1);
+  EXPECT_GT(j.at("comparisons").get<std::size_t>(), 0u);
+  const std::vector<std::size_t> sizes{50, 100, 200, 400, 800};
+  ASSERT_EQ(j.at("scenes").size(), 2 * sizes.size());
+  for (const auto& scene : j.at("scenes")) {
+    // naive, grid-hashed and arrays were compared on every frame.
+    EXPECT_EQ(scene.at("structures"), 3) << scene.dump();
+    EXPECT_EQ(scene.at("frames").size(), 4u) << "frame 0 and one per repetition";
+  }
+  std::map<std::string, std::set<std::string>> tests_of;
+  std::map<std::pair<std::string, std::size_t>, double> memory;
+  std::size_t frame_rows = 0;
+  for (const auto& r : j.at("rows")) {
+    const std::string s = r.at("structure"), test = r.at("test");
+    tests_of[s].insert(test);
+    if (s != "arrays") continue;
+    EXPECT_FALSE(r.at("peer").get<bool>());
+    if (test == "frame_time") {
+      ++frame_rows;
+      EXPECT_GT(r.at("median").get<double>(), 0) << r.dump();
+      EXPECT_EQ(r.at("reps"), 3) << r.dump();
+    }
+    if (r.at("placement") == "even" && (test == "memory" || test == "memory_with_arrays"))
+      memory[{test, r.at("n").get<std::size_t>()}] = r.at("median").get<double>();
+  }
+  EXPECT_EQ(frame_rows, 2 * sizes.size());
+  EXPECT_EQ(tests_of["arrays"],
+            (std::set<std::string>{"build_time", "frame_time", "memory", "memory_with_arrays"}));
+  EXPECT_EQ(tests_of["naive"].count("memory_with_arrays"), 0u);
+  for (std::size_t n : sizes)
+    EXPECT_EQ((memory[{"memory_with_arrays", n}] - memory[{"memory", n}]), 32.0 * n) << n;
+  const std::string report = read(out / "REPORT.md");
+  EXPECT_NE(report.find("| arrays with the caller's arrays |"), std::string::npos);
+  const std::size_t frames = report.find("### Frame time, even placement");
+  ASSERT_NE(frames, std::string::npos);
+  EXPECT_NE(report.find("| arrays |", frames), std::string::npos);
+  const std::size_t test1 = report.find("### Test 1");
+  ASSERT_NE(test1, std::string::npos);
+  EXPECT_EQ(report.substr(test1, report.find("### Test 2") - test1).find("| arrays"),
+            std::string::npos)
+      << "no line of dashes for the tests the lean path does not run";
+}
+
+TEST_F(PaperStepsTest, TheLeanPathTakesNoOptions) {
+  CLI::App app;
+  add_paper_command(app);
+  const std::string args = "paper --algos arrays:threads=2 --out " + (dir_ / "x").string();
+  try {
+    app.parse(args);
+    FAIL() << "no error";
+  } catch (const UsageError& e) {
+    EXPECT_NE(std::string(e.what()).find("takes no options"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

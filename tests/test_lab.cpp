@@ -94,6 +94,91 @@ TEST(LabMeasure, UnevenRunsNoChurn) {
   }
 }
 
+// The lean path on the study's scenes: the pairs of every frame are the
+// naive oracle's, through the same motion, frame 0 (the build) included.
+TEST(LabMeasure, ArraysFramesAgreeWithNaive) {
+  for (const std::uint64_t seed : {3ull, 11ull}) {
+    for (const std::size_t n : {50u, 400u, 1600u}) {
+      for (const bool even : {true, false}) {
+        SCOPED_TRACE("seed " + std::to_string(seed) + ", N=" + std::to_string(n) +
+                     (even ? ", even" : ", uneven"));
+        const PaperScene ps = make_paper_scene(n, even, false, seed);
+        MeasureOptions o;
+        o.reps = 4;
+        o.min_rep_seconds = 1e-5;
+        o.churn = false;
+        int ticks = 0;
+        const SceneResult a = measure_arrays(ps, o, [&ticks](const std::string&) { ++ticks; });
+        const SceneResult ref =
+            measure_scene(registry(), "naive", false, ps, o, [](const std::string&) {});
+        EXPECT_GT(ticks, 0);
+        ASSERT_EQ(a.digests.size(), 5u);  // frame 0 and one per repetition
+        EXPECT_EQ(a.digests, ref.digests);
+        EXPECT_TRUE(a.query_hits.empty());
+        std::map<std::string, const Row*> by_test;
+        for (const Row& row : a.rows) {
+          EXPECT_EQ(row.structure, kArraysSeries);
+          EXPECT_EQ(row.placement, even ? "even" : "uneven");
+          EXPECT_EQ(row.n, n);
+          by_test[row.test] = &row;
+        }
+        EXPECT_EQ(by_test.size(), 4u);
+        for (const char* t : {"frame_time", "build_time", "memory", "memory_with_arrays"})
+          ASSERT_TRUE(by_test.count(t)) << t;
+        EXPECT_EQ(by_test["frame_time"]->stat.reps, 4);
+        EXPECT_EQ(by_test["frame_time"]->unit, "ms");
+        EXPECT_GT(by_test["memory"]->stat.median, 0);
+        // The caller's arrays: x, y, z and radius, 8 bytes each per sphere.
+        EXPECT_EQ(by_test["memory_with_arrays"]->stat.median - by_test["memory"]->stat.median,
+                  32.0 * static_cast<double>(n));
+      }
+    }
+  }
+}
+
+// A structure with only the lean path's rows: no line in the tables of
+// the tests it does not run, a line in the frame-time and memory tables.
+TEST(LabReport, TheLeanPathOnlyWhereItHasRows) {
+  PaperResults res;
+  res.info.structures = {"naive", kArraysSeries, "grid-dense"};
+  res.info.peers = {false, false, false};
+  res.info.registered = {"naive", "grid-dense"};
+  res.info.study_sizes = {50};
+  res.skips.push_back({"grid-dense", 50, 3, 1, "projected 3 s"});
+  auto add = [&res](const std::string& s, const std::string& test, double v) {
+    Row r;
+    r.structure = s;
+    r.test = test;
+    r.placement = "even";
+    r.dist = "even";
+    r.n = 50;
+    r.stat.median = v;
+    res.rows.push_back(r);
+  };
+  for (const char* t : {"query_time", "query_tests", "insert_time", "remove_time", "frame_time"})
+    add("naive", t, 1);
+  add("naive", "memory", 5000);
+  add(kArraysSeries, "frame_time", 0.5);
+  add(kArraysSeries, "memory", 2000);
+  add(kArraysSeries, "memory_with_arrays", 3600);
+  const std::string md = report_markdown(res);
+  auto between = [&md](const std::string& from, const std::string& to) {
+    const std::size_t a = md.find(from);
+    EXPECT_NE(a, std::string::npos) << from;
+    return md.substr(a, md.find(to, a) - a);
+  };
+  const std::string test1 = between("### Test 1", "### Test 2");
+  EXPECT_EQ(test1.find("| arrays"), std::string::npos) << test1;
+  EXPECT_NE(test1.find("| naive |"), std::string::npos) << test1;
+  EXPECT_NE(test1.find("| grid-dense | skip"), std::string::npos) << "a skipped line stays";
+  const std::string frames = between("### Frame time, even placement", "### Frame time, uneven");
+  EXPECT_NE(frames.find("| arrays | 0.50 |"), std::string::npos) << frames;
+  const std::string memory = between("## Memory", "## Beyond the study");
+  EXPECT_NE(memory.find("| arrays | 40.0 |"), std::string::npos) << memory;
+  EXPECT_NE(memory.find("| arrays with the caller's arrays | 72.0 |"), std::string::npos) << memory;
+  EXPECT_EQ(memory.find("naive with the caller's arrays"), std::string::npos) << memory;
+}
+
 TEST(LabReport, StudyFormulas) {
   EXPECT_EQ(study_memory_formula("naive", 100), 404);
   EXPECT_EQ(study_memory_formula("octree-paper", 100), 44860);

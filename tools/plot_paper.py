@@ -165,11 +165,20 @@ def memory_plots(rows, styles, peers, out):
             ax.plot([p[0] for p in pts], [FORMULA[s](p[0]) for p in pts],
                     label=s + ": study's formula (32-bit)", **st)
     finish(fig, ax, out, "fig3_7_memory", "Figure 3.7: memory held (even placement)", "bytes")
+    # The lean path reads the caller's arrays in place: its own bytes, and
+    # (dashed) with those arrays, which the other structures hold a copy of.
+    with_arrays = series(rows, "memory_with_arrays", "even", True)
     fig, ax = plt.subplots(figsize=(8, 4.8))
     for s in order(data, peers):
         pts = data[s]
         ax.plot([p[0] for p in pts], [p[1] / p[0] for p in pts],
                 label=s + (" (peer)" if s in peers else ""), **styles(s))
+        if s in with_arrays:
+            st = dict(styles(s))
+            st.update(linestyle="--")
+            pts = with_arrays[s]
+            ax.plot([p[0] for p in pts], [p[1] / p[0] for p in pts],
+                    label=s + " with the caller's arrays", **st)
     finish(fig, ax, out, "fig3_8_memory_per_object", "Figure 3.8: memory per object (even placement)",
            "bytes per object")
 

@@ -72,6 +72,9 @@ void apply_recorded_options(PaperOptions& o, const nlohmann::json& j) {
 struct Selected {
   std::string spec;
   bool peer = false;
+  /// The lean path (kArraysSeries): measured by measure_arrays, never made
+  /// through the registry, and only in the frame time and memory.
+  bool lean = false;
 };
 
 // "--algos a,b:k=1,j=2,c" names a, b (with two options) and c: a piece
@@ -104,15 +107,25 @@ std::vector<Selected> select_structures(const PaperOptions& o) {
     for (const StructureInfo& e : reg.entries())
       if (!e.peer || o.peers) out.push_back({e.name, e.peer});
     if (out.empty()) throw UsageError("no structure is registered in this build");
+    out.push_back({kArraysSeries, false, true});
     return out;
   }
+  const std::string valid = reg.names() + ", " + kArraysSeries;
   const std::vector<std::string> specs = split_specs(o.algos);
-  if (specs.empty()) throw UsageError("--algos: no structure named; valid: " + reg.names());
+  if (specs.empty()) throw UsageError("--algos: no structure named; valid: " + valid);
   for (const std::string& spec : specs) {
     const std::string name = spec.substr(0, spec.find(':'));
+    if (name == kArraysSeries) {
+      if (spec != name)
+        throw UsageError("--algos: '" + spec + "': the lean path (" + kArraysSeries +
+                         ") takes no options");
+      if (std::none_of(out.begin(), out.end(), [](const Selected& s) { return s.lean; }))
+        out.push_back({kArraysSeries, false, true});
+      continue;
+    }
     const StructureInfo* info = reg.find(name);
     if (info == nullptr)
-      throw UsageError("--algos: unknown structure '" + name + "'; valid: " + reg.names());
+      throw UsageError("--algos: unknown structure '" + name + "'; valid: " + valid);
     try {
       reg.make(spec);  // rejects bad options now rather than an hour into the run
     } catch (const UnknownStructure& e) {
@@ -333,9 +346,14 @@ void prepare(Run& run) {
   // Most structures stop well short of the cap at most sizes, so a full run
   // affords each up to 1.5 shares of the study's budget at one size; the
   // budget itself still bounds the whole run.
-  info.cell_cap_seconds = std::min(
-      info.study_budget_seconds / static_cast<double>(structures.size()) * (o.quick ? 0.5 : 1.5),
-      o.quick ? 5.0 : 60.0);
+  // The lean path takes no share: it runs only frames, a small part of
+  // what a structure's cell costs, so adding it leaves the others' caps.
+  const auto shares =
+      std::max<std::ptrdiff_t>(1, std::count_if(structures.begin(), structures.end(),
+                                                [](const Selected& s) { return !s.lean; }));
+  info.cell_cap_seconds =
+      std::min(info.study_budget_seconds / static_cast<double>(shares) * (o.quick ? 0.5 : 1.5),
+               o.quick ? 5.0 : 60.0);
   info.study_sizes = study_sizes;
   info.scaled_sizes = scaled_sizes;
   for (const Selected& s : structures) {
@@ -472,7 +490,8 @@ void run_study(Run& run) {
           show(where + step, std::max(0.0, projected - cell) + rest);
         };
         try {
-          SceneResult r = measure_scene(registry(), sel.spec, sel.peer, ps, mo, tick);
+          SceneResult r = sel.lean ? measure_arrays(ps, mo, tick)
+                                   : measure_scene(registry(), sel.spec, sel.peer, ps, mo, tick);
           for (Row& row : r.rows) res.rows.push_back(std::move(row));
           digests[p][si] = std::move(r.digests);
           hits[p][si] = std::move(r.query_hits);
@@ -513,7 +532,7 @@ void run_experiments(Run& run) {
     ctx.seed = o.seed;
     if (!o.algos.empty())
       for (const Selected& s : structures)
-        if (!s.peer) ctx.algos.push_back(s.spec);
+        if (!s.peer && !s.lean) ctx.algos.push_back(s.spec);
     const double left = info.budget_seconds - elapsed();
     ctx.budget_seconds =
         std::max(o.quick ? 2.0 : 15.0,
@@ -638,7 +657,8 @@ void add_paper_command(CLI::App& app) {
   auto* algos =
       cmd->add_option("--algos", o->algos,
                       "Structures to run, comma-separated, with options as name:key=value,... "
-                      "(default: every registered structure)");
+                      "(default: every registered structure, and `arrays`, the lean path over "
+                      "the caller's arrays, in the frame time and memory)");
   auto* max_n =
       cmd->add_option("--max-n", o->max_n, "Largest number of objects to run (at least 50)")
           ->check(whole_number());
