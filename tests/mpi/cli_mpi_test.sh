@@ -45,7 +45,7 @@ if mpi 2 run --gen scaled-even --per-rank 2000 --frames 3 --json >"$tmp/json" 2>
 import json, sys
 j = json.load(open(sys.argv[1]))
 for k in ("ranks", "phases", "ghosts_per_rank", "bytes_per_rank_per_frame",
-          "messages_per_rank_per_frame", "load_imbalance_last", "hash_total"):
+          "messages_per_rank_per_frame", "load_imbalance_last", "hash_total", "balance_by"):
     assert k in j, k
 for k in ("local_pairs", "ghost_exchange", "migration", "balancing", "reduction"):
     assert k in j["phases"], k
@@ -67,6 +67,7 @@ expect_fail "bad scene line read by rank 0" "bad.scene:5" 3 run --scene "$tmp/ba
 expect_fail "missing scene" "nowhere.scene" 2 run --scene "$tmp/nowhere.scene"
 expect_fail "unknown structure" "no-such" 2 run --scene "$s" --algo no-such
 expect_fail "grid that does not fit" "does not fit" 2 run --scene "$s" --grid 3x1x1
+expect_fail "unknown balance weight" "balance-by" 2 run --scene "$s" --bisect --balance-by cost
 BROADPHASE_MPI_FAIL=1:3 expect_fail "a rank that throws" "injected failure at frame 3" 3 run --scene "$s"
 if [ "$(wc -l <"$tmp/out")" -eq 3 ]; then ok; else no "frames before the failure: $(cat "$tmp/out")"; fi
 BROADPHASE_MPI_FAIL=2:2:abort expect_fail "a rank that throws outside a collective step" \
