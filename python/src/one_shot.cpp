@@ -15,23 +15,33 @@ bp::ArrayOptions array_options(unsigned threads, bool sorted, double skin) {
   return o;
 }
 
-IntArray find_pairs_once(const py::buffer& centers, const py::object& radii, const py::object& half,
-                         const py::object& kinds, bool sorted, unsigned threads) {
-  ObjectArrays o = object_arrays(centers, radii, half, kinds);
+namespace {
+
+/// Runs `find(sink)` with the GIL released, the pairs appended to an int64
+/// (M, 2) array as the library hands them over.
+template <class Find>
+IntArray pairs_array(Find&& find) {
   IntArray out;
   out.cols = 2;
   {
     py::gil_scoped_release nogil;
-    bp::find_pairs(
-        o.objects,
-        [&out](std::span<const bp::IndexPair> chunk) {
-          append_pairs(out.data, chunk);
-          return true;
-        },
-        array_options(threads, sorted));
+    find([&out](std::span<const bp::IndexPair> chunk) {
+      append_pairs(out.data, chunk);
+      return true;
+    });
   }
   out.rows = out.data.size() / 2;
   return out;
+}
+
+}  // namespace
+
+IntArray find_pairs_once(const py::buffer& centers, const py::object& radii, const py::object& half,
+                         const py::object& kinds, bool sorted, unsigned threads) {
+  ObjectArrays o = object_arrays(centers, radii, half, kinds);
+  return pairs_array([&](const bp::PairSink& sink) {
+    bp::find_pairs(o.objects, sink, array_options(threads, sorted));
+  });
 }
 
 IntArray find_pairs_between(const py::buffer& a_centers, const py::object& a_radii,
@@ -42,20 +52,9 @@ IntArray find_pairs_between(const py::buffer& a_centers, const py::object& a_rad
       object_arrays(a_centers, a_radii, a_half, a_kinds, "centers", "radii", "half_extents");
   ObjectArrays b = object_arrays(b_centers, b_radii, b_half, b_kinds, "other_centers",
                                  "other_radii", "other_half_extents");
-  IntArray out;
-  out.cols = 2;
-  {
-    py::gil_scoped_release nogil;
-    bp::find_pairs(
-        a.objects, b.objects,
-        [&out](std::span<const bp::IndexPair> chunk) {
-          append_pairs(out.data, chunk);
-          return true;
-        },
-        array_options(threads, true));
-  }
-  out.rows = out.data.size() / 2;
-  return out;
+  return pairs_array([&](const bp::PairSink& sink) {
+    bp::find_pairs(a.objects, b.objects, sink, array_options(threads, true));
+  });
 }
 
 }  // namespace broadphase_python

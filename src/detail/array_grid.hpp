@@ -225,44 +225,35 @@ void ArrayGrid::probe(std::size_t k, Visit&& visit) const {
     }
     return;
   }
-  // The entries from place p to e whose box overlaps.
-  auto scan = [&](std::uint32_t p, std::uint32_t e) {
-    for (; p < e; ++p)
-      if (box.overlaps(entries_[p].box)) emit(entries_[p].index, p);
-  };
   // A probe covers at most 3 cells per axis on each level (cells are at
   // least as wide as the widest box on them): 9 rows of cells per level.
   for (std::size_t b = li; b < levels_.size(); ++b) {
     const Level& lv = levels_[b];
     if (lv.count == 0) continue;
     const Block blk = block(box, lv);
-    const std::int64_t x0 = blk.x0, x1 = blk.x1, y0 = blk.y0, y1 = blk.y1, z0 = blk.z0, z1 = blk.z1;
-    if (lv.dense) {
-      // One bucket per cell, a row of cells along x a run of buckets: one
-      // run of entries per row of the block, clipped to the level's
+    if (b == li && lv.dense) {
+      // On its own dense level a pair is found once, by the object whose
+      // cell comes first in (z, y, x) order, or the lower index in one
+      // cell: the probe reads its own row from just after itself (a cell
+      // lists its objects by index) and the rows after it, half the block.
+      // A row of cells along x is a run of buckets, clipped to the level's
       // occupied cells (inside which no run wraps).
       const std::uint32_t* st = start_.data() + lv.first_bucket;
-      const std::int64_t xa = std::max(x0, lv.lo[0]), xb = std::min(x1, lv.hi[0]);
-      if (xa > xb) continue;
+      const std::int64_t xa = std::max(blk.x0, lv.lo[0]), xb = std::min(blk.x1, lv.hi[0]);
+      auto scan = [&](std::uint32_t p, std::uint32_t e) {
+        for (; p < e; ++p)
+          if (box.overlaps(entries_[p].box)) emit(entries_[p].index, p);
+      };
       auto row = [&](std::int64_t cy, std::int64_t cz) {
         if (cy < lv.lo[1] || cy > lv.hi[1] || cz < lv.lo[2] || cz > lv.hi[2]) return;
         const std::uint32_t h = hash(lv, xa, cy, cz) & lv.mask;
         scan(st[h], st[h + static_cast<std::uint32_t>(xb - xa) + 1]);
       };
-      if (b != li) {
-        for (std::int64_t cz = z0; cz <= z1; ++cz)
-          for (std::int64_t cy = y0; cy <= y1; ++cy) row(cy, cz);
-        continue;
-      }
-      // On its own level a pair is found once, by the object whose cell
-      // comes first in (z, y, x) order, or the lower index in one cell:
-      // the probe reads its own row from just after itself (a cell lists
-      // its objects by index) and the rows after it, half the block.
       const std::int64_t oy = cell(box.lo[1], lv.inv), oz = cell(box.lo[2], lv.inv);
       scan(static_cast<std::uint32_t>(k) + 1, st[(hash(lv, xb, oy, oz) & lv.mask) + 1]);
-      for (std::int64_t cy = oy + 1; cy <= y1; ++cy) row(cy, oz);
-      for (std::int64_t cz = oz + 1; cz <= z1; ++cz)
-        for (std::int64_t cy = y0; cy <= y1; ++cy) row(cy, cz);
+      for (std::int64_t cy = oy + 1; cy <= blk.y1; ++cy) row(cy, oz);
+      for (std::int64_t cz = oz + 1; cz <= blk.z1; ++cz)
+        for (std::int64_t cy = blk.y0; cy <= blk.y1; ++cy) row(cy, cz);
       continue;
     }
     scan_block(lv, box, blk, [&](std::uint32_t p) {

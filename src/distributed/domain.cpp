@@ -275,19 +275,19 @@ void Domain::cut(std::span<const Shape> shapes, const std::vector<double>& w) {
         if (done[k]) continue;
         const double* h = &global[k * width];
         double total = 0;
-        for (std::size_t s = 0; s < width; ++s) total += static_cast<double>(h[s]);
+        for (std::size_t s = 0; s < width; ++s) total += h[s];
         const int ranks = open[k].r1 - open[k].r0;
         target[k] = total * (ranks / 2) / ranks;
         // below[j]: centres below edge j.
-        double below = static_cast<double>(h[0]);
+        double below = h[0];
         int j = 0;
         if (below >= target[k]) {
           cut[k] = a[k];
           done[k] = 1;
           continue;
         }
-        while (j < kBins && below + static_cast<double>(h[j + 1]) < target[k]) {
-          below += static_cast<double>(h[j + 1]);
+        while (j < kBins && below + h[j + 1] < target[k]) {
+          below += h[j + 1];
           ++j;
         }
         if (j == kBins) {
@@ -297,7 +297,7 @@ void Domain::cut(std::span<const Shape> shapes, const std::vector<double>& w) {
         }
         // The target falls in bin j: [edge j, edge j+1).
         const double lo = edge(a[k], b[k], j), hi = edge(a[k], b[k], j + 1);
-        const double above = below + static_cast<double>(h[j + 1]);
+        const double above = below + h[j + 1];
         if (round == kRounds - 1 || std::nextafter(lo, hi) >= hi) {
           cut[k] = target[k] - below <= above - target[k] ? lo : hi;
           done[k] = 1;
@@ -341,10 +341,11 @@ bool Domain::rebalance(std::span<const Shape> shapes, std::span<const double> we
     mine += x;
     heaviest = std::max(heaviest, x);
   }
-  double most = 0, sum = 0, top = 0;
-  MPI_Allreduce(&mine, &most, 1, MPI_DOUBLE, MPI_MAX, comm_);
+  // The most loaded rank's weight and the heaviest object, in one reduction.
+  double local_max[2] = {mine, heaviest}, global_max[2] = {0, 0}, sum = 0;
+  MPI_Allreduce(local_max, global_max, 2, MPI_DOUBLE, MPI_MAX, comm_);
   MPI_Allreduce(&mine, &sum, 1, MPI_DOUBLE, MPI_SUM, comm_);
-  MPI_Allreduce(&heaviest, &top, 1, MPI_DOUBLE, MPI_MAX, comm_);
+  const double most = global_max[0], top = global_max[1];
   const double mean = sum / size_;
   // One object above the mean is the best cuts can do (8 objects on 8
   // ranks, objects on one point): no rebuild for that.
