@@ -273,6 +273,11 @@ constexpr double kCompactFraction = 0.1;
 // with 2, 160 020 with 3; own memory 88, 89, 81, 82 B/object.
 constexpr double kAheadFactor = 2.0;
 constexpr double kAheadSkins = 4.0;
+// A call copies the shapes into the rows' order when at least one object in
+// this many changed.
+constexpr std::size_t kGatherShare = 8;
+// The scan asks for the shapes of the partners this many rows ahead.
+constexpr std::size_t kPrefetchRows = 8;
 
 namespace {
 
@@ -303,7 +308,12 @@ struct PairTracker::Impl {
   // Per object: its bounds when it was last (re)placed, fattened by the
   // skin. While every object's bounds stay inside its fat box, every
   // overlapping pair is among the candidates (pairs of overlapping fat boxes).
+  // Kept in the grid's probe order, object i's at place[i]: a renewal's
+  // query reads the boxes of neighbours in space from memory close together
+  // (kept by object, they were a cache miss per box the query tested, half
+  // of a renewal at scaled-even 1 024 000).
   std::vector<AabbF> fat;
+  std::vector<std::uint32_t> place;
   // The grid of the fat boxes at the last build (or compaction), kept to
   // find the partners of renewed objects; slimmed to object indices that
   // read their boxes from `fat` (4 bytes an object instead of 28). Renewed
@@ -312,9 +322,15 @@ struct PairTracker::Impl {
   // Candidates of the last build in rows, one row per object in the grid's
   // probe order (so that a row's neighbours in memory are its neighbours in
   // space): row k belongs to grid.probe_object(k) and holds
-  // partner[offset[k] .. offset[k+1]). Entries with a renewed object are dead.
+  // partner[offset[k] .. offset[k+1]), each the partner's place (its row),
+  // so that the partners' data kept in the rows' order is read as a few
+  // streams, not by a lookup per entry. Entries with a renewed object are
+  // dead.
   std::vector<std::uint32_t> offset;
   std::vector<std::uint32_t> partner;
+  std::uint32_t partner_object(std::uint32_t entry) const {
+    return grid.probe_object(entry & kIndexMask);
+  }
   // Objects renewed since the last build (left their fat box and got a new
   // one): a bit each, and their list. Every candidate pair with a renewed
   // object is in `loose`, once.
@@ -322,8 +338,13 @@ struct PairTracker::Impl {
   std::vector<std::uint32_t> renewed_list;
   std::vector<LoosePair> loose;
 
+  AabbF& fat_of(std::uint32_t i) { return fat[place[i]]; }
+  const AabbF& fat_of(std::uint32_t i) const { return fat[place[i]]; }
   double margin(const Objects& o) const;
   void rebuild(const Objects& o);
+  // Takes the fat boxes (by object) into `fat` and `place` in the grid's
+  // probe order, and slims the grid over them.
+  void adopt(const std::vector<AabbF>& by_object);
   // Renews the objects in `leave` (distinct, sorted).
   void renew(const std::vector<std::uint32_t>& leave);
   // Folds the loose pairs into the rows and drops the dead entries.
@@ -361,7 +382,7 @@ struct PairTracker::Impl {
   bool is_renewed(std::uint32_t k) const { return test_bit(renewed, k); }
   bool contained(const Objects& o, std::uint32_t i) const {
     const AabbF b = bounds_f(read_shape(o, i));
-    const AabbF& f = fat[i];
+    const AabbF& f = fat_of(i);
     return f.lo[0] <= b.lo[0] && f.lo[1] <= b.lo[1] && f.lo[2] <= b.lo[2] && b.hi[0] <= f.hi[0] &&
            b.hi[1] <= f.hi[1] && b.hi[2] <= f.hi[2];
   }
@@ -384,11 +405,10 @@ double PairTracker::Impl::margin(const Objects& o) const {
 void PairTracker::Impl::rebuild(const Objects& o) {
   const std::size_t n = o.count;
   margin_used = margin(o);
-  fat.resize(n);
-  fat.shrink_to_fit();
-  for (std::size_t i = 0; i < n; ++i) fat[i] = fat_box(o.shape(i));
+  std::vector<AabbF> boxes(n);
+  for (std::size_t i = 0; i < n; ++i) boxes[i] = fat_box(o.shape(i));
   grid = ArrayGrid{};
-  grid.build(fat);
+  grid.build(boxes);
   struct Lists {
     std::vector<std::uint32_t> counts;
     std::vector<std::uint32_t> partners;
@@ -404,7 +424,11 @@ void PairTracker::Impl::rebuild(const Objects& o) {
         out.partners.clear();
         for (std::size_t k = begin; k < end; ++k) {
           const std::size_t before = out.partners.size();
-          grid.probe(k, [&](std::uint32_t j) { out.partners.push_back(j); });
+          // A big object's partners have no place yet: their indices
+          // until `adopt` gives them one below.
+          grid.probe(k, [&](std::uint32_t j, std::uint32_t at) {
+            out.partners.push_back(at == ArrayGrid::kNoPlace ? j : at);
+          });
           out.counts.push_back(static_cast<std::uint32_t>(out.partners.size() - before));
         }
       },
@@ -417,7 +441,9 @@ void PairTracker::Impl::rebuild(const Objects& o) {
         return true;
       });
   partner.shrink_to_fit();
-  grid.slim();
+  adopt(boxes);
+  for (std::size_t k = rows - grid.big().size(); k < rows; ++k)
+    for (std::uint32_t p = offset[k]; p < offset[k + 1]; ++p) partner[p] = place[partner[p]];
   renewed.assign((n + 63) / 64, 0);
   renewed.shrink_to_fit();
   renewed_list.clear();
@@ -427,6 +453,20 @@ void PairTracker::Impl::rebuild(const Objects& o) {
   count = n;
   built = true;
   fresh = true;
+}
+
+void PairTracker::Impl::adopt(const std::vector<AabbF>& by_object) {
+  const std::size_t n = by_object.size();
+  fat.resize(n);
+  fat.shrink_to_fit();
+  place.resize(n);
+  place.shrink_to_fit();
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::uint32_t i = grid.probe_object(k);
+    place[i] = static_cast<std::uint32_t>(k);
+    fat[k] = by_object[i];
+  }
+  grid.slim(fat);
 }
 
 void PairTracker::Impl::renew(const std::vector<std::uint32_t>& leave) {
@@ -445,8 +485,13 @@ void PairTracker::Impl::renew(const std::vector<std::uint32_t>& leave) {
     loose.push_back({q.i, q.j});
   };
   // Partners that were not renewed: the kept grid holds their fat boxes.
-  for (std::uint32_t i : leave)
-    grid.query(fat[i], [&](std::uint32_t j) {
+  // Queried in the probe order, one query reads much of the memory the
+  // last one read.
+  std::vector<std::uint32_t> by_place(leave);
+  std::sort(by_place.begin(), by_place.end(),
+            [&](std::uint32_t p, std::uint32_t q) { return place[p] < place[q]; });
+  for (std::uint32_t i : by_place)
+    grid.query(fat_of(i), [&](std::uint32_t j) {
       if (j != i && !is_renewed(j)) add(i, j);
     });
   // Partners among the renewed ones (this call's included, each pair once:
@@ -457,15 +502,15 @@ void PairTracker::Impl::renew(const std::vector<std::uint32_t>& leave) {
   if (renewed_list.size() <= 64) {
     for (std::uint32_t i : leave)
       for (std::uint32_t j : renewed_list)
-        if (wanted(i, j) && fat[i].overlaps(fat[j])) add(i, j);
+        if (wanted(i, j) && fat_of(i).overlaps(fat_of(j))) add(i, j);
     return;
   }
   std::vector<AabbF> boxes(renewed_list.size());
-  for (std::size_t k = 0; k < boxes.size(); ++k) boxes[k] = fat[renewed_list[k]];
+  for (std::size_t k = 0; k < boxes.size(); ++k) boxes[k] = fat_of(renewed_list[k]);
   ArrayGrid loose_grid;
   loose_grid.build(boxes);
   for (std::uint32_t i : leave)
-    loose_grid.query(fat[i], [&](std::uint32_t k) {
+    loose_grid.query(fat_of(i), [&](std::uint32_t k) {
       const std::uint32_t j = renewed_list[k];
       if (wanted(i, j)) add(i, j);
     });
@@ -484,16 +529,19 @@ void PairTracker::Impl::compact() {
     if (is_renewed(i)) continue;
     std::uint32_t c = 0;
     for (std::uint32_t p = offset[k]; p < offset[k + 1]; ++p)
-      c += is_renewed(partner[p] & kIndexMask) ? 0 : 1;
+      c += is_renewed(partner_object(partner[p])) ? 0 : 1;
     cursor[i] = c;
   }
   for (const LoosePair& lp : loose) ++cursor[lp.a];
+  std::vector<AabbF> by_object(count);
+  for (std::size_t k = 0; k < rows; ++k) by_object[grid.probe_object(k)] = fat[k];
   ArrayGrid next;
-  next.build(fat);
-  next.slim();
+  next.build(by_object);
   std::vector<std::uint32_t> next_offset(rows + 1, 0);
+  std::vector<std::uint32_t> next_place(count);
   for (std::size_t k = 0; k < rows; ++k) {
     const std::uint32_t i = next.probe_object(k);
+    next_place[i] = static_cast<std::uint32_t>(k);
     next_offset[k + 1] = next_offset[k] + cursor[i];
     cursor[i] = next_offset[k];
   }
@@ -502,10 +550,13 @@ void PairTracker::Impl::compact() {
     const std::uint32_t i = grid.probe_object(k);
     if (is_renewed(i)) continue;
     for (std::uint32_t p = offset[k]; p < offset[k + 1]; ++p)
-      if (!is_renewed(partner[p] & kIndexMask)) next_partner[cursor[i]++] = partner[p];
+      if (const std::uint32_t j = partner_object(partner[p]); !is_renewed(j))
+        next_partner[cursor[i]++] = next_place[j] | (partner[p] & kOverlapBit);
   }
-  for (const LoosePair& lp : loose) next_partner[cursor[lp.a]++] = lp.b;
+  for (const LoosePair& lp : loose)
+    next_partner[cursor[lp.a]++] = next_place[lp.b & kIndexMask] | (lp.b & kOverlapBit);
   grid = std::move(next);
+  adopt(by_object);
   offset = std::move(next_offset);
   partner = std::move(next_partner);
   std::fill(renewed.begin(), renewed.end(), 0);
@@ -565,7 +616,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
     im.rebuild(objects);
     stats.rebuilt = true;
   } else if (!leave.empty()) {
-    for (std::uint32_t i : leave) im.fat[i] = im.renewed_box(objects.shape(i), im.fat[i]);
+    for (std::uint32_t i : leave) im.fat_of(i) = im.renewed_box(objects.shape(i), im.fat_of(i));
     im.renew(leave);
     stats.renewed = leave.size();
     if (im.wants_compaction()) {
@@ -592,62 +643,91 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   const bool any_renewed = !im.renewed_list.empty();
   Emitter emit(sink, im.options.sorted, stats);
   const unsigned threads = thread_count(im.options.threads);
-  const bool go_on = run_in_order<PairChunk>(
-      rows, threads,
-      [&](std::size_t begin, std::size_t end, PairChunk& out) {
-        out.pairs.clear();
-        out.tests = 0;
-        for (std::size_t k = begin; k < end; ++k) {
-          const std::uint32_t s = im.offset[k], e = im.offset[k + 1];
-          if (s == e) continue;
-          const std::uint32_t i = im.grid.probe_object(k);
-          if (any_renewed && im.is_renewed(i)) continue;  // its pairs are loose
-          const bool i_changed = is_changed(i);
-          Shape si;
-          bool si_read = false;
-          for (std::uint32_t p = s; p < e; ++p) {
-            std::uint32_t& entry = im.partner[p];
-            const std::uint32_t j = entry & kIndexMask;
-            if (any_renewed && im.is_renewed(j)) continue;
-            bool hit;
-            if (i_changed || is_changed(j)) {
-              if (!si_read) {
-                si = read_shape(objects, i);
-                si_read = true;
-              }
-              ++out.tests;
-              hit = overlaps(si, read_shape(objects, j));
-              entry = j | (hit ? kOverlapBit : 0);
-            } else {
-              hit = (entry & kOverlapBit) != 0;
-            }
-            if (hit) out.pairs.push_back(ordered(i, j));
-          }
-        }
-      },
-      [&](PairChunk& c) { return emit.deliver(c); });
-  // The renewed objects' candidates, in the order they were found.
-  if (go_on)
-    run_in_order<PairChunk>(
-        im.loose.size(), threads,
+  // The scan over the rows, then over the renewed objects' candidates in
+  // the order they were found, with shapes from `rd`.
+  auto scan = [&](const auto& rd) {
+    const bool go_on = run_in_order<PairChunk>(
+        rows, threads,
         [&](std::size_t begin, std::size_t end, PairChunk& out) {
           out.pairs.clear();
           out.tests = 0;
-          for (std::size_t p = begin; p < end; ++p) {
-            LoosePair& lp = im.loose[p];
-            const std::uint32_t i = lp.a, j = lp.b & kIndexMask;
-            bool hit;
-            if (is_changed(i) || is_changed(j)) {
-              ++out.tests;
-              hit = overlaps(read_shape(objects, i), read_shape(objects, j));
-              lp.b = j | (hit ? kOverlapBit : 0);
-            } else {
-              hit = (lp.b & kOverlapBit) != 0;
+          for (std::size_t k = begin; k < end; ++k) {
+            if (k + kPrefetchRows < rows)
+              for (std::uint32_t p = im.offset[k + kPrefetchRows];
+                   p < im.offset[k + kPrefetchRows + 1]; ++p)
+                rd.prefetch(im.partner[p] & kIndexMask);
+            const std::uint32_t s = im.offset[k], e = im.offset[k + 1];
+            if (s == e) continue;
+            const std::uint32_t i = im.grid.probe_object(k);
+            if (any_renewed && im.is_renewed(i)) continue;  // its pairs are loose
+            const bool i_changed = is_changed(i);
+            for (std::uint32_t p = s; p < e; ++p) {
+              std::uint32_t& entry = im.partner[p];
+              const std::uint32_t q = entry & kIndexMask;
+              const std::uint32_t j = im.grid.probe_object(q);
+              if (any_renewed && im.is_renewed(j)) continue;
+              bool hit;
+              if (i_changed || is_changed(j)) {
+                ++out.tests;
+                hit = overlaps(rd.row(k, i), rd.row(q, j));
+                entry = q | (hit ? kOverlapBit : 0);
+              } else {
+                hit = (entry & kOverlapBit) != 0;
+              }
+              if (hit) out.pairs.push_back(ordered(i, j));
             }
-            if (hit) out.pairs.push_back({i, j});
           }
         },
         [&](PairChunk& c) { return emit.deliver(c); });
+    if (go_on)
+      run_in_order<PairChunk>(
+          im.loose.size(), threads,
+          [&](std::size_t begin, std::size_t end, PairChunk& out) {
+            out.pairs.clear();
+            out.tests = 0;
+            for (std::size_t p = begin; p < end; ++p) {
+              LoosePair& lp = im.loose[p];
+              const std::uint32_t i = lp.a, j = lp.b & kIndexMask;
+              bool hit;
+              if (is_changed(i) || is_changed(j)) {
+                ++out.tests;
+                hit = overlaps(rd.object(i), rd.object(j));
+                lp.b = j | (hit ? kOverlapBit : 0);
+              } else {
+                hit = (lp.b & kOverlapBit) != 0;
+              }
+              if (hit) out.pairs.push_back({i, j});
+            }
+          },
+          [&](PairChunk& c) { return emit.deliver(c); });
+  };
+  // When many objects changed, most objects take part in a test, and the
+  // tests' reads of the caller's columns (one cache miss a column, in the
+  // caller's order) dominate the call: the shapes are first copied, in one
+  // sequential pass over the columns, into the rows' order, where a row's
+  // partners lie near it (docs/arrays.md). With few changes, the tests
+  // read the columns directly.
+  const std::size_t changed_count = test_all ? objects.count : changes.indices.size();
+  if (changed_count * kGatherShare >= objects.count) {
+    detail::BigVector<Shape> now(rows);
+    for (std::uint32_t i = 0; i < n; ++i) now[im.place[i]] = read_shape(objects, i);
+    struct Gathered {
+      const Shape* now;
+      const std::uint32_t* place;
+      const Shape& row(std::size_t k, std::uint32_t) const { return now[k]; }  // k: the place
+      void prefetch(std::uint32_t q) const { __builtin_prefetch(now + q); }
+      const Shape& object(std::uint32_t j) const { return now[place[j]]; }
+    };
+    scan(Gathered{now.data(), im.place.data()});
+  } else {
+    struct Direct {
+      const Objects& o;
+      Shape row(std::size_t, std::uint32_t i) const { return read_shape(o, i); }
+      void prefetch(std::uint32_t) const {}
+      Shape object(std::uint32_t j) const { return read_shape(o, j); }
+    };
+    scan(Direct{objects});
+  }
   emit.finish();
   im.fresh = stats.stopped;
   return stats;
@@ -662,7 +742,8 @@ std::size_t PairTracker::memory_bytes() const {
   const Impl& im = *impl_;
   return sizeof(Impl) + im.fat.capacity() * sizeof(AabbF) + im.grid.memory_bytes() +
          im.grid.slim_bytes() +
-         (im.offset.capacity() + im.partner.capacity() + im.renewed_list.capacity()) *
+         (im.place.capacity() + im.offset.capacity() + im.partner.capacity() +
+          im.renewed_list.capacity()) *
              sizeof(std::uint32_t) +
          im.renewed.capacity() * sizeof(std::uint64_t) + im.loose.capacity() * sizeof(LoosePair);
 }
@@ -679,7 +760,7 @@ void PairTracker::validate(const Objects& objects) const {
   if (!im.built) return;
   if (im.count != objects.count) fail("count differs from the last call's objects");
   const std::size_t n = im.count;
-  if (im.fat.size() != n) fail("one fat box per object");
+  if (im.fat.size() != n || im.place.size() != n) fail("one fat box and place per object");
   const std::size_t rows = im.grid.probe_count();
   if (rows != n) fail("one candidate row per object");
   if (im.offset.size() != rows + 1 || im.offset[0] != 0 || im.offset[rows] != im.partner.size())
@@ -706,7 +787,7 @@ void PairTracker::validate(const Objects& objects) const {
     if (!seen.insert((std::uint64_t(q.i) << 32) | q.j).second)
       fail("candidate pair (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
            ") listed twice");
-    if (!im.fat[i].overlaps(im.fat[j]))
+    if (!im.fat_of(i).overlaps(im.fat_of(j)))
       fail("candidate pair (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
            ") has fat boxes apart");
     if (!im.fresh && ((entry & kOverlapBit) != 0) != overlaps(objects.shape(i), objects.shape(j)))
@@ -716,14 +797,18 @@ void PairTracker::validate(const Objects& objects) const {
   for (std::size_t k = 0; k < rows; ++k) {
     const std::uint32_t i = im.grid.probe_object(k);
     if (i >= n || has_row[i]) fail("row " + std::to_string(k) + " has a bad or repeated owner");
+    if (im.place[i] != k) fail("object " + std::to_string(i) + " is not at its row's place");
     has_row[i] = 1;
     if (im.offset[k] > im.offset[k + 1]) fail("candidate offsets decrease at " + std::to_string(k));
     if (!im.contained(objects, i))
       fail("object " + std::to_string(i) + " lies outside its fat box");
     if (im.is_renewed(i)) continue;  // dead row
     for (std::uint32_t p = im.offset[k]; p < im.offset[k + 1]; ++p) {
-      if (im.is_renewed(im.partner[p] & kIndexMask)) continue;  // dead entry
-      check_pair(i, im.partner[p]);
+      if ((im.partner[p] & kIndexMask) >= rows)
+        fail("candidate place out of range at " + std::to_string(k));
+      const std::uint32_t j = im.partner_object(im.partner[p]);
+      if (im.is_renewed(j)) continue;  // dead entry
+      check_pair(i, j | (im.partner[p] & kOverlapBit));
     }
   }
   for (const LoosePair& lp : im.loose) {
@@ -741,7 +826,7 @@ void PairTracker::validate(const Objects& objects) const {
   if (n <= 3000)
     for (std::uint32_t i = 0; i < n; ++i)
       for (std::uint32_t j = i + 1; j < n; ++j)
-        if (im.fat[i].overlaps(im.fat[j]) && !seen.count((std::uint64_t(i) << 32) | j))
+        if (im.fat_of(i).overlaps(im.fat_of(j)) && !seen.count((std::uint64_t(i) << 32) | j))
           fail("overlapping fat boxes of " + std::to_string(i) + " and " + std::to_string(j) +
                " are not candidates");
 }

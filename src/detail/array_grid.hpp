@@ -71,13 +71,18 @@ class ArrayGrid {
   }
 
   /// Keeps only the entries' object indices (4 bytes an object instead of
-  /// 28): `query` then reads the boxes from the span given to `build`, which
-  /// must stay valid. `probe` and `probe_box` are then unavailable, and the
-  /// grid is not built again (assign a new one instead).
-  void slim() {
+  /// 28): `query` then reads the boxes from `by_place`, the box of
+  /// probe_object(k) at k for every k < probe_count(), which the caller keeps
+  /// valid (and may change: a query then tests the changed box, though it
+  /// finds the object only in the cells of its box at the build). In the
+  /// probing order, a query's boxes lie together in memory, as in the
+  /// entries. `probe` and `probe_box` are then unavailable, and the grid is
+  /// not built again (assign a new one instead).
+  void slim(std::span<const AabbF> by_place) {
     slim_.resize(entries_.size());
     for (std::size_t k = 0; k < entries_.size(); ++k) slim_[k] = entries_[k].index;
     BigVector<GridEntry>().swap(entries_);  // `= {}` would keep the capacity
+    boxes_ = by_place;
     slimmed_ = true;
   }
   /// Bytes of the index kept by `slim` (not in `memory_bytes`).
@@ -155,15 +160,15 @@ class ArrayGrid {
   BigVector<GridEntry> entries_;
   std::vector<std::uint32_t> big_;
   std::vector<std::uint64_t> summary_;  // a bit per block of cells, hashed levels
-  std::span<const AabbF> boxes_;        // the boxes of the last build (for big probes)
-  std::vector<std::uint32_t> slim_;     // the entries' objects, after `slim`
+  // The boxes of the last build by object (for big probes), or after
+  // `slim` by place.
+  std::span<const AabbF> boxes_;
+  std::vector<std::uint32_t> slim_;  // the entries' objects, after `slim`
   bool slimmed_ = false;
 
   std::size_t placed() const { return slimmed_ ? slim_.size() : entries_.size(); }
   std::uint32_t entry_index(std::size_t k) const { return slimmed_ ? slim_[k] : entries_[k].index; }
-  const AabbF& entry_box(std::size_t k) const {
-    return slimmed_ ? boxes_[slim_[k]] : entries_[k].box;
-  }
+  const AabbF& entry_box(std::size_t k) const { return slimmed_ ? boxes_[k] : entries_[k].box; }
 };
 
 inline std::int64_t ArrayGrid::cell(double x, double inv) {
@@ -264,8 +269,8 @@ void ArrayGrid::probe(std::size_t k, Visit&& visit) const {
 
 template <class Visit>
 void ArrayGrid::query(const AabbF& box, Visit&& visit) const {
-  for (std::uint32_t j : big_)
-    if (box.overlaps(boxes_[j])) visit(j);
+  for (std::size_t b = 0; b < big_.size(); ++b)
+    if (box.overlaps(slimmed_ ? boxes_[placed() + b] : boxes_[big_[b]])) visit(big_[b]);
   for (const Level& lv : levels_) {
     if (lv.count == 0) continue;
     scan_block(lv, box, block(box, lv), [&](std::uint32_t p) { visit(entry_index(p)); });
