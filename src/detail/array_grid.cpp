@@ -13,6 +13,9 @@ namespace {
 // spans at most 3 cells per axis. Levels above the base: 2^40 times the smallest cell covers any
 // spread of sizes a finite float box set can sensibly have; wider objects are "big".
 constexpr int kMaxLevels = 40;
+// A hashed level is laid out row by row, wrapped, when its occupied cells
+// are at most 2^kWrapBits times its buckets (see `build`).
+constexpr int kWrapBits = 3;
 
 double widest_side(const AabbF& b) {
   double w = 0;
@@ -144,6 +147,22 @@ void ArrayGrid::build(std::span<const AabbF> boxes, std::uint32_t dense) {
                         static_cast<std::uint64_t>(span[k][4] - 2) * lv.kz);
         lv.dense = true;
         size = std::uint32_t{1} << total;
+      } else if (const int m = std::bit_width(size) - 1;
+                 bits[0] + bits[1] <= m && total <= m + kWrapBits) {
+        // Too many cells for a bucket each, but few enough: the same row by
+        // row layout wrapped around the buckets, so that z-slabs
+        // 2^(m - bits x - bits y) apart share buckets (at most
+        // 2^kWrapBits cells a bucket, by construction, whatever the
+        // occupancy). Rows of cells next to each other in y and z stay
+        // in buckets at fixed distances, and probing in bucket order reads
+        // the 9 rows of a block as 9 streams; odd multipliers sent each row
+        // to a cold bucket (the tracker's scan and renewals at scaled-even
+        // 1 024 000, where the level of a third of the objects is hashed).
+        lv.ky = std::uint64_t{1} << bits[0];
+        lv.kz = std::uint64_t{1} << (bits[0] + bits[1]);
+        lv.shift = 0 - (static_cast<std::uint64_t>(span[k][0] - 2) +
+                        static_cast<std::uint64_t>(span[k][2] - 2) * lv.ky +
+                        static_cast<std::uint64_t>(span[k][4] - 2) * lv.kz);
       }
       for (int a = 0; a < 3; ++a) {
         lv.lo[a] = span[k][2 * a];
@@ -174,7 +193,8 @@ void ArrayGrid::build(std::span<const AabbF> boxes, std::uint32_t dense) {
     for (int dx = -2; dx <= 2; ++dx)
       for (int dy = -2; dy <= 2; ++dy)
         for (int dz = -2; dz <= 2; ++dz)
-          if ((dx || dy || dz) && (hash(lv, dx, dy, dz) & lv.mask) == 0) lv.distinct = false;
+          if ((dx || dy || dz) && ((hash(lv, dx, dy, dz) - hash(lv, 0, 0, 0)) & lv.mask) == 0)
+            lv.distinct = false;  // (the hash's shift cancels)
     buckets += size;
     levels_.push_back(lv);
   }

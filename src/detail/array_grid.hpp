@@ -315,8 +315,13 @@ void ArrayGrid::scan_block(const Level& lv, const AabbF& box, const Block& blk, 
       take(p);
     }
   };
+  // A query wider than a probe's block on a hashed level (a big box on a
+  // fine level: up to 100 rows) asks the summary before each row, whose
+  // bucket would be a cache miss (renewals at scaled-even 1 024 000).
+  const bool ask_rows = !lv.dense && (y1 - y0 + 1) * (z1 - z0 + 1) > 9;
   for (std::int64_t cz = z0; cz <= z1; ++cz)
     for (std::int64_t cy = y0; cy <= y1; ++cy) {
+      if (ask_rows && !may_hold(lv, x0, x1, cy, cy, cz, cz)) continue;
       const std::uint32_t h = hash(lv, x0, cy, cz) & lv.mask;
       if (h + len <= size) {
         run(st[h], st[h + len], cy, cz);
