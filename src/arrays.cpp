@@ -38,6 +38,15 @@ unsigned thread_count(unsigned requested) {
   throw InvalidObjects(std::string(what) + "[" + std::to_string(i) + "]: " + why, i);
 }
 
+// Object i as a Shape, always inlined: perf showed GCC calling
+// Objects::shape out of line from the tracker's scan once the scan grew
+// (32% of a steady call told everything at scaled-even 1 024 000).
+[[gnu::always_inline]] inline Shape read_shape(const Objects& o, std::uint32_t i) {
+  const Vec3 c{o.x.at(i), o.y.at(i), o.z.at(i)};
+  if (o.is_sphere(i)) return Shape::sphere(c, o.radius.at(i));
+  return Shape::box(c, {o.half_x.at(i), o.half_y.at(i), o.half_z.at(i)});
+}
+
 // One set, or two concatenated (the bipartite calls): index k < na is
 // a's object k, the others b's object k - na.
 struct Source {
@@ -46,7 +55,10 @@ struct Source {
   std::size_t na = 0;
   std::size_t n = 0;
 
-  Shape shape(std::size_t k) const { return k < na ? a->shape(k) : b->shape(k - na); }
+  Shape shape(std::size_t k) const {
+    return k < na ? read_shape(*a, static_cast<std::uint32_t>(k))
+                  : read_shape(*b, static_cast<std::uint32_t>(k - na));
+  }
 };
 
 detail::BigVector<AabbF> float_bounds(const Source& src) {
@@ -127,8 +139,16 @@ ArrayCallStats one_shot(const Source& src, bool bipartite, const PairSink& sink,
   // The shapes in the probing order, so that a probe's exact tests read
   // its partners from nearby memory rather than from the caller's order
   // (perf at 1 000 000 spheres: 28% of the call on those reads before).
+  // Written in the caller's order from each object's place: the reads of
+  // the caller's columns are then sequential (a miss per column per object
+  // when read in the probing order).
   detail::BigVector<Shape> placed(grid.probe_count());
-  for (std::size_t k = 0; k < placed.size(); ++k) placed[k] = src.shape(grid.probe_object(k));
+  {
+    detail::BigVector<std::uint32_t> at(src.n);
+    for (std::size_t k = 0; k < placed.size(); ++k)
+      at[grid.probe_object(k)] = static_cast<std::uint32_t>(k);
+    for (std::size_t i = 0; i < src.n; ++i) placed[at[i]] = src.shape(i);
+  }
   run_in_order<PairChunk>(
       grid.probe_count(), thread_count(options.threads),
       [&](std::size_t begin, std::size_t end, PairChunk& out) {
@@ -286,15 +306,6 @@ inline bool test_bit(const std::vector<std::uint64_t>& bits, std::uint32_t k) {
 }
 inline void set_bit(std::vector<std::uint64_t>& bits, std::uint32_t k) {
   bits[k >> 6] |= std::uint64_t{1} << (k & 63);
-}
-
-// Object i as a Shape, always inlined: perf showed GCC calling
-// Objects::shape out of line from the tracker's scan once the scan grew
-// (32% of a steady call told everything at scaled-even 1 024 000).
-[[gnu::always_inline]] inline Shape read_shape(const Objects& o, std::uint32_t i) {
-  const Vec3 c{o.x.at(i), o.y.at(i), o.z.at(i)};
-  if (o.is_sphere(i)) return Shape::sphere(c, o.radius.at(i));
-  return Shape::box(c, {o.half_x.at(i), o.half_y.at(i), o.half_z.at(i)});
 }
 
 }  // namespace
