@@ -293,6 +293,11 @@ constexpr double kCompactFraction = 0.1;
 // with 2, 160 020 with 3; own memory 88, 89, 81, 82 B/object.
 constexpr double kAheadFactor = 2.0;
 constexpr double kAheadSkins = 4.0;
+// An object's skin is at least this share of the skin relative to its own
+// size (the global skin is relative to the median size): objects much larger
+// than the median then keep their fat box longer (their renewals query every
+// finer level, the costliest).
+constexpr double kOwnSkinShare = 0.25;
 // A call copies the shapes into the rows' order when at least one object in
 // this many changed.
 constexpr std::size_t kGatherShare = 8;
@@ -316,6 +321,7 @@ struct PairTracker::Impl {
   bool fresh = false;  // rebuilt and not yet tested: every candidate is tested
   std::size_t count = 0;
   double margin_used = 0;  // the skin as a distance, fixed at the last build
+  double rel_skin = 0;     // the skin relative to an object's own size
   // Per object: its bounds when it was last (re)placed, fattened by the
   // skin. While every object's bounds stay inside its fat box, every
   // overlapping pair is among the candidates (pairs of overlapping fat boxes).
@@ -367,7 +373,7 @@ struct PairTracker::Impl {
   }
   AabbF fat_box(const Shape& s) const {
     const Aabb b = bounds(s);
-    const double m = margin_used;
+    const double m = std::max(margin_used, rel_skin * s.max_half());
     return {{round_down(b.lo.x - m), round_down(b.lo.y - m), round_down(b.lo.z - m)},
             {round_up(b.hi.x + m), round_up(b.hi.y + m), round_up(b.hi.z + m)}};
   }
@@ -416,6 +422,7 @@ double PairTracker::Impl::margin(const Objects& o) const {
 void PairTracker::Impl::rebuild(const Objects& o) {
   const std::size_t n = o.count;
   margin_used = margin(o);
+  rel_skin = kOwnSkinShare * (options.skin > 0 ? options.skin : 0.25);
   std::vector<AabbF> boxes(n);
   for (std::size_t i = 0; i < n; ++i) boxes[i] = fat_box(o.shape(i));
   grid = ArrayGrid{};

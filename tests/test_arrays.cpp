@@ -501,6 +501,30 @@ TEST(Arrays, TrackerReusesItsWorkUnderSmallMotion) {
 // A few objects leave their skin on every call: they are renewed alone
 // (no rebuild), and the candidates stay complete and exact call after call
 // (validate checks the renewed objects' loose pairs and the kept grid).
+// An object far larger than the median keeps a skin of a share of its own
+// size: a slow drift of a few skins of the median does not renew it (its
+// renewal would query every finer level), and the pairs stay exact.
+TEST(Arrays, LargeObjectsKeepASkinOfTheirOwnSize) {
+  Rng rng(31);
+  std::vector<Shape> shapes = random_world(World::spheres, 2000, rng);
+  for (Shape& s : shapes) s.half = {0.5, 0.5, 0.5};  // the median size
+  const auto big = static_cast<std::uint32_t>(shapes.size());
+  shapes.push_back(Shape::sphere({10, 10, 10}, 100));
+  PairTracker tracker;  // skin 0.25 of the median half-extent: 0.125
+  std::vector<IndexPair> got;
+  tracker.find_pairs(Storage(shapes, Layout::soa_double).objects, got);
+  for (int frame = 1; frame <= 4; ++frame) {
+    shapes[big].center.x += 1;  // 8 median skins a frame, 1% of its own size
+    Storage st(shapes, Layout::soa_double);
+    got.clear();
+    const std::vector<std::uint32_t> moved{big};
+    const auto stats = tracker.find_pairs(st.objects, got, Changes::only(moved));
+    EXPECT_EQ(stats.renewed, 0u) << "frame " << frame;
+    ASSERT_EQ(sorted(got), oracle(st.objects)) << "frame " << frame;
+    ASSERT_NO_THROW(tracker.validate(st.objects));
+  }
+}
+
 TEST(Arrays, TrackerRenewsObjectsThatLeaveTheirSkin) {
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(4)); ++seed) {
     Rng rng(seed * 104729);
