@@ -15,9 +15,13 @@ frames=${3:-3}
 bin=${BROADPHASE_MPI:-build/apps/broadphase-mpi/broadphase-mpi}
 mkdir -p "$out"
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+# --bind-to none: mpirun binds a lone rank to core 0, so the two one-rank
+# runs of the ceiling, started by two mpiruns, shared core 0 (the ceiling of
+# the run of 2026-11-25 was one core time-shared: 40% efficiency). Unbound,
+# the system spreads them, and the two-rank runs alike.
 run() {  # run FILE RANKS ARGS...
   local f=$1 p=$2; shift 2
-  timeout 3000 mpirun --oversubscribe -np "$p" "$bin" run --json "$@" >"$out/$f"
+  timeout 3000 mpirun --oversubscribe --bind-to none -np "$p" "$bin" run --json "$@" >"$out/$f"
   echo "$(date -u +%T) $f done" >&2
 }
 uptime >"$out/load.txt"
