@@ -139,30 +139,28 @@ void ArrayGrid::build(std::span<const AabbF> boxes, std::uint32_t dense) {
         bits[a] = std::bit_width(extent - 1);
       }
       const int total = bits[0] + bits[1] + bits[2];
-      if (total <= 30 && (std::uint64_t{1} << total) <= std::uint64_t{dense} * size) {
+      // Dense: one bucket per cell of the occupied span. Wrapped: too many
+      // cells for a bucket each, but few enough for the same row by row
+      // layout wrapped around the buckets, so that z-slabs
+      // 2^(m - bits x - bits y) apart share buckets (at most 2^kWrapBits
+      // cells a bucket, by construction, whatever the occupancy). Either
+      // way rows of cells next to each other in y and z sit in buckets at
+      // fixed distances, and probing in bucket order reads the 9 rows of a
+      // block as 9 streams; odd multipliers sent each row to a cold bucket
+      // (the tracker's scan and renewals at scaled-even 1 024 000, where the
+      // level of a third of the objects is hashed).
+      const int m = std::bit_width(size) - 1;
+      const bool fits = total <= 30 && (std::uint64_t{1} << total) <= std::uint64_t{dense} * size;
+      if (fits || (bits[0] + bits[1] <= m && total <= m + kWrapBits)) {
         lv.ky = std::uint64_t{1} << bits[0];
         lv.kz = std::uint64_t{1} << (bits[0] + bits[1]);
         lv.shift = 0 - (static_cast<std::uint64_t>(span[k][0] - 2) +
                         static_cast<std::uint64_t>(span[k][2] - 2) * lv.ky +
                         static_cast<std::uint64_t>(span[k][4] - 2) * lv.kz);
+      }
+      if (fits) {
         lv.dense = true;
         size = std::uint32_t{1} << total;
-      } else if (const int m = std::bit_width(size) - 1;
-                 bits[0] + bits[1] <= m && total <= m + kWrapBits) {
-        // Too many cells for a bucket each, but few enough: the same row by
-        // row layout wrapped around the buckets, so that z-slabs
-        // 2^(m - bits x - bits y) apart share buckets (at most
-        // 2^kWrapBits cells a bucket, by construction, whatever the
-        // occupancy). Rows of cells next to each other in y and z stay
-        // in buckets at fixed distances, and probing in bucket order reads
-        // the 9 rows of a block as 9 streams; odd multipliers sent each row
-        // to a cold bucket (the tracker's scan and renewals at scaled-even
-        // 1 024 000, where the level of a third of the objects is hashed).
-        lv.ky = std::uint64_t{1} << bits[0];
-        lv.kz = std::uint64_t{1} << (bits[0] + bits[1]);
-        lv.shift = 0 - (static_cast<std::uint64_t>(span[k][0] - 2) +
-                        static_cast<std::uint64_t>(span[k][2] - 2) * lv.ky +
-                        static_cast<std::uint64_t>(span[k][4] - 2) * lv.kz);
       }
       for (int a = 0; a < 3; ++a) {
         lv.lo[a] = span[k][2 * a];
