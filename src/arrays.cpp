@@ -2,6 +2,7 @@
 // grid of float boxes built per call (one-shot) or over skin-fattened boxes
 // kept between calls (the tracker), exact tests read from the caller's data.
 #include <algorithm>
+#include <bit>
 #include <broadphase/arrays.hpp>
 #include <broadphase/handle.hpp>
 #include <cmath>
@@ -80,18 +81,23 @@ class Emitter {
 
   bool deliver(PairChunk& c) {
     stats_.tests += c.tests;
-    stats_.pairs += c.pairs.size();
+    return deliver(std::span<const IndexPair>(c.pairs));
+  }
+  // Pairs the caller keeps valid until the sink returns (no copy).
+  bool deliver(std::span<const IndexPair> pairs) {
+    stats_.pairs += pairs.size();
     if (sorted_) {
-      all_.insert(all_.end(), c.pairs.begin(), c.pairs.end());
+      all_.insert(all_.end(), pairs.begin(), pairs.end());
       return true;
     }
-    if (c.pairs.empty()) return true;
-    if (!sink_(std::span<const IndexPair>(c.pairs))) {
+    if (pairs.empty()) return true;
+    if (!sink_(pairs)) {
       stats_.stopped = true;
       return false;
     }
     return true;
   }
+  bool stopped() const { return stats_.stopped; }
   void finish() {
     if (!sorted_ || stats_.stopped) return;
     std::sort(all_.begin(), all_.end(), [](const IndexPair& p, const IndexPair& q) {
@@ -285,7 +291,7 @@ struct LoosePair {
 constexpr double kRebuildFraction = 0.25;
 // Compaction folds the loose pairs into the rows once this fraction of the
 // objects is renewed, or the loose pairs (8 bytes each) take more than half
-// the rows' partner memory (docs/arrays.md).
+// the memory of the rows' partners and the quiet pairs (docs/arrays.md).
 constexpr double kCompactFraction = 0.1;
 // A renewed object's box reaches ahead by this times its last displacement,
 // if that was at most kAheadSkins skins. Renewals over 16 frames at
@@ -301,6 +307,9 @@ constexpr double kOwnSkinShare = 0.25;
 // A call copies the shapes into the rows' order when at least one object in
 // this many changed.
 constexpr std::size_t kGatherShare = 8;
+// Objects become quiet after this many calls in a row that listed their
+// changes (at first; see PairTracker::Impl::quiet_after).
+constexpr std::uint32_t kQuietAfter = 2;
 // The scan asks for the shapes of the partners this many rows ahead.
 constexpr std::size_t kPrefetchRows = 8;
 
@@ -354,6 +363,30 @@ struct PairTracker::Impl {
   std::vector<std::uint64_t> renewed;
   std::vector<std::uint32_t> renewed_list;
   std::vector<LoosePair> loose;
+  // Quiet objects: unchanged when the candidates were last partitioned.
+  // A candidate pair of two quiet objects is not kept: when it overlapped,
+  // it is in `quiet_hits`, which a call hands over as it stands (grid-verlet
+  // does the same with the pairs among its fixed objects). A quiet object
+  // the caller changes is woken: renewed, so that its candidates are found
+  // again from the grid (its pairs in `quiet_hits` are then dead, as are
+  // its rows' entries). At scaled-even 1 024 000, four objects in five never
+  // move: their pairs are then copied, not scanned.
+  std::vector<std::uint64_t> quiet;
+  std::size_t quiet_count = 0;
+  std::vector<IndexPair> quiet_hits;
+  // A call that says everything may have changed wakes every quiet object
+  // (which costs a rebuild when they are many), so objects become quiet
+  // only after this many calls in a row that listed their changes, four
+  // times as many each time such a call woke quiet objects: a caller that
+  // mixes the two kinds of call pays a few rebuilds (2, 8, 32, ... listed
+  // calls apart), not one every few calls.
+  std::uint32_t listed_calls = 0;
+  std::uint32_t quiet_after = kQuietAfter;
+  bool is_quiet(std::uint32_t i) const { return !quiet.empty() && test_bit(quiet, i); }
+  // Makes every object that `changed` does not list quiet (the renewed
+  // list is empty, and the overlap bits of unchanged pairs hold).
+  void partition(const std::vector<std::uint64_t>& changed);
+  void set_quiet(const std::vector<std::uint64_t>& changed);
 
   AabbF& fat_of(std::uint32_t i) { return fat[place[i]]; }
   const AabbF& fat_of(std::uint32_t i) const { return fat[place[i]]; }
@@ -364,12 +397,14 @@ struct PairTracker::Impl {
   void adopt(const std::vector<AabbF>& by_object);
   // Renews the objects in `leave` (distinct, sorted).
   void renew(const std::vector<std::uint32_t>& leave);
-  // Folds the loose pairs into the rows and drops the dead entries.
-  void compact();
+  // Folds the loose pairs into the rows and drops the dead entries; with
+  // `changed`, partitions as it goes (the objects it does not list become
+  // quiet; the overlap bits of unchanged pairs hold).
+  void compact(const std::vector<std::uint64_t>* changed);
   bool wants_compaction() const {
     return static_cast<double>(renewed_list.size()) >
                kCompactFraction * static_cast<double>(count) ||
-           loose.size() * 4 > partner.size();
+           loose.size() * 4 > partner.size() + 2 * quiet_hits.size();
   }
   AabbF fat_box(const Shape& s) const {
     const Aabb b = bounds(s);
@@ -468,9 +503,47 @@ void PairTracker::Impl::rebuild(const Objects& o) {
   renewed_list.shrink_to_fit();
   loose.clear();
   loose.shrink_to_fit();
+  quiet.clear();
+  quiet.shrink_to_fit();
+  quiet_count = 0;
+  quiet_hits.clear();
+  quiet_hits.shrink_to_fit();
   count = n;
   built = true;
   fresh = true;
+}
+
+void PairTracker::Impl::set_quiet(const std::vector<std::uint64_t>& changed) {
+  quiet.resize(changed.size());
+  for (std::size_t w = 0; w < changed.size(); ++w) quiet[w] = ~changed[w];
+  if (count % 64 != 0) quiet.back() &= (std::uint64_t{1} << (count % 64)) - 1;
+  quiet_count = 0;
+  for (std::uint64_t w : quiet) quiet_count += static_cast<std::size_t>(std::popcount(w));
+}
+
+void PairTracker::Impl::partition(const std::vector<std::uint64_t>& changed) {
+  set_quiet(changed);
+  const std::size_t rows = offset.size() - 1;
+  std::uint32_t kept = 0;
+  for (std::size_t k = 0; k < rows; ++k) {
+    const std::uint32_t s = offset[k], e = offset[k + 1];
+    offset[k] = kept;
+    const std::uint32_t i = grid.probe_object(k);
+    const bool qi = test_bit(quiet, i);
+    for (std::uint32_t p = s; p < e; ++p) {
+      const std::uint32_t entry = partner[p];
+      const std::uint32_t j = partner_object(entry);
+      if (qi && test_bit(quiet, j)) {
+        if (entry & kOverlapBit) quiet_hits.push_back(ordered(i, j));
+      } else {
+        partner[kept++] = entry;
+      }
+    }
+  }
+  offset[rows] = kept;
+  partner.resize(kept);
+  partner.shrink_to_fit();
+  quiet_hits.shrink_to_fit();
 }
 
 void PairTracker::Impl::adopt(const std::vector<AabbF>& by_object) {
@@ -497,6 +570,10 @@ void PairTracker::Impl::renew(const std::vector<std::uint32_t>& leave) {
   for (std::uint32_t i : leave) {
     if (!is_renewed(i)) renewed_list.push_back(i);
     set_bit(renewed, i);
+    if (is_quiet(i)) {
+      quiet[i >> 6] &= ~(std::uint64_t{1} << (i & 63));
+      --quiet_count;
+    }
   }
   auto add = [&](std::uint32_t i, std::uint32_t j) {
     const IndexPair q = ordered(i, j);
@@ -539,18 +616,27 @@ void PairTracker::Impl::renew(const std::vector<std::uint32_t>& leave) {
 // pairs of the row's object (as the lower index). No probe, so it costs a
 // grid build and two passes over the candidates, against a probe of every
 // object for a rebuild.
-void PairTracker::Impl::compact() {
+void PairTracker::Impl::compact(const std::vector<std::uint64_t>* changed) {
   const std::size_t rows = grid.probe_count();
+  std::erase_if(quiet_hits, [&](const IndexPair& q) { return is_renewed(q.i) || is_renewed(q.j); });
+  if (changed != nullptr) set_quiet(*changed);
+  // With `changed`, the pairs of two quiet objects leave the rows (see
+  // `quiet`), as in `partition`.
+  auto both_quiet = [&](std::uint32_t i, std::uint32_t j) {
+    return changed != nullptr && test_bit(quiet, i) && test_bit(quiet, j);
+  };
   std::vector<std::uint32_t> cursor(count, 0);  // candidates per object, then where they go
   for (std::size_t k = 0; k < rows; ++k) {
     const std::uint32_t i = grid.probe_object(k);
     if (is_renewed(i)) continue;
     std::uint32_t c = 0;
-    for (std::uint32_t p = offset[k]; p < offset[k + 1]; ++p)
-      c += is_renewed(partner_object(partner[p])) ? 0 : 1;
+    for (std::uint32_t p = offset[k]; p < offset[k + 1]; ++p) {
+      const std::uint32_t j = partner_object(partner[p]);
+      c += is_renewed(j) || both_quiet(i, j) ? 0 : 1;
+    }
     cursor[i] = c;
   }
-  for (const LoosePair& lp : loose) ++cursor[lp.a];
+  for (const LoosePair& lp : loose) cursor[lp.a] += both_quiet(lp.a, lp.b & kIndexMask) ? 0 : 1;
   std::vector<AabbF> by_object(count);
   for (std::size_t k = 0; k < rows; ++k) by_object[grid.probe_object(k)] = fat[k];
   ArrayGrid next;
@@ -564,15 +650,21 @@ void PairTracker::Impl::compact() {
     cursor[i] = next_offset[k];
   }
   std::vector<std::uint32_t> next_partner(next_offset[rows]);
+  auto take = [&](std::uint32_t i, std::uint32_t j, std::uint32_t bit) {
+    if (!both_quiet(i, j))
+      next_partner[cursor[i]++] = next_place[j] | bit;
+    else if (bit != 0)
+      quiet_hits.push_back(ordered(i, j));
+  };
   for (std::size_t k = 0; k < rows; ++k) {
     const std::uint32_t i = grid.probe_object(k);
     if (is_renewed(i)) continue;
     for (std::uint32_t p = offset[k]; p < offset[k + 1]; ++p)
       if (const std::uint32_t j = partner_object(partner[p]); !is_renewed(j))
-        next_partner[cursor[i]++] = next_place[j] | (partner[p] & kOverlapBit);
+        take(i, j, partner[p] & kOverlapBit);
   }
-  for (const LoosePair& lp : loose)
-    next_partner[cursor[lp.a]++] = next_place[lp.b & kIndexMask] | (lp.b & kOverlapBit);
+  for (const LoosePair& lp : loose) take(lp.a, lp.b & kIndexMask, lp.b & kOverlapBit);
+  quiet_hits.shrink_to_fit();
   grid = std::move(next);
   adopt(by_object);
   offset = std::move(next_offset);
@@ -614,44 +706,75 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   // The objects that left their fat box: renewed alone, unless so many
   // left in this call that a rebuild is cheaper. (Renewal and compaction
   // run on the calling thread only.)
-  std::vector<std::uint32_t> leave;
-  if (!rebuild) {
-    if (changes.all) {
-      for (std::uint32_t i = 0; i < n; ++i)
-        if (!im.contained(objects, i)) leave.push_back(i);
-    } else {
-      std::vector<std::uint64_t> listed((n + 63) / 64, 0);
-      for (std::uint32_t k : changes.indices) {
-        if (test_bit(listed, k)) continue;
-        set_bit(listed, k);
-        if (!im.contained(objects, k)) leave.push_back(k);
-      }
-      std::sort(leave.begin(), leave.end());
-    }
-    rebuild = static_cast<double>(leave.size()) > kRebuildFraction * static_cast<double>(n);
-  }
-  if (rebuild) {
-    im.rebuild(objects);
-    stats.rebuilt = true;
-  } else if (!leave.empty()) {
-    for (std::uint32_t i : leave) im.fat_of(i) = im.renewed_box(objects.shape(i), im.fat_of(i));
-    im.renew(leave);
-    stats.renewed = leave.size();
-    if (im.wants_compaction()) {
-      im.compact();
-      stats.compacted = true;
-    }
-  }
-
   // Which objects changed: a pair of unchanged objects keeps the answer of
   // the last call (its bit), so only pairs with a changed object are tested.
   // (The renewed pairs of this call all have a changed object.)
-  const bool test_all = changes.all || im.fresh;
   std::vector<std::uint64_t> changed;
-  if (!test_all) {
+  std::size_t changed_count = n;
+  if (!changes.all) {
     changed.assign((objects.count + 63) / 64, 0);
-    for (std::uint32_t k : changes.indices) set_bit(changed, k);
+    changed_count = 0;
+    for (std::uint32_t k : changes.indices)
+      if (!test_bit(changed, k)) {
+        set_bit(changed, k);
+        ++changed_count;
+      }
   }
+  // Renewed in this call: the objects that left their fat box, and the
+  // quiet ones the caller changed (woken), unless so many that a rebuild
+  // is cheaper. (Renewal and compaction run on the calling thread only.)
+  std::vector<std::uint32_t> renew;
+  std::size_t left = 0, quiet_changed = 0;
+  if (!rebuild) {
+    auto look = [&](std::uint32_t i) {
+      quiet_changed += im.is_quiet(i) ? 1 : 0;
+      if (!im.contained(objects, i)) {
+        im.fat_of(i) = im.renewed_box(objects.shape(i), im.fat_of(i));
+        renew.push_back(i);
+        ++left;
+      } else if (im.is_quiet(i)) {
+        renew.push_back(i);
+      }
+    };
+    if (changes.all) {
+      for (std::uint32_t i = 0; i < n; ++i) look(i);
+    } else {
+      for (std::size_t w = 0; w < changed.size(); ++w)
+        for (std::uint64_t b = changed[w]; b != 0; b &= b - 1)
+          look(static_cast<std::uint32_t>(w * 64 + static_cast<unsigned>(std::countr_zero(b))));
+    }
+    rebuild = static_cast<double>(renew.size()) > kRebuildFraction * static_cast<double>(n);
+  }
+  // Objects that did not change in this call while their candidates are
+  // still scanned become quiet, when they are many (a pass over the rows).
+  if (changes.all) {
+    im.listed_calls = 0;
+    if (im.quiet_count > 0) im.quiet_after = std::min<std::uint32_t>(im.quiet_after * 4, 1u << 20);
+  } else {
+    ++im.listed_calls;
+  }
+  const bool bits_hold = im.built && !im.fresh && !changes.all && im.listed_calls >= im.quiet_after;
+  auto partition_pays = [&] {
+    return bits_hold && (n - im.quiet_count) - (changed_count - quiet_changed) > n / 8;
+  };
+  if (rebuild) {
+    im.rebuild(objects);
+    stats.rebuilt = true;
+  } else {
+    // First, while no object is renewed (partition needs that), then the
+    // renewals of this call.
+    if (im.renewed_list.empty() && partition_pays()) im.partition(changed);
+    if (!renew.empty()) {
+      im.renew(renew);
+      stats.renewed = left;
+      stats.woken = renew.size() - left;
+      if (im.wants_compaction()) {
+        im.compact(bits_hold ? &changed : nullptr);
+        stats.compacted = true;
+      }
+    }
+  }
+  const bool test_all = changes.all || im.fresh;
   auto is_changed = [&](std::uint32_t k) { return test_all || test_bit(changed, k); };
   // Until every row is done (a sink may stop early or throw), the bits are
   // not to be trusted.
@@ -718,6 +841,27 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
             }
           },
           [&](PairChunk& c) { return emit.deliver(c); });
+    if (!go_on || emit.stopped()) return;
+    if (!any_renewed) {
+      // Handed over as they stand, in slices.
+      constexpr std::size_t kSlice = 1 << 16;
+      for (std::size_t b = 0; b < im.quiet_hits.size(); b += kSlice)
+        if (!emit.deliver(std::span<const IndexPair>(im.quiet_hits)
+                              .subspan(b, std::min(kSlice, im.quiet_hits.size() - b))))
+          return;
+      return;
+    }
+    run_in_order<PairChunk>(
+        im.quiet_hits.size(), threads,
+        [&](std::size_t begin, std::size_t end, PairChunk& out) {
+          out.pairs.clear();
+          out.tests = 0;
+          for (std::size_t p = begin; p < end; ++p) {
+            const IndexPair q = im.quiet_hits[p];
+            if (!im.is_renewed(q.i) && !im.is_renewed(q.j)) out.pairs.push_back(q);
+          }
+        },
+        [&](PairChunk& c) { return emit.deliver(c); });
   };
   // When many objects changed, most objects take part in a test, and the
   // tests' reads of the caller's columns (one cache miss a column, in the
@@ -725,8 +869,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   // sequential pass over the columns, into the rows' order, where a row's
   // partners lie near it (docs/arrays.md). With few changes, the tests
   // read the columns directly.
-  const std::size_t changed_count = test_all ? objects.count : changes.indices.size();
-  if (changed_count * kGatherShare >= objects.count) {
+  if ((test_all ? n : changed_count) * kGatherShare >= objects.count) {
     detail::BigVector<Shape> now(rows);
     for (std::uint32_t i = 0; i < n; ++i) now[im.place[i]] = read_shape(objects, i);
     struct Gathered {
@@ -748,6 +891,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   }
   emit.finish();
   im.fresh = stats.stopped;
+  stats.quiet = im.quiet_count;
   return stats;
 }
 
@@ -759,7 +903,8 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, std::vector<Index
 std::size_t PairTracker::memory_bytes() const {
   const Impl& im = *impl_;
   return sizeof(Impl) + im.fat.capacity() * sizeof(AabbF) + im.grid.memory_bytes() +
-         im.grid.slim_bytes() +
+         im.quiet.capacity() * sizeof(std::uint64_t) +
+         im.quiet_hits.capacity() * sizeof(IndexPair) + im.grid.slim_bytes() +
          (im.place.capacity() + im.offset.capacity() + im.partner.capacity() +
           im.renewed_list.capacity()) *
              sizeof(std::uint32_t) +
@@ -796,6 +941,16 @@ void PairTracker::validate(const Objects& objects) const {
       listed[i] = 1;
     }
   }
+  if (!im.quiet.empty() && im.quiet.size() != (n + 63) / 64) fail("one quiet bit per object");
+  {
+    std::size_t quiet = 0;
+    for (std::uint32_t i = 0; i < n; ++i) {
+      quiet += im.is_quiet(i) ? 1 : 0;
+      if (im.is_quiet(i) && im.is_renewed(i))
+        fail("object " + std::to_string(i) + " is both quiet and renewed");
+    }
+    if (quiet != im.quiet_count) fail("quiet bits and count disagree");
+  }
   std::vector<char> has_row(n, 0);
   std::unordered_set<std::uint64_t> seen;
   auto check_pair = [&](std::uint32_t i, std::uint32_t entry) {
@@ -826,6 +981,9 @@ void PairTracker::validate(const Objects& objects) const {
         fail("candidate place out of range at " + std::to_string(k));
       const std::uint32_t j = im.partner_object(im.partner[p]);
       if (im.is_renewed(j)) continue;  // dead entry
+      if (im.is_quiet(i) && im.is_quiet(j))
+        fail("candidate pair of quiet " + std::to_string(i) + " and " + std::to_string(j) +
+             " left in the rows");
       check_pair(i, j | (im.partner[p] & kOverlapBit));
     }
   }
@@ -839,12 +997,24 @@ void PairTracker::validate(const Objects& objects) const {
            ") has no renewed object");
     check_pair(lp.a, lp.b);
   }
+  for (const IndexPair& q : im.quiet_hits) {
+    if (q.i >= q.j || q.j >= n)
+      fail("quiet pair (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
+           ") out of order or range");
+    if (im.is_renewed(q.i) || im.is_renewed(q.j)) continue;  // dead
+    const std::string name =
+        "quiet pair (" + std::to_string(q.i) + ", " + std::to_string(q.j) + ")";
+    if (!im.is_quiet(q.i) || !im.is_quiet(q.j)) fail(name + " has an object that is not quiet");
+    if (!seen.insert((std::uint64_t(q.i) << 32) | q.j).second) fail(name + " listed twice");
+    if (!overlaps(objects.shape(q.i), objects.shape(q.j))) fail(name + " does not overlap");
+  }
   // Completeness: every pair of overlapping fat boxes is a candidate
   // (quadratic, so checked only on small sets).
   if (n <= 3000)
     for (std::uint32_t i = 0; i < n; ++i)
       for (std::uint32_t j = i + 1; j < n; ++j)
-        if (im.fat_of(i).overlaps(im.fat_of(j)) && !seen.count((std::uint64_t(i) << 32) | j))
+        if (im.fat_of(i).overlaps(im.fat_of(j)) && !seen.count((std::uint64_t(i) << 32) | j) &&
+            !(im.is_quiet(i) && im.is_quiet(j) && !overlaps(objects.shape(i), objects.shape(j))))
           fail("overlapping fat boxes of " + std::to_string(i) + " and " + std::to_string(j) +
                " are not candidates");
 }

@@ -129,11 +129,12 @@ int main(int argc, char** argv) {
     move_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
     call_ms.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
     if (!quiet)
-      std::printf("%d %llu %s %.2f ms (cpu %.2f)%s renewed %llu, own %.1f B/object\n", f,
-                  static_cast<unsigned long long>(d.pairs), hex16(d.hash).c_str(), call_ms.back(),
-                  cpu_call_ms.back(),
+      std::printf("%d %llu %s %.2f ms (cpu %.2f)%s renewed %llu, quiet %llu, own %.1f B/object\n",
+                  f, static_cast<unsigned long long>(d.pairs), hex16(d.hash).c_str(),
+                  call_ms.back(), cpu_call_ms.back(),
                   stats.rebuilt ? " rebuilt" : (stats.compacted ? " compacted" : ""),
                   static_cast<unsigned long long>(stats.renewed),
+                  static_cast<unsigned long long>(stats.quiet),
                   static_cast<double>(tracker.memory_bytes()) / static_cast<double>(n));
   }
   // The first call builds; the frame figure is the median of the others.

@@ -185,6 +185,14 @@ struct ArrayCallStats {
   /// The tracker folded its renewed objects' candidates back into its rows
   /// (a new grid over the same fat boxes; no candidate search).
   bool compacted = false;
+  /// Objects quiet after this call: unchanged for several calls that listed
+  /// their changes, so their pairs with each other are handed over without
+  /// a scan. A quiet object the caller changes again is renewed (woken);
+  /// a call with `Changes::everything()` wakes them all.
+  std::uint64_t quiet = 0;
+  /// Quiet objects the caller changed in this call (renewed, though they
+  /// may not have left their fat box).
+  std::uint64_t woken = 0;
   bool stopped = false;  ///< the sink asked to stop
 };
 
@@ -222,6 +230,13 @@ struct Changes {
 /// place and calls `find_pairs` again; the tracker reuses its index through
 /// a skin (as Verlet lists do), renews the objects that left their skin
 /// alone, and is exact however far objects moved.
+///
+/// Listing the changes pays: after two calls in a row with
+/// `Changes::only`, the objects not listed become quiet, and the pairs
+/// among quiet objects are handed over as they stand instead of being
+/// tested (ArrayCallStats::quiet). A `Changes::everything()` call then
+/// wakes them all (a rebuild when they are many), so a caller that can
+/// list its changes should do so on every call.
 ///
 /// Growing and shrinking: a call may see more objects than the last one
 /// (appended at the end) or fewer (those past the new count are gone);
