@@ -190,8 +190,8 @@ struct ArrayCallStats {
   /// a scan. A quiet object the caller changes again is renewed (woken);
   /// a call with `Changes::everything()` wakes them all.
   std::uint64_t quiet = 0;
-  /// Quiet objects the caller changed in this call (renewed, though they
-  /// may not have left their fat box).
+  /// Quiet objects the caller changed in this call (renewed, whether or not
+  /// they left their box; those that did count in `renewed` too).
   std::uint64_t woken = 0;
   bool stopped = false;  ///< the sink asked to stop
 };

@@ -32,7 +32,7 @@ bool finite_box(const AabbF& b) {
 
 }  // namespace
 
-void ArrayGrid::build(std::span<const AabbF> boxes, std::uint32_t dense) {
+void ArrayGrid::build(std::span<const AabbF> boxes, std::uint32_t dense, double min_cell) {
   boxes_ = boxes;
   const std::size_t n = boxes.size();
   levels_.clear();
@@ -60,6 +60,7 @@ void ArrayGrid::build(std::span<const AabbF> boxes, std::uint32_t dense) {
       for (double s : sample)
         if (s > 0 && (w == 0 || s < w)) w = s;
     }
+    w = std::max(w, min_cell);
     if (w > 0 && std::isfinite(w)) {
       int e = 0;
       std::frexp(w, &e);  // w in [2^(e-1), 2^e)

@@ -43,8 +43,11 @@ class ArrayGrid {
   /// A level whose occupied cells span a box of at most `dense` times its
   /// object count (rounded up to a power of two) gets one bucket per cell
   /// of that box, laid out row by row (see `Level::ky`); others are hashed
-  /// into one bucket per object.
-  void build(std::span<const AabbF> boxes, std::uint32_t dense = 1);
+  /// into one bucket per object. The finest level's cells are at least
+  /// `min_cell` wide.
+  void build(std::span<const AabbF> boxes, std::uint32_t dense = 1, double min_cell = 0);
+  /// The finest level's cell side (0 before a build or with no level).
+  double base_cell() const { return levels_.empty() ? 0 : levels_.front().h; }
 
   /// Calls `visit(j)` once for every object j whose box overlaps the box of
   /// i = probe_object(k) (probe_box(k)): j on i's level when the pair is
