@@ -609,27 +609,40 @@ void PairTracker::Impl::compact(const Objects& o, const std::vector<std::uint64_
         by_object[i] = bounds_f(read_shape(o, i));
       }
   }
-  enum class Fate { row, quiet, drop };
-  auto fate = [&](std::uint32_t i, std::uint32_t j) {
-    if (changed == nullptr) return Fate::row;
-    const bool qi = test_bit(quiet, i), qj = test_bit(quiet, j);
-    if (qi && qj) return Fate::quiet;
-    if ((qi || qj) && !by_object[i].overlaps(by_object[j])) return Fate::drop;
-    return Fate::row;
-  };
-  std::vector<std::uint32_t> cursor(count, 0);  // candidates per object, then where they go
+  // The passes below read every candidate's state and box by its place
+  // (near its row's, as the partners are neighbours in space), not by its
+  // object: by object, each was a cache miss (20 s of a compaction at
+  // 10 240 000 objects).
+  enum : std::uint8_t { kRenewedAt = 1, kQuietAt = 2 };
+  std::vector<std::uint8_t> state(rows);
+  std::vector<AabbF> box_at(changed != nullptr ? rows : 0);
   for (std::size_t k = 0; k < rows; ++k) {
     const std::uint32_t i = grid.probe_object(k);
-    if (is_renewed(i)) continue;
+    state[k] = static_cast<std::uint8_t>((is_renewed(i) ? kRenewedAt : 0) |
+                                         (changed != nullptr && test_bit(quiet, i) ? kQuietAt : 0));
+    if (changed != nullptr) box_at[k] = by_object[i];
+  }
+  enum class Fate { row, quiet, drop };
+  auto fate = [&](std::uint32_t ka, std::uint32_t kb) {  // two places
+    if (changed == nullptr) return Fate::row;
+    const bool qa = (state[ka] & kQuietAt) != 0, qb = (state[kb] & kQuietAt) != 0;
+    if (qa && qb) return Fate::quiet;
+    if ((qa || qb) && !box_at[ka].overlaps(box_at[kb])) return Fate::drop;
+    return Fate::row;
+  };
+  // Candidates kept per place, then where they go.
+  std::vector<std::uint32_t> cursor(rows, 0);
+  for (std::size_t k = 0; k < rows; ++k) {
+    if (state[k] & kRenewedAt) continue;
     std::uint32_t c = 0;
     for (std::uint32_t p = offset[k]; p < offset[k + 1]; ++p) {
-      const std::uint32_t j = partner_object(partner[p]);
-      c += !is_renewed(j) && fate(i, j) == Fate::row ? 1 : 0;
+      const std::uint32_t q = partner[p] & kIndexMask;
+      c += !(state[q] & kRenewedAt) && fate(static_cast<std::uint32_t>(k), q) == Fate::row ? 1 : 0;
     }
-    cursor[i] = c;
+    cursor[k] = c;
   }
   for (const LoosePair& lp : loose)
-    cursor[lp.a] += fate(lp.a, lp.b & kIndexMask) == Fate::row ? 1 : 0;
+    cursor[place[lp.a]] += fate(place[lp.a], place[lp.b & kIndexMask]) == Fate::row ? 1 : 0;
   // The finest cells stay as wide as the last grid's: the quiet objects'
   // bounds are smaller than their fat boxes, and finer levels would make a
   // renewed object's query read many more rows of cells (2.2x slower frames
@@ -637,34 +650,33 @@ void PairTracker::Impl::compact(const Objects& o, const std::vector<std::uint64_
   ArrayGrid next;
   next.build(by_object, 1, grid.base_cell());
   std::vector<std::uint32_t> next_offset(rows + 1, 0);
-  std::vector<std::uint32_t> next_place(count);
+  std::vector<std::uint32_t> moved(rows);  // an object's new place, by its old one
   for (std::size_t k = 0; k < rows; ++k) {
-    const std::uint32_t i = next.probe_object(k);
-    next_place[i] = static_cast<std::uint32_t>(k);
-    next_offset[k + 1] = next_offset[k] + cursor[i];
-    cursor[i] = next_offset[k];
+    const std::uint32_t old = place[next.probe_object(k)];
+    moved[old] = static_cast<std::uint32_t>(k);
+    next_offset[k + 1] = next_offset[k] + cursor[old];
   }
+  for (std::size_t k = 0; k < rows; ++k) cursor[k] = next_offset[moved[k]];
   std::vector<std::uint32_t> next_partner(next_offset[rows]);
-  auto take = [&](std::uint32_t i, std::uint32_t j, std::uint32_t bit) {
-    switch (fate(i, j)) {
+  auto take = [&](std::uint32_t ka, std::uint32_t kb, std::uint32_t bit) {
+    switch (fate(ka, kb)) {
       case Fate::row:
-        next_partner[cursor[i]++] = next_place[j] | bit;
+        next_partner[cursor[ka]++] = moved[kb] | bit;
         break;
       case Fate::quiet:
-        if (bit != 0) quiet_hits.push_back(ordered(i, j));
+        if (bit != 0) quiet_hits.push_back(ordered(grid.probe_object(ka), grid.probe_object(kb)));
         break;
       case Fate::drop:
         break;
     }
   };
   for (std::size_t k = 0; k < rows; ++k) {
-    const std::uint32_t i = grid.probe_object(k);
-    if (is_renewed(i)) continue;
+    if (state[k] & kRenewedAt) continue;
     for (std::uint32_t p = offset[k]; p < offset[k + 1]; ++p)
-      if (const std::uint32_t j = partner_object(partner[p]); !is_renewed(j))
-        take(i, j, partner[p] & kOverlapBit);
+      if (const std::uint32_t q = partner[p] & kIndexMask; !(state[q] & kRenewedAt))
+        take(static_cast<std::uint32_t>(k), q, partner[p] & kOverlapBit);
   }
-  for (const LoosePair& lp : loose) take(lp.a, lp.b & kIndexMask, lp.b & kOverlapBit);
+  for (const LoosePair& lp : loose) take(place[lp.a], place[lp.b & kIndexMask], lp.b & kOverlapBit);
   quiet_hits.shrink_to_fit();
   grid = std::move(next);
   adopt(by_object);
