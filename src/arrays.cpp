@@ -280,7 +280,9 @@ constexpr std::uint32_t kOverlapBit = 0x80000000u;
 constexpr std::uint32_t kIndexMask = 0x7FFFFFFFu;
 constexpr std::size_t kMaxTracked = kIndexMask;
 
-// A candidate pair of a renewed object: a < b, b's top bit the overlap bit.
+// A candidate pair of a renewed object, as the places of its two objects
+// (their data in the rows' order lie near each other): a < b, b's top bit
+// the overlap bit.
 struct LoosePair {
   std::uint32_t a, b;
 };
@@ -535,10 +537,13 @@ void PairTracker::Impl::adopt(const std::vector<AabbF>& by_object) {
 
 void PairTracker::Impl::renew(const std::vector<std::uint32_t>& leave) {
   // Which objects are renewed now: their old candidates go.
-  std::vector<std::uint64_t> now((count + 63) / 64, 0);
-  for (std::uint32_t i : leave) set_bit(now, i);
+  std::vector<std::uint64_t> now((count + 63) / 64, 0), now_at(now.size(), 0);
+  for (std::uint32_t i : leave) {
+    set_bit(now, i);
+    set_bit(now_at, place[i]);
+  }
   std::erase_if(loose, [&](const LoosePair& p) {
-    return test_bit(now, p.a) || test_bit(now, p.b & kIndexMask);
+    return test_bit(now_at, p.a) || test_bit(now_at, p.b & kIndexMask);
   });
   for (std::uint32_t i : leave) {
     if (!is_renewed(i)) renewed_list.push_back(i);
@@ -548,10 +553,11 @@ void PairTracker::Impl::renew(const std::vector<std::uint32_t>& leave) {
       --quiet_count;
     }
   }
-  auto add = [&](std::uint32_t i, std::uint32_t j) {
-    const IndexPair q = ordered(i, j);
+  auto add_at = [&](std::uint32_t ki, std::uint32_t kj) {  // two places
+    const IndexPair q = ordered(ki, kj);
     loose.push_back({q.i, q.j});
   };
+  auto add = [&](std::uint32_t i, std::uint32_t j) { add_at(place[i], place[j]); };
   // Partners that were not renewed: the kept grid holds their fat boxes.
   // Queried in the probe order, one query reads much of the memory the
   // last one read.
@@ -559,8 +565,8 @@ void PairTracker::Impl::renew(const std::vector<std::uint32_t>& leave) {
   std::sort(by_place.begin(), by_place.end(),
             [&](std::uint32_t p, std::uint32_t q) { return place[p] < place[q]; });
   for (std::uint32_t i : by_place)
-    grid.query(fat_of(i), [&](std::uint32_t j) {
-      if (j != i && !is_renewed(j)) add(i, j);
+    grid.query(fat_of(i), [&](std::uint32_t j, std::uint32_t at) {
+      if (j != i && !is_renewed(j)) add_at(place[i], at);
     });
   // Partners among the renewed ones (this call's included, each pair once:
   // a pair of two objects renewed now is added by the lower index).
@@ -642,7 +648,7 @@ void PairTracker::Impl::compact(const Objects& o, const std::vector<std::uint64_
     cursor[k] = c;
   }
   for (const LoosePair& lp : loose)
-    cursor[place[lp.a]] += fate(place[lp.a], place[lp.b & kIndexMask]) == Fate::row ? 1 : 0;
+    cursor[lp.a] += fate(lp.a, lp.b & kIndexMask) == Fate::row ? 1 : 0;
   // The finest cells stay as wide as the last grid's: the quiet objects'
   // bounds are smaller than their fat boxes, and finer levels would make a
   // renewed object's query read many more rows of cells (2.2x slower frames
@@ -676,7 +682,7 @@ void PairTracker::Impl::compact(const Objects& o, const std::vector<std::uint64_
       if (const std::uint32_t q = partner[p] & kIndexMask; !(state[q] & kRenewedAt))
         take(static_cast<std::uint32_t>(k), q, partner[p] & kOverlapBit);
   }
-  for (const LoosePair& lp : loose) take(place[lp.a], place[lp.b & kIndexMask], lp.b & kOverlapBit);
+  for (const LoosePair& lp : loose) take(lp.a, lp.b & kIndexMask, lp.b & kOverlapBit);
   quiet_hits.shrink_to_fit();
   grid = std::move(next);
   adopt(by_object);
@@ -852,16 +858,17 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
             out.tests = 0;
             for (std::size_t p = begin; p < end; ++p) {
               LoosePair& lp = im.loose[p];
-              const std::uint32_t i = lp.a, j = lp.b & kIndexMask;
+              const std::uint32_t ka = lp.a, kb = lp.b & kIndexMask;
+              const std::uint32_t i = im.grid.probe_object(ka), j = im.grid.probe_object(kb);
               bool hit;
               if (is_changed(i) || is_changed(j)) {
                 ++out.tests;
-                hit = overlaps(rd.object(i), rd.object(j));
-                lp.b = j | (hit ? kOverlapBit : 0);
+                hit = overlaps(rd.row(ka, i), rd.row(kb, j));
+                lp.b = kb | (hit ? kOverlapBit : 0);
               } else {
                 hit = (lp.b & kOverlapBit) != 0;
               }
-              if (hit) out.pairs.push_back({i, j});
+              if (hit) out.pairs.push_back(ordered(i, j));
             }
           },
           [&](PairChunk& c) { return emit.deliver(c); });
@@ -898,18 +905,16 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
     for (std::uint32_t i = 0; i < n; ++i) now[im.place[i]] = read_shape(objects, i);
     struct Gathered {
       const Shape* now;
-      const std::uint32_t* place;
-      const Shape& row(std::size_t k, std::uint32_t) const { return now[k]; }  // k: the place
+      // Object i's shape, at place k.
+      const Shape& row(std::size_t k, std::uint32_t) const { return now[k]; }
       void prefetch(std::uint32_t q) const { __builtin_prefetch(now + q); }
-      const Shape& object(std::uint32_t j) const { return now[place[j]]; }
     };
-    scan(Gathered{now.data(), im.place.data()});
+    scan(Gathered{now.data()});
   } else {
     struct Direct {
       const Objects& o;
       Shape row(std::size_t, std::uint32_t i) const { return read_shape(o, i); }
       void prefetch(std::uint32_t) const {}
-      Shape object(std::uint32_t j) const { return read_shape(o, j); }
     };
     scan(Direct{objects});
   }
@@ -1012,14 +1017,15 @@ void PairTracker::validate(const Objects& objects) const {
     }
   }
   for (const LoosePair& lp : im.loose) {
-    const std::uint32_t j = lp.b & kIndexMask;
-    if (lp.a >= j)
-      fail("loose pair (" + std::to_string(lp.a) + ", " + std::to_string(j) +
-           ") not in increasing order");
-    if (!im.is_renewed(lp.a) && (j >= n || !im.is_renewed(j)))
-      fail("loose pair (" + std::to_string(lp.a) + ", " + std::to_string(j) +
+    const std::uint32_t kb = lp.b & kIndexMask;
+    if (lp.a >= kb || kb >= rows)
+      fail("loose pair at places (" + std::to_string(lp.a) + ", " + std::to_string(kb) +
+           ") out of order or range");
+    const std::uint32_t i = im.grid.probe_object(lp.a), j = im.grid.probe_object(kb);
+    if (!im.is_renewed(i) && !im.is_renewed(j))
+      fail("loose pair (" + std::to_string(i) + ", " + std::to_string(j) +
            ") has no renewed object");
-    check_pair(lp.a, lp.b);
+    check_pair(i, j | (lp.b & kOverlapBit));
   }
   for (const IndexPair& q : im.quiet_hits) {
     if (q.i >= q.j || q.j >= n)

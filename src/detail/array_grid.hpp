@@ -92,7 +92,8 @@ class ArrayGrid {
   std::size_t slim_bytes() const { return slim_.capacity() * sizeof(std::uint32_t); }
 
   /// Calls `visit(j)` once for every object j whose box, as given to the
-  /// last build, overlaps `box` (every level and the big list).
+  /// last build, overlaps `box` (every level and the big list); a
+  /// `visit(j, place)` is also told j's place in the probing order.
   template <class Visit>
   void query(const AabbF& box, Visit&& visit) const;
 
@@ -272,11 +273,18 @@ void ArrayGrid::probe(std::size_t k, Visit&& visit) const {
 
 template <class Visit>
 void ArrayGrid::query(const AabbF& box, Visit&& visit) const {
+  auto emit = [&](std::uint32_t j, std::size_t at) {
+    if constexpr (std::is_invocable_v<Visit&, std::uint32_t, std::uint32_t>)
+      visit(j, static_cast<std::uint32_t>(at));
+    else
+      visit(j);
+  };
   for (std::size_t b = 0; b < big_.size(); ++b)
-    if (box.overlaps(slimmed_ ? boxes_[placed() + b] : boxes_[big_[b]])) visit(big_[b]);
+    if (box.overlaps(slimmed_ ? boxes_[placed() + b] : boxes_[big_[b]]))
+      emit(big_[b], placed() + b);
   for (const Level& lv : levels_) {
     if (lv.count == 0) continue;
-    scan_block(lv, box, block(box, lv), [&](std::uint32_t p) { visit(entry_index(p)); });
+    scan_block(lv, box, block(box, lv), [&](std::uint32_t p) { emit(entry_index(p), p); });
   }
 }
 
