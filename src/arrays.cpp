@@ -90,12 +90,11 @@ class Emitter {
       all_.insert(all_.end(), pairs.begin(), pairs.end());
       return true;
     }
-    if (pairs.empty()) return true;
-    if (!sink_(pairs)) {
-      stats_.stopped = true;
-      return false;
-    }
-    return true;
+    return hand(pairs);
+  }
+  // The same, handed over in slices.
+  bool deliver_slices(std::span<const IndexPair> pairs) {
+    return in_slices(pairs, [&](std::span<const IndexPair> s) { return deliver(s); });
   }
   bool stopped() const { return stats_.stopped; }
   void finish() {
@@ -103,17 +102,25 @@ class Emitter {
     std::sort(all_.begin(), all_.end(), [](const IndexPair& p, const IndexPair& q) {
       return p.i != q.i ? p.i < q.i : p.j < q.j;
     });
-    constexpr std::size_t kSlice = 1 << 16;
-    for (std::size_t s = 0; s < all_.size(); s += kSlice) {
-      const std::size_t e = std::min(all_.size(), s + kSlice);
-      if (!sink_(std::span<const IndexPair>(all_.data() + s, e - s))) {
-        stats_.stopped = true;
-        return;
-      }
-    }
+    in_slices(all_, [&](std::span<const IndexPair> s) { return hand(s); });
   }
 
  private:
+  template <class Take>
+  static bool in_slices(std::span<const IndexPair> pairs, Take&& take) {
+    constexpr std::size_t kSlice = 1 << 16;
+    for (std::size_t s = 0; s < pairs.size(); s += kSlice)
+      if (!take(pairs.subspan(s, std::min(kSlice, pairs.size() - s)))) return false;
+    return true;
+  }
+  bool hand(std::span<const IndexPair> pairs) {
+    if (pairs.empty()) return true;
+    if (!sink_(pairs)) {
+      stats_.stopped = true;
+      return false;
+    }
+    return true;
+  }
   const PairSink& sink_;
   bool sorted_;
   ArrayCallStats& stats_;
@@ -874,12 +881,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
           [&](PairChunk& c) { return emit.deliver(c); });
     if (!go_on || emit.stopped()) return;
     if (!any_renewed) {
-      // Handed over as they stand, in slices.
-      constexpr std::size_t kSlice = 1 << 16;
-      for (std::size_t b = 0; b < im.quiet_hits.size(); b += kSlice)
-        if (!emit.deliver(std::span<const IndexPair>(im.quiet_hits)
-                              .subspan(b, std::min(kSlice, im.quiet_hits.size() - b))))
-          return;
+      emit.deliver_slices(im.quiet_hits);  // as they stand
       return;
     }
     run_in_order<PairChunk>(
