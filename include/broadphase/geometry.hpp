@@ -62,6 +62,11 @@ struct AabbF {
     return lo[0] <= o.hi[0] && o.lo[0] <= hi[0] && lo[1] <= o.hi[1] && o.lo[1] <= hi[1] &&
            lo[2] <= o.hi[2] && o.lo[2] <= hi[2];
   }
+  /// The same as `overlaps`, evaluated without short-circuit (no branch).
+  bool overlaps_flat(const AabbF& o) const {
+    return (lo[0] <= o.hi[0]) & (o.lo[0] <= hi[0]) & (lo[1] <= o.hi[1]) & (o.lo[1] <= hi[1]) &
+           (lo[2] <= o.hi[2]) & (o.lo[2] <= hi[2]);
+  }
   /// True when `o` lies inside this box (faces may touch).
   bool contains(const AabbF& o) const {
     return lo[0] <= o.lo[0] && lo[1] <= o.lo[1] && lo[2] <= o.lo[2] && o.hi[0] <= hi[0] &&

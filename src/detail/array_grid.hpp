@@ -249,9 +249,21 @@ void ArrayGrid::probe(std::size_t k, Visit&& visit) const {
       // occupied cells (inside which no run wraps).
       const std::uint32_t* st = start_.data() + lv.first_bucket;
       const std::int64_t xa = std::max(blk.x0, lv.lo[0]), xb = std::min(blk.x1, lv.hi[0]);
+      // The box tests without a branch each (about half of a row's boxes
+      // pass, so a branch per box is a coin toss): the places that pass are
+      // gathered, then visited.
       auto scan = [&](std::uint32_t p, std::uint32_t e) {
-        for (; p < e; ++p)
-          if (box.overlaps(entries_[p].box)) emit(entries_[p].index, p);
+        constexpr std::uint32_t kBatch = 32;
+        std::uint32_t hit[kBatch];
+        while (p < e) {
+          const std::uint32_t stop = std::min(e, p + kBatch);
+          std::uint32_t m = 0;
+          for (; p < stop; ++p) {
+            hit[m] = p;
+            m += box.overlaps_flat(entries_[p].box);
+          }
+          for (std::uint32_t q = 0; q < m; ++q) emit(entries_[hit[q]].index, hit[q]);
+        }
       };
       auto row = [&](std::int64_t cy, std::int64_t cz) {
         if (cy < lv.lo[1] || cy > lv.hi[1] || cz < lv.lo[2] || cz > lv.hi[2]) return;
