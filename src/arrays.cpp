@@ -13,6 +13,7 @@
 
 #include "detail/array_grid.hpp"
 #include "detail/in_order.hpp"
+#include "detail/sphere_cells.hpp"
 
 namespace broadphase {
 namespace {
@@ -141,6 +142,21 @@ IndexPair ordered(std::uint32_t p, std::uint32_t q) {
 ArrayCallStats one_shot(const Source& src, bool bipartite, const PairSink& sink,
                         const ArrayOptions& options) {
   ArrayCallStats stats;
+  if (!bipartite) {
+    detail::SphereCells cells;
+    if (cells.build(*src.a)) {
+      Emitter emit(sink, options.sorted, stats);
+      run_in_order<PairChunk>(
+          cells.cell_count(), thread_count(options.threads),
+          [&](std::size_t begin, std::size_t end, PairChunk& out) {
+            out.pairs.clear();
+            out.tests = cells.pairs(begin, end, out.pairs);
+          },
+          [&](PairChunk& c) { return emit.deliver(c); });
+      emit.finish();
+      return stats;
+    }
+  }
   const detail::BigVector<AabbF> boxes = float_bounds(src);
   ArrayGrid grid;
   // Up to 8 bucket starts an object (32 bytes, freed with the call) buy

@@ -11,6 +11,7 @@
 #include <limits>
 #include <set>
 
+#include "detail/sphere_cells.hpp"
 #include "testing.hpp"
 
 namespace broadphase {
@@ -130,11 +131,15 @@ std::vector<IndexPair> sorted(std::vector<IndexPair> v) {
 }
 
 // The kinds of random worlds.
-enum class World { spheres, boxes, mixed, touching, coincident, decades, zero };
-constexpr World kWorlds[] = {World::spheres,    World::boxes,   World::mixed, World::touching,
-                             World::coincident, World::decades, World::zero};
+// `similar` and `lattice` are spheres of about one size, the one-shot's
+// cell kernel (detail/sphere_cells.hpp); the others take the grid.
+enum class World { spheres, boxes, mixed, touching, coincident, decades, zero, similar, lattice };
+constexpr World kWorlds[] = {World::spheres,  World::boxes,      World::mixed,
+                             World::touching, World::coincident, World::decades,
+                             World::zero,     World::similar,    World::lattice};
 const char* name(World w) {
-  const char* names[] = {"spheres", "boxes", "mixed", "touching", "coincident", "decades", "zero"};
+  const char* names[] = {"spheres", "boxes", "mixed",   "touching", "coincident",
+                         "decades", "zero",  "similar", "lattice"};
   return names[static_cast<int>(w)];
 }
 
@@ -168,6 +173,15 @@ Shape random_shape(World w, Rng& rng, double world) {
     }
     case World::zero:
       return rng.below(2) ? Shape::sphere(c, rng.below(4) ? 0.0 : 3.0) : box(rng.below(2) ? 0 : 3);
+    case World::similar:
+      return Shape::sphere(c, rng.uniform(1, 2));
+    case World::lattice: {
+      // Spheres of radius 2 or 1 on a lattice of spacing 4 (neighbours of
+      // radius 2 touch exactly, on the cells' borders), some on one place.
+      const Vec3 l{4.0 * static_cast<double>(rng.below(6)), 4.0 * static_cast<double>(rng.below(6)),
+                   4.0 * static_cast<double>(rng.below(6))};
+      return Shape::sphere(l, rng.below(4) ? 2.0 : 1.0);
+    }
   }
   return Shape::sphere(c, 1);
 }
@@ -226,6 +240,73 @@ TEST(Arrays, ScalarRadiusAndSortedOutput) {
     find_pairs(st.objects, got, opt);
     EXPECT_EQ(got, oracle(st.objects)) << name(layout);
   }
+}
+
+TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
+  // The kernel itself: taken only where it suits, and, over any split of
+  // its cells, each pair once. (The calls above go through it for the
+  // worlds `similar` and `lattice` and the shared radius.)
+  for (std::uint64_t seed = 1; seed <= 6; ++seed) {
+    Rng rng(seed);
+    const World w = seed % 2 ? World::similar : World::lattice;
+    // (The lattice's 216 places at most about twice over: more crowd its cells.)
+    const std::size_t n = w == World::similar ? 200 + rng.below(3000) : 100 + rng.below(300);
+    const std::vector<Shape> shapes = random_world(w, n, rng);
+    for (Layout layout : {Layout::soa_double, Layout::aos_float, Layout::strided_double}) {
+      SCOPED_TRACE(::testing::Message()
+                   << "seed " << seed << " world " << name(w) << " layout " << name(layout));
+      Storage st(shapes, layout);
+      detail::SphereCells cells;
+      ASSERT_TRUE(cells.build(st.objects));
+      std::vector<IndexPair> got;
+      std::uint64_t tests = 0;
+      for (std::size_t c = 0; c < cells.cell_count();) {
+        const std::size_t e = std::min(cells.cell_count(), c + 1 + rng.below(50));
+        tests += cells.pairs(c, e, got);
+        c = e;
+      }
+      const auto want = oracle(st.objects);
+      EXPECT_GE(tests, want.size());
+      for (const IndexPair& p : got) ASSERT_LT(p.i, p.j);
+      EXPECT_EQ(sorted(got), want);
+    }
+  }
+  // Touching pairs (centres exactly a diameter apart along x) with the
+  // first centre swept across the cell borders in steps of 2^-22: a cell
+  // a hair narrower than the diameter loses some of them.
+  {
+    std::vector<Shape> shapes{Shape::sphere({0, 0, 0}, 0.5)};
+    int row = 0;
+    for (int k = 1; k <= 10; ++k)
+      for (int j = -40; j <= 40; ++j, ++row) {
+        const double a = k + j * 0x1p-22, y = 1.5 * (row % 5), z = 1.5 * (row / 5 % 5);
+        shapes.push_back(Shape::sphere({a, y, z}, 0.5));
+        shapes.push_back(Shape::sphere({a + 1, y, z}, 0.5));
+      }
+    Storage st(shapes, Layout::soa_double);
+    detail::SphereCells cells;
+    ASSERT_TRUE(cells.build(st.objects));
+    std::vector<IndexPair> got;
+    cells.pairs(0, cells.cell_count(), got);
+    EXPECT_EQ(sorted(got), oracle(st.objects));
+  }
+  auto taken = [](std::vector<Shape> shapes) {
+    Storage st(shapes, Layout::soa_double);
+    return detail::SphereCells().build(st.objects);
+  };
+  Rng rng(9);
+  std::vector<Shape> base = random_world(World::similar, 500, rng);
+  EXPECT_TRUE(taken(base));
+  EXPECT_FALSE(taken(std::vector<Shape>(base.begin(), base.begin() + 10)));  // few
+  auto with = [&](Shape s) {
+    auto v = base;
+    v.push_back(s);
+    return v;
+  };
+  EXPECT_FALSE(taken(with(Shape::sphere({1, 1, 1}, 4.5))));                   // spread over 2
+  EXPECT_FALSE(taken(with(Shape::box({1, 1, 1}, {1, 1, 1}))));                // a box
+  EXPECT_FALSE(taken(with(Shape::sphere({1e9, 1, 1}, 1.5))));                 // not dense
+  EXPECT_FALSE(taken(std::vector<Shape>(100, Shape::sphere({1, 2, 3}, 0))));  // all points
 }
 
 TEST(Arrays, ObjectsFarApartInSize) {
