@@ -131,15 +131,27 @@ std::vector<IndexPair> sorted(std::vector<IndexPair> v) {
 }
 
 // The kinds of random worlds.
-// `similar` and `lattice` are spheres of about one size, the one-shot's
-// cell kernel (detail/sphere_cells.hpp); the others take the grid.
-enum class World { spheres, boxes, mixed, touching, coincident, decades, zero, similar, lattice };
-constexpr World kWorlds[] = {World::spheres,  World::boxes,      World::mixed,
-                             World::touching, World::coincident, World::decades,
-                             World::zero,     World::similar,    World::lattice};
+// Sets of spheres only (`spheres`, `similar`, `lattice`, `sizes`) take
+// the one-shot's cell kernel (detail/sphere_cells.hpp) where it suits
+// them; the others the multi-level grid.
+enum class World {
+  spheres,
+  boxes,
+  mixed,
+  touching,
+  coincident,
+  decades,
+  zero,
+  similar,
+  lattice,
+  sizes
+};
+constexpr World kWorlds[] = {World::spheres,    World::boxes,   World::mixed, World::touching,
+                             World::coincident, World::decades, World::zero,  World::similar,
+                             World::lattice,    World::sizes};
 const char* name(World w) {
   const char* names[] = {"spheres", "boxes", "mixed",   "touching", "coincident",
-                         "decades", "zero",  "similar", "lattice"};
+                         "decades", "zero",  "similar", "lattice",  "sizes"};
   return names[static_cast<int>(w)];
 }
 
@@ -182,6 +194,8 @@ Shape random_shape(World w, Rng& rng, double world) {
                    4.0 * static_cast<double>(rng.below(6))};
       return Shape::sphere(l, rng.below(4) ? 2.0 : 1.0);
     }
+    case World::sizes:
+      return Shape::sphere(c, std::pow(10.0, rng.uniform(-3, 1)));
   }
   return Shape::sphere(c, 1);
 }
@@ -246,11 +260,12 @@ TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
   // The kernel itself: taken only where it suits, and, over any split of
   // its cells, each pair once. (The calls above go through it for the
   // worlds `similar` and `lattice` and the shared radius.)
-  for (std::uint64_t seed = 1; seed <= 6; ++seed) {
+  for (std::uint64_t seed = 1; seed <= 12; ++seed) {
     Rng rng(seed);
-    const World w = seed % 2 ? World::similar : World::lattice;
+    const World kinds[] = {World::similar, World::lattice, World::sizes, World::spheres};
+    const World w = kinds[seed % 4];
     // (The lattice's 216 places at most about twice over: more crowd its cells.)
-    const std::size_t n = w == World::similar ? 200 + rng.below(3000) : 100 + rng.below(300);
+    const std::size_t n = w == World::lattice ? 100 + rng.below(300) : 200 + rng.below(3000);
     const std::vector<Shape> shapes = random_world(w, n, rng);
     for (Layout layout : {Layout::soa_double, Layout::aos_float, Layout::strided_double}) {
       SCOPED_TRACE(::testing::Message()
@@ -258,6 +273,9 @@ TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
       Storage st(shapes, layout);
       detail::SphereCells cells;
       ASSERT_TRUE(cells.build(st.objects));
+      if (w == World::sizes) {
+        EXPECT_GE(cells.level_count(), 2u);
+      }
       std::vector<IndexPair> got;
       std::uint64_t tests = 0;
       for (std::size_t c = 0; c < cells.cell_count();) {
@@ -290,6 +308,28 @@ TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
     cells.pairs(0, cells.cell_count(), got);
     EXPECT_EQ(sorted(got), oracle(st.objects));
   }
+  // The same across grids: small spheres touching big ones (centres
+  // exactly ri + rj apart along x), the big centres swept across the
+  // coarser grid's borders: a probe that reaches a hair short loses some.
+  {
+    std::vector<Shape> shapes{Shape::sphere({0, 0, 0}, 0.25)};
+    int row = 0;
+    for (int k = 1; k <= 5; ++k)
+      for (int j = -40; j <= 40; ++j, ++row) {
+        const double a = 8 * k + j * 0x1p-20, y = 10.0 * (row % 3), z = 10.0 * (row / 3 % 3);
+        shapes.push_back(Shape::sphere({a, y, z}, 4));
+        shapes.push_back(Shape::sphere({a + 4.25, y, z}, 0.25));
+      }
+    Storage st(shapes, Layout::soa_double);
+    detail::SphereCells cells;
+    ASSERT_TRUE(cells.build(st.objects));
+    EXPECT_EQ(cells.level_count(), 2u);
+    std::vector<IndexPair> got;
+    cells.pairs(0, cells.cell_count(), got);
+    const auto want = oracle(st.objects);
+    EXPECT_EQ(got.size(), want.size());
+    EXPECT_EQ(sorted(got), want);
+  }
   auto taken = [](std::vector<Shape> shapes) {
     Storage st(shapes, Layout::soa_double);
     return detail::SphereCells().build(st.objects);
@@ -303,7 +343,7 @@ TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
     v.push_back(s);
     return v;
   };
-  EXPECT_FALSE(taken(with(Shape::sphere({1, 1, 1}, 4.5))));                   // spread over 2
+  EXPECT_TRUE(taken(with(Shape::sphere({1, 1, 1}, 40))));                     // a grid of its own
   EXPECT_FALSE(taken(with(Shape::box({1, 1, 1}, {1, 1, 1}))));                // a box
   EXPECT_FALSE(taken(with(Shape::sphere({1e9, 1, 1}, 1.5))));                 // not dense
   EXPECT_FALSE(taken(std::vector<Shape>(100, Shape::sphere({1, 2, 3}, 0))));  // all points

@@ -7,102 +7,147 @@
 namespace broadphase::detail {
 
 bool SphereCells::build(const Objects& o) {
+  release();
   const std::size_t n = o.count;
   if (n < kMinObjects || n >= 0xFFFFFFFFu || o.radius.empty()) return false;
   if (o.kind != nullptr)
     for (std::size_t i = 0; i < n; ++i)
       if (o.kind[static_cast<std::ptrdiff_t>(i) * o.kind_stride] != 0) return false;
-  double rmin = HUGE_VAL, rmax = 0;
-  double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+  double hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+  for (double& v : lo_) v = HUGE_VAL;
   const Column* col[3] = {&o.x, &o.y, &o.z};
-  for (std::size_t i = 0; i < n; ++i) {
-    const double r = o.radius.at(i);
-    rmin = std::min(rmin, r);
-    rmax = std::max(rmax, r);
+  for (std::size_t i = 0; i < n; ++i)
     for (int a = 0; a < 3; ++a) {
       const double v = col[a]->at(i);
-      lo[a] = std::min(lo[a], v);
+      lo_[a] = std::min(lo_[a], v);
       hi[a] = std::max(hi[a], v);
     }
-  }
-  // Two spheres that overlap are at most 2 rmax apart per axis, so less
-  // than a cell: their cells differ by at most one per axis. The 2^-20
-  // margin covers the rounding of (x - lo) / h, whose error is a few ulps
-  // of a value below 2^26, far below 2^-20. A sparse set gets wider cells,
-  // so that the grid stays dense (at most kMaxCellsPerObject cells an
-  // object); the guard on the cells' occupancy below catches sets that
-  // are sparse only on the whole (clusters far apart).
-  const double reach = 2 * rmax * (1 + 0x1p-20);
-  double h = reach;
-  if (!(h > 0)) h = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1.0}) * 0x1p-10;
+
+  // Two spheres that overlap are at most ri + rj apart per axis. A sphere
+  // sits on a grid whose cell is a hair wider than its diameter, and grids
+  // are coarser the later they come, so for a pair on one grid or on two,
+  // the coarser grid's cells are wider than that distance: the spheres'
+  // cells there differ by at most one per axis. The 2^-20 margin covers
+  // the rounding of (x - lo) / h, whose error is a few ulps of a value
+  // below 2^26, far below 2^-20.
+  constexpr double kMargin = 1 + 0x1p-20;
   std::size_t dims[3];
   auto grid_cells = [&](double side) {
     const double inv = 1 / side;
     double cells = 1;
     for (int a = 0; a < 3; ++a) {
-      const double extent = (hi[a] - lo[a]) * inv;
+      const double extent = (hi[a] - lo_[a]) * inv;
       if (!(extent < 0x1p26)) return HUGE_VAL;
       dims[a] = static_cast<std::size_t>(extent) + 3;  // an empty cell either side
       cells *= static_cast<double>(dims[a]);
     }
     return cells;
   };
-  const double most = static_cast<double>(kMaxCellsPerObject * n + 64);
-  for (int k = 0; k < 400 && std::isfinite(h) && grid_cells(h) > most; ++k) h *= 1.25;
-  const double inv = 1 / h;
-  if (!std::isfinite(h) || !std::isfinite(inv) || grid_cells(h) > most) return false;
-  // Radii far apart: cells as wide as the largest diameter would hold many
-  // small spheres each (the multi-level grid suits those).
-  if (h == reach && rmax > kMaxSpread * rmin) return false;
-  nx_ = dims[0];
-  nxy_ = dims[0] * dims[1];
-  cells_ = nxy_ * dims[2];
+  // All grids together have at most kMaxCellsPerObject cells a sphere
+  // (and 64 a grid): a grid of few large spheres may be as fine as theirs.
+  const double budget = static_cast<double>(kMaxCellsPerObject * n + 64 * kMaxLevels);
+  auto left = [&] { return budget - static_cast<double>(cells_); };
+  // The narrowest cell from `h` up (in steps of a quarter) that fits in
+  // what is left of the budget.
+  auto dense = [&](double h) {
+    if (!(h > 0)) h = std::max({hi[0] - lo_[0], hi[1] - lo_[1], hi[2] - lo_[2], 1.0}) * 0x1p-10;
+    for (int k = 0; k < 400 && std::isfinite(h) && grid_cells(h) > left(); ++k) h *= 1.25;
+    return h;
+  };
+
+  BigVector<std::uint8_t> level(n);
+  for (std::size_t i = 0; i < n; ++i) level[i] = 0xFF;
+  std::size_t remaining = n;
+  while (remaining > 0) {
+    const std::size_t l = levels_.size();
+    // The smallest remaining spheres, with all up to twice their size or
+    // up to the narrowest cell the budget allows.
+    double cap = HUGE_VAL;
+    if (l + 1 < kMaxLevels) {
+      double rmin = HUGE_VAL;
+      for (std::size_t i = 0; i < n; ++i)
+        if (level[i] == 0xFF) rmin = std::min(rmin, o.radius.at(i));
+      cap = dense(4 * kMargin * rmin);
+    }
+    // The members of that cap, then of their own cell (which may take
+    // more: it is at least as wide as their largest diameter).
+    double h = 0, rmax = 0;
+    std::size_t members = 0;
+    for (int round = 0; round < 2; ++round) {
+      rmax = 0;
+      members = 0;
+      for (std::size_t i = 0; i < n; ++i)
+        if (level[i] == 0xFF) {
+          const double r = o.radius.at(i);
+          if (2 * kMargin * r <= cap) {
+            rmax = std::max(rmax, r);
+            ++members;
+          }
+        }
+      h = dense(2 * kMargin * rmax);
+      cap = h;
+    }
+    const double cells = grid_cells(h);
+    if (!std::isfinite(h) || !(h > 0) || !std::isfinite(1 / h) || cells > left() ||
+        cells_ + cells >= 0x1p32 || members == 0)
+      return fail();
+    Level lv;
+    lv.h = h;
+    lv.inv = 1 / h;
+    lv.rmax = rmax;
+    for (int a = 0; a < 3; ++a) lv.dims[a] = dims[a];
+    lv.nx = dims[0];
+    lv.nxy = dims[0] * dims[1];
+    lv.cells = lv.nxy * dims[2];
+    lv.first = cells_;
+    cells_ += lv.cells;
+    levels_.push_back(lv);
+    for (std::size_t i = 0; i < n; ++i)
+      if (level[i] == 0xFF && 2 * kMargin * o.radius.at(i) <= h) {
+        level[i] = static_cast<std::uint8_t>(l);
+        --remaining;
+      }
+  }
 
   BigVector<std::uint32_t> key(n);
   start_.assign(cells_ + 1, 0);
   for (std::size_t i = 0; i < n; ++i) {
-    std::size_t c = 0;
-    for (int a = 2; a >= 0; --a)
-      c = c * dims[a] + static_cast<std::size_t>((col[a]->at(i) - lo[a]) * inv) + 1;
+    const std::size_t c = levels_[level[i]].cell_of(lo_, o.x.at(i), o.y.at(i), o.z.at(i));
     key[i] = static_cast<std::uint32_t>(c);
     ++start_[c + 1];
   }
   // The work of the scan grows as the sum of the cells' squared counts:
   // where spheres crowd into few cells, the multi-level grid is better.
-  double crowd = 0;
-  for (std::size_t c = 1; c <= cells_; ++c) crowd += static_cast<double>(start_[c]) * start_[c];
-  if (crowd > static_cast<double>(kMaxCrowd * n)) {
-    release();
-    return false;
+  for (const Level& lv : levels_) {
+    double crowd = 0, count = 0;
+    for (std::size_t c = lv.first + 1; c <= lv.first + lv.cells; ++c) {
+      crowd += static_cast<double>(start_[c]) * start_[c];
+      count += start_[c];
+    }
+    if (crowd > static_cast<double>(kMaxCrowd) * count) return fail();
   }
   for (std::size_t c = 1; c <= cells_; ++c) start_[c] += start_[c - 1];
-  x_.resize(n);
-  y_.resize(n);
-  z_.resize(n);
-  r_.resize(n);
-  id_.resize(n);
+  placed_.resize(n);
   // Stable: a cell lists its spheres by increasing index.
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t p = start_[key[i]]++;
-    x_[p] = o.x.at(i);
-    y_[p] = o.y.at(i);
-    z_[p] = o.z.at(i);
-    r_[p] = o.radius.at(i);
-    id_[p] = static_cast<std::uint32_t>(i);
+    placed_[p] = {o.x.at(i), o.y.at(i), o.z.at(i), o.radius.at(i), static_cast<std::uint32_t>(i)};
   }
   for (std::size_t c = cells_; c > 0; --c) start_[c] = start_[c - 1];
   start_[0] = 0;
   return true;
 }
 
+bool SphereCells::fail() {
+  release();
+  return false;
+}
+
 void SphereCells::release() {
+  levels_.clear();
   cells_ = 0;
   start_ = {};
-  x_ = {};
-  y_ = {};
-  z_ = {};
-  r_ = {};
-  id_ = {};
+  placed_ = {};
 }
 
 std::uint64_t SphereCells::pairs(std::size_t c0, std::size_t c1,
@@ -112,16 +157,15 @@ std::uint64_t SphereCells::pairs(std::size_t c0, std::size_t c1,
   std::uint32_t m = 0;
   std::uint64_t tests = 0;
   const std::uint32_t* st = start_.data();
-  const double* __restrict X = x_.data();
-  const double* __restrict Y = y_.data();
-  const double* __restrict Z = z_.data();
-  const double* __restrict R = r_.data();
-  const std::uint32_t* __restrict id = id_.data();
-  const std::size_t nx = nx_, nxy = nxy_;
+  const Placed* __restrict P = placed_.data();
+  std::size_t lv = 0;
+  while (lv + 1 < levels_.size() && c0 >= levels_[lv + 1].first) ++lv;
   for (std::size_t c = c0; c < c1; ++c) {
+    while (c >= levels_[lv].first + levels_[lv].cells) ++lv;
+    const std::size_t nx = levels_[lv].nx, nxy = levels_[lv].nxy;
     for (std::uint32_t a = st[c]; a < st[c + 1]; ++a) {
-      const double xi = X[a], yi = Y[a], zi = Z[a], ri = R[a];
-      const std::uint32_t ia = id[a];
+      const double xi = P[a].x, yi = P[a].y, zi = P[a].z, ri = P[a].r;
+      const std::uint32_t ia = P[a].id;
       // The exact test without a branch per partner (about half of the
       // partners overlap in a dense set, a coin toss for a branch): a mask
       // of hits per 64 partners, then one step per hit.
@@ -130,15 +174,15 @@ std::uint64_t SphereCells::pairs(std::size_t c0, std::size_t c1,
         while (b < e) {
           const std::uint32_t len = std::min<std::uint32_t>(e - b, 64);
           std::uint64_t hits = 0;
-          std::uint32_t t = 0;
-          for (; t < len; ++t) {
-            const double dx = xi - X[b + t], dy = yi - Y[b + t], dz = zi - Z[b + t];
+          for (std::uint32_t t = 0; t < len; ++t) {
+            const Placed& q = P[b + t];
+            const double dx = xi - q.x, dy = yi - q.y, dz = zi - q.z;
             const double d2 = dx * dx + dy * dy + dz * dz;
-            const double sr = ri + R[b + t];
+            const double sr = ri + q.r;
             hits |= static_cast<std::uint64_t>(d2 <= sr * sr) << t;
           }
           for (; hits != 0; hits &= hits - 1) {
-            const std::uint32_t jb = id[b + static_cast<std::uint32_t>(std::countr_zero(hits))];
+            const std::uint32_t jb = P[b + static_cast<std::uint32_t>(std::countr_zero(hits))].id;
             buf[m++] = {std::min(ia, jb), std::max(ia, jb)};
           }
           if (m >= kBuffer) {
@@ -148,14 +192,36 @@ std::uint64_t SphereCells::pairs(std::size_t c0, std::size_t c1,
           b += len;
         }
       };
-      // Own row: the rest of this cell and the next one along x.
+      // Own grid, half the neighbours: the rest of this cell and the next
+      // one along x, the next row in y, the three rows of the next layer.
       run(a + 1, st[c + 2]);
-      // The next row in y, and the three rows of the next layer in z.
       run(st[c + nx - 1], st[c + nx + 2]);
       const std::size_t up = c + nxy;
       run(st[up - nx - 1], st[up - nx + 2]);
       run(st[up - 1], st[up + 2]);
       run(st[up + nx - 1], st[up + nx + 2]);
+      // Coarser grids: the cells within reach of this sphere, 2 or 3 a
+      // side (a small sphere's reach, ri + the grid's largest radius, is
+      // about half a cell there; all 27 cells read 3.4 times as many).
+      // The reach is widened past the rounding of the predicate (relative
+      // to the radii) and of xi - reach (relative to xi): a partner's
+      // centre is then inside it, and the cells, monotone in x, hold it.
+      for (std::size_t k = lv + 1; k < levels_.size(); ++k) {
+        const Level& g = levels_[k];
+        const double reach = (ri + g.rmax) * (1 + 0x1p-20);
+        std::size_t from[3], to[3];
+        const double centre[3] = {xi, yi, zi};
+        for (int ax = 0; ax < 3; ++ax) {
+          const double pad = reach + std::abs(centre[ax]) * 0x1p-48;
+          from[ax] = g.index(ax, lo_[ax], centre[ax] - pad);
+          to[ax] = g.index(ax, lo_[ax], centre[ax] + pad);
+        }
+        for (std::size_t cz = from[2]; cz <= to[2]; ++cz)
+          for (std::size_t cy = from[1]; cy <= to[1]; ++cy) {
+            const std::size_t row = g.first + cz * g.nxy + cy * g.nx;
+            run(st[row + from[0]], st[row + to[0] + 1]);
+          }
+      }
     }
   }
   out.insert(out.end(), buf, buf + m);

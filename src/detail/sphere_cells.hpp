@@ -1,17 +1,24 @@
-// The one-shot kernel for spheres of about one size (find_pairs on a single
-// set): one dense grid of cells a hair wider than the largest diameter, the
-// spheres counting-sorted into it as columns of doubles, and each sphere
-// tested exactly, by the contract's predicate, against the spheres after it
-// in its cell and in the 13 cells of its half-neighbourhood (5 runs of
-// consecutive cells).
+// The one-shot kernel for spheres (find_pairs on a single set): a few dense
+// grids of cells, each as wide as the largest diameter on it, the spheres
+// counting-sorted into them as columns of doubles, and each sphere tested
+// exactly, by the contract's predicate, against the spheres after it on
+// its own grid (the rest of its cell and 13 neighbours: 5 runs of
+// consecutive cells) and against every sphere within reach on the coarser
+// grids (2 or 3 cells a side).
 //
-// Why beside ArrayGrid: for spheres of one size, ArrayGrid's power-of-two
-// levels and float boxes cost a box test on about 30 partners a sphere
-// before the exact test (a quarter-octave base still leaves cells up to
-// 1.19 times the diameter, 1.7 times the volume), and the candidates' boxes
-// and shapes live in two arrays. Here a cell is the diameter itself, and
-// the exact test reads four adjacent columns: measured at 1 000 000
-// spheres of radius 0.00565 in the unit cube, see `build`'s caller.
+// The grids: the smallest remaining spheres, and all others up to twice
+// their size or up to the narrowest cell that the budget of cells allows
+// (kMaxCellsPerObject a sphere for all grids, each over the box of all
+// centres), go to one grid; the rest to the next. Spheres of one size
+// take one grid; radii over three decades three.
+//
+// Why beside ArrayGrid: ArrayGrid's power-of-two levels (one per octave)
+// and float boxes cost a box test on about 30 partners a sphere before the
+// exact test for spheres of one size, and a probe of every coarser octave
+// for spheres of many sizes; here the cells are the diameters themselves,
+// the levels few, and the exact test reads four adjacent columns. Measured
+// at 1 000 000 spheres of radius 0.00565 in the unit cube: 150-210 ms
+// against 310-420 ms; see `one_shot` for the spread of sizes.
 #pragma once
 
 #include <broadphase/arrays.hpp>
@@ -24,35 +31,68 @@ namespace broadphase::detail {
 
 class SphereCells {
  public:
-  /// Sorts the spheres of `o` into cells. False, with nothing kept, when
+  /// Sorts the spheres of `o` into grids. False, with nothing kept, when
   /// the kernel does not suit them: a box among them, fewer than
-  /// `kMinObjects`, radii more than a factor `kMaxSpread` apart (when the
-  /// largest sets the cell), a grid that cannot be dense (at most
-  /// `kMaxCellsPerObject` cells an object, under 2^26 along an axis), or
-  /// spheres crowded into few cells (the sum of the cells' squared counts
-  /// over `kMaxCrowd` an object). `o` must have passed check_objects.
+  /// `kMinObjects`, a grid that cannot be dense (under 2^26 cells along an
+  /// axis), or spheres crowded into few cells (the sum of a grid's squared
+  /// cell counts over `kMaxCrowd` times its spheres). `o` must have passed
+  /// check_objects.
   bool build(const Objects& o);
 
   static constexpr std::size_t kMinObjects = 64;
-  static constexpr double kMaxSpread = 2;
   static constexpr std::size_t kMaxCellsPerObject = 4;
   static constexpr std::size_t kMaxCrowd = 16;
+  static constexpr std::size_t kMaxLevels = 8;
 
-  /// Cells, including one empty layer around the occupied box.
+  /// Cells of all grids, each with one empty layer around the centres' box.
   std::size_t cell_count() const { return cells_; }
+  /// The grids.
+  std::size_t level_count() const { return levels_.size(); }
   /// Appends the overlapping pairs found from the spheres of cells
   /// [c0, c1) to `out` (caller's indices, i < j), each pair of the set
   /// exactly once over all cells; returns the number of exact tests.
   std::uint64_t pairs(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
 
  private:
+  struct Level {
+    double h = 0, inv = 0;
+    double rmax = 0;  // the largest radius on the grid
+    std::size_t dims[3] = {0, 0, 0};
+    std::size_t nx = 0, nxy = 0;
+    std::size_t first = 0;  // its first cell in the cells of all grids
+    std::size_t cells = 0;
+    // The cell along axis `ax` of a coordinate anywhere (the empty outer
+    // layer outside the centres' box).
+    std::size_t index(int ax, double lo, double v) const {
+      const double t = (v - lo) * inv;
+      if (!(t >= 0)) return 0;
+      if (t >= static_cast<double>(dims[ax] - 2)) return dims[ax] - 1;
+      return static_cast<std::size_t>(t) + 1;
+    }
+    // The global cell of a point (inside the centres' box).
+    std::size_t cell_of(const double* lo, double x, double y, double z) const {
+      return first +
+             ((static_cast<std::size_t>((z - lo[2]) * inv) + 1) * dims[1] +
+              static_cast<std::size_t>((y - lo[1]) * inv) + 1) *
+                 dims[0] +
+             static_cast<std::size_t>((x - lo[0]) * inv) + 1;
+    }
+  };
   void release();
+  bool fail();  // release(), false
 
+  double lo_[3] = {0, 0, 0};
+  std::vector<Level> levels_;
   std::size_t cells_ = 0;
-  std::size_t nx_ = 0, nxy_ = 0;
-  BigVector<std::uint32_t> start_;   // per cell, then one past the end
-  BigVector<double> x_, y_, z_, r_;  // in cell order
-  BigVector<std::uint32_t> id_;
+  BigVector<std::uint32_t> start_;  // per cell, then one past the end
+  // A sphere in cell order, with its index: one record, so that the
+  // counting sort's scatter writes one line per sphere (five columns were
+  // five cache misses a sphere).
+  struct Placed {
+    double x, y, z, r;
+    std::uint32_t id;
+  };
+  BigVector<Placed> placed_;
 };
 
 }  // namespace broadphase::detail
