@@ -62,6 +62,7 @@ PYBIND11_MODULE(_broadphase, m) {
   py::class_<IntArray>(m, "IntArray", py::buffer_protocol(),
                        "An int64 array owned by the module (numpy wraps it without a copy).")
       .def_buffer([](IntArray& a) -> py::buffer_info {
+        a.data.trim();  // (done where arrays are filled; a guard for any other)
         if (a.cols == 0)
           return py::buffer_info(a.data.data(), sizeof(std::int64_t),
                                  py::format_descriptor<std::int64_t>::format(), 1,

@@ -30,6 +30,7 @@ IntArray pairs_array(Find&& find) {
       return true;
     });
   }
+  out.data.trim();
   out.rows = out.data.size() / 2;
   return out;
 }

@@ -3,15 +3,85 @@
 /// pairs by (i, j).
 #include "output.hpp"
 
+#include <sys/mman.h>
+
 #include <algorithm>
+#include <cstdlib>
+#include <cstring>
+#include <new>
 #include <numeric>
 
 namespace broadphase_python {
 
+namespace {
+constexpr std::size_t kHuge = std::size_t{2} << 20;
+constexpr std::size_t kMapFrom = std::size_t{4} << 20;  // bytes
+// Address space reserved for one growing array: nothing is committed
+// until written. Outputs past it fall back to a copy into a larger range.
+constexpr std::size_t kReserve = std::size_t{1} << 40;
+}  // namespace
+
+void I64Buffer::grow(std::size_t need) {
+  const std::size_t want = std::max(need, 2 * cap_);
+  const std::size_t bytes = want * sizeof(std::int64_t);
+  if (bytes < kMapFrom) {
+    auto* q = static_cast<std::int64_t*>(std::realloc(p_, std::max<std::size_t>(bytes, 64)));
+    if (q == nullptr) throw std::bad_alloc();
+    p_ = q;
+    cap_ = want;
+    return;
+  }
+  const std::size_t writable = (bytes + kHuge - 1) / kHuge * kHuge;
+  if (reserved_ == 0 || writable > reserved_) {
+    // A new range, aligned to 2 MiB (huge pages), the contents copied once.
+    const std::size_t span = std::max(kReserve, writable) + kHuge;
+    void* base =
+        ::mmap(nullptr, span, PROT_NONE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+    if (base == MAP_FAILED) throw std::bad_alloc();
+    const auto addr = reinterpret_cast<std::uintptr_t>(base);
+    const std::uintptr_t aligned = (addr + kHuge - 1) / kHuge * kHuge;
+    if (aligned != addr) ::munmap(base, aligned - addr);
+    const std::size_t held = span - (aligned - addr);
+    auto* q = reinterpret_cast<std::int64_t*>(aligned);
+    if (::mprotect(q, writable, PROT_READ | PROT_WRITE) != 0) {
+      ::munmap(q, held);
+      throw std::bad_alloc();
+    }
+#ifdef MADV_HUGEPAGE
+    ::madvise(q, held, MADV_HUGEPAGE);  // advice only: failure changes nothing
+#endif
+    if (size_ > 0) std::memcpy(q, p_, size_ * sizeof(std::int64_t));
+    release();
+    p_ = q;
+    reserved_ = held;
+    mapped_ = writable;
+    cap_ = writable / sizeof(std::int64_t);
+    return;
+  }
+  if (::mprotect(reinterpret_cast<char*>(p_) + mapped_, writable - mapped_,
+                 PROT_READ | PROT_WRITE) != 0)
+    throw std::bad_alloc();
+  mapped_ = writable;
+  cap_ = writable / sizeof(std::int64_t);
+}
+
+void I64Buffer::trim() {
+  if (reserved_ == 0 || mapped_ == reserved_) return;
+  ::munmap(reinterpret_cast<char*>(p_) + mapped_, reserved_ - mapped_);
+  reserved_ = mapped_;
+}
+
+void I64Buffer::release() {
+  if (reserved_ > 0)
+    ::munmap(p_, reserved_);
+  else
+    std::free(p_);
+  p_ = nullptr;
+  size_ = cap_ = reserved_ = mapped_ = 0;
+}
+
 void append_pairs(I64Vec& out, std::span<const bp::IndexPair> chunk) {
   const std::size_t k = out.size();
-  if (out.capacity() < k + 2 * chunk.size())
-    out.reserve(std::max(2 * out.capacity(), k + 2 * chunk.size()));
   out.resize(k + 2 * chunk.size());
   std::int64_t* p = out.data() + k;
   for (const bp::IndexPair& q : chunk) {
@@ -39,6 +109,7 @@ IntArray to_int_array(std::span<const bp::IndexPair> pairs) {
   a.cols = 2;
   a.rows = pairs.size();
   append_pairs(a.data, pairs);
+  a.data.trim();
   return a;
 }
 

@@ -181,3 +181,22 @@ def test_a_refused_update_changes_nothing():
         assert ix.borrowing == (structure is None)
         ix.update([2], [[2.5, 0, 0]])  # a later change sees object 0 where it was
         assert as_set(ix.pairs()) == {(0, 1), (1, 2)}
+
+
+def test_large_outputs_are_whole_and_outlive_the_call():
+    # Past 4 MiB an output grows inside address space of its own: 1 500
+    # spheres on one place give 1 124 250 pairs (18 MB), every one of them.
+    n = 1500
+    c = np.zeros((n, 3))
+    for structure in (None, "aabb-tree"):
+        p = (broadphase.sphere_pairs(c, 1.0) if structure is None
+             else broadphase.Index(c, 1.0, structure=structure).pairs())
+        assert p.shape == (n * (n - 1) // 2, 2)
+        i, j = p[:, 0], p[:, 1]
+        assert (i < j).all()
+        key = np.unique(i * n + j)
+        assert len(key) == len(p)
+        gc.collect()
+        _ = [np.ones(100000) for _ in range(20)]
+        p[-1, 1] = 7  # writable to its last row
+        assert p[-1, 1] == 7
