@@ -55,37 +55,49 @@ bool SphereCells::build(const Objects& o) {
     return h;
   };
 
-  BigVector<std::uint8_t> level(n);
-  for (std::size_t i = 0; i < n; ++i) level[i] = 0xFF;
+  // The remaining spheres' smallest and largest radius, found with the
+  // box above and again with each grid's members; spheres of one size
+  // (or within a factor 2) then need no pass of their own here.
+  double rmin = HUGE_VAL, rmax_left = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double r = o.radius.at(i);
+    rmin = std::min(rmin, r);
+    rmax_left = std::max(rmax_left, r);
+  }
+  BigVector<std::uint8_t> level;
   std::size_t remaining = n;
   while (remaining > 0) {
     const std::size_t l = levels_.size();
     // The smallest remaining spheres, with all up to twice their size or
     // up to the narrowest cell the budget allows.
-    double cap = HUGE_VAL;
-    if (l + 1 < kMaxLevels) {
-      double rmin = HUGE_VAL;
-      for (std::size_t i = 0; i < n; ++i)
-        if (level[i] == 0xFF) rmin = std::min(rmin, o.radius.at(i));
-      cap = dense(4 * kMargin * rmin);
-    }
-    // The members of that cap, then of their own cell (which may take
-    // more: it is at least as wide as their largest diameter).
-    double h = 0, rmax = 0;
-    std::size_t members = 0;
-    for (int round = 0; round < 2; ++round) {
-      rmax = 0;
-      members = 0;
-      for (std::size_t i = 0; i < n; ++i)
-        if (level[i] == 0xFF) {
-          const double r = o.radius.at(i);
-          if (2 * kMargin * r <= cap) {
-            rmax = std::max(rmax, r);
-            ++members;
-          }
-        }
+    const double cap = l + 1 < kMaxLevels ? dense(4 * kMargin * rmin) : HUGE_VAL;
+    const bool all = 2 * kMargin * rmax_left <= cap;
+    double h = 0, rmax = rmax_left;
+    std::size_t members = remaining;
+    if (all) {
       h = dense(2 * kMargin * rmax);
-      cap = h;
+    } else {
+      if (level.empty()) {
+        level.resize(n);
+        for (std::size_t i = 0; i < n; ++i) level[i] = 0xFF;
+      }
+      // The members of that cap, then of their own cell (which may take
+      // more: it is at least as wide as their largest diameter).
+      double limit = cap;
+      for (int round = 0; round < 2; ++round) {
+        rmax = 0;
+        members = 0;
+        for (std::size_t i = 0; i < n; ++i)
+          if (level[i] == 0xFF) {
+            const double r = o.radius.at(i);
+            if (2 * kMargin * r <= limit) {
+              rmax = std::max(rmax, r);
+              ++members;
+            }
+          }
+        h = dense(2 * kMargin * rmax);
+        limit = h;
+      }
     }
     const double cells = grid_cells(h);
     if (!std::isfinite(h) || !(h > 0) || !std::isfinite(1 / h) || cells > left() ||
@@ -102,17 +114,32 @@ bool SphereCells::build(const Objects& o) {
     lv.first = cells_;
     cells_ += lv.cells;
     levels_.push_back(lv);
+    if (all) {
+      if (!level.empty())
+        for (std::size_t i = 0; i < n; ++i)
+          if (level[i] == 0xFF) level[i] = static_cast<std::uint8_t>(l);
+      break;
+    }
+    rmin = HUGE_VAL;
+    rmax_left = 0;
     for (std::size_t i = 0; i < n; ++i)
-      if (level[i] == 0xFF && 2 * kMargin * o.radius.at(i) <= h) {
-        level[i] = static_cast<std::uint8_t>(l);
-        --remaining;
+      if (level[i] == 0xFF) {
+        const double r = o.radius.at(i);
+        if (2 * kMargin * r <= h) {
+          level[i] = static_cast<std::uint8_t>(l);
+          --remaining;
+        } else {
+          rmin = std::min(rmin, r);
+          rmax_left = std::max(rmax_left, r);
+        }
       }
   }
 
   BigVector<std::uint32_t> key(n);
   start_.assign(cells_ + 1, 0);
   for (std::size_t i = 0; i < n; ++i) {
-    const std::size_t c = levels_[level[i]].cell_of(lo_, o.x.at(i), o.y.at(i), o.z.at(i));
+    const Level& lv = level.empty() ? levels_[0] : levels_[level[i]];
+    const std::size_t c = lv.cell_of(lo_, o.x.at(i), o.y.at(i), o.z.at(i));
     key[i] = static_cast<std::uint32_t>(c);
     ++start_[c + 1];
   }
