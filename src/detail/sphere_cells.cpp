@@ -44,15 +44,22 @@ bool SphereCells::build(const Objects& o) {
     }
     return cells;
   };
-  // All grids together have at most kMaxCellsPerObject cells a sphere
-  // (and 64 a grid): a grid of few large spheres may be as fine as theirs.
+  // A grid of m spheres has at most kMaxCellsPerObject cells a sphere (and
+  // 64), or, while all grids together stay within that many cells per
+  // sphere of the set, as many as its own diameter needs: a grid of few
+  // large spheres is then as fine as they are (with one budget for all
+  // grids the finest took nearly all of it, and the largest spheres of
+  // scaled-uneven got cells 1.25 times their diameter, twice the tests).
   const double budget = static_cast<double>(kMaxCellsPerObject * n + 64 * kMaxLevels);
-  auto left = [&] { return budget - static_cast<double>(cells_); };
+  auto most = [](std::size_t m) { return static_cast<double>(kMaxCellsPerObject * m + 64); };
+  auto allowed = [&](std::size_t m) {
+    return std::max(most(m), budget - static_cast<double>(cells_));
+  };
   // The narrowest cell from `h` up (in steps of a quarter) that fits in
-  // what is left of the budget.
-  auto dense = [&](double h) {
+  // `room` cells.
+  auto dense = [&](double h, double room) {
     if (!(h > 0)) h = std::max({hi[0] - lo_[0], hi[1] - lo_[1], hi[2] - lo_[2], 1.0}) * 0x1p-10;
-    for (int k = 0; k < 400 && std::isfinite(h) && grid_cells(h) > left(); ++k) h *= 1.25;
+    for (int k = 0; k < 400 && std::isfinite(h) && grid_cells(h) > room; ++k) h *= 1.25;
     return h;
   };
 
@@ -71,12 +78,13 @@ bool SphereCells::build(const Objects& o) {
     const std::size_t l = levels_.size();
     // The smallest remaining spheres, with all up to twice their size or
     // up to the narrowest cell the budget allows.
-    const double cap = l + 1 < kMaxLevels ? dense(4 * kMargin * rmin) : HUGE_VAL;
+    const double cap =
+        l + 1 < kMaxLevels ? dense(4 * kMargin * rmin, allowed(remaining)) : HUGE_VAL;
     const bool all = 2 * kMargin * rmax_left <= cap;
     double h = 0, rmax = rmax_left;
     std::size_t members = remaining;
     if (all) {
-      h = dense(2 * kMargin * rmax);
+      h = dense(2 * kMargin * rmax, allowed(members));
     } else {
       if (level.empty()) {
         level.resize(n);
@@ -96,12 +104,12 @@ bool SphereCells::build(const Objects& o) {
               ++members;
             }
           }
-        h = dense(2 * kMargin * rmax);
+        h = dense(2 * kMargin * rmax, allowed(members));
         limit = h;
       }
     }
     const double cells = grid_cells(h);
-    if (!std::isfinite(h) || !(h > 0) || !std::isfinite(1 / h) || cells > left() ||
+    if (!std::isfinite(h) || !(h > 0) || !std::isfinite(1 / h) || cells > allowed(members) ||
         cells_ + cells >= 0x1p32 || members == 0)
       return fail();
     Level lv;
