@@ -63,7 +63,7 @@ int main(int argc, char** argv) {
   if (argc < 3) {
     std::fprintf(stderr,
                  "usage: arrays_bench DIST N [FRAMES] [--threads T] [--skin S] [--all] "
-                 "[--compare ALGO] [--seed S] [--quiet]\n");
+                 "[--compare ALGO] [--seed S] [--quiet] [--one-shot]\n");
     return 2;
   }
   const Distribution dist = parse_distribution(argv[1]);
@@ -72,7 +72,7 @@ int main(int argc, char** argv) {
   int argi = 3;
   if (argc > 3 && argv[3][0] != '-') frames = std::atoi(argv[argi++]);
   ArrayOptions opt;
-  bool tell_all = false, quiet = false;
+  bool tell_all = false, quiet = false, one_shot = false;
   std::string compare;
   std::uint64_t seed = 1;
   for (; argi < argc; ++argi) {
@@ -85,6 +85,8 @@ int main(int argc, char** argv) {
       tell_all = true;
     else if (a == "--quiet")
       quiet = true;
+    else if (a == "--one-shot")  // find_pairs afresh every frame, no tracker
+      one_shot = true;
     else if (a == "--compare" && argi + 1 < argc)
       compare = argv[++argi];
     else if (a == "--seed" && argi + 1 < argc)
@@ -115,13 +117,15 @@ int main(int argc, char** argv) {
     const auto t1 = Clock::now();
     const double c1 = cpu_ms();
     FrameDigest d;
-    const auto stats = tracker.find_pairs(
-        caller.objects(),
-        [&](std::span<const IndexPair> c) {
-          for (const IndexPair& p : c) d.add(p.i, p.j);
-          return true;
-        },
-        f == 0 || tell_all ? Changes::everything() : Changes::only(caller.movers()));
+    const PairSink digest = [&](std::span<const IndexPair> c) {
+      for (const IndexPair& p : c) d.add(p.i, p.j);
+      return true;
+    };
+    const auto stats =
+        one_shot ? find_pairs(caller.objects(), digest, opt)
+                 : tracker.find_pairs(
+                       caller.objects(), digest,
+                       f == 0 || tell_all ? Changes::everything() : Changes::only(caller.movers()));
     const auto t2 = Clock::now();
     cpu_call_ms.push_back(cpu_ms() - c1);
     digests.push_back(d);
