@@ -669,6 +669,58 @@ TEST(Arrays, QuietObjectsWakeWhenTheCallerChangesThem) {
 // An object far larger than the median keeps a skin of a share of its own
 // size: a slow drift of a few skins of the median does not renew it (its
 // renewal would query every finer level), and the pairs stay exact.
+// Motion that outruns the skin: instead of building its index again, the
+// tracker searches afresh for a few calls, holding nothing, then builds.
+TEST(Arrays, TrackerSearchesAfreshWhenMotionOutrunsTheSkin) {
+  for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    Rng rng(seed * 7919);
+    const World w = seed % 2 ? World::similar : World::spheres;
+    std::vector<Shape> shapes = random_world(w, 500 + rng.below(1500), rng);
+    const double world = 20.0 * std::cbrt(static_cast<double>(shapes.size()) / 10.0) + 1;
+    PairTracker tracker;
+    int afresh = 0, rebuilt = 0;
+    for (int frame = 0; frame < 30; ++frame) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << " frame " << frame);
+      std::vector<std::uint32_t> all;
+      if (frame > 0)
+        for (std::uint32_t i = 0; i < shapes.size(); ++i) {
+          shapes[i].center = random_shape(w, rng, world).center;  // every one jumps
+          all.push_back(i);
+        }
+      Storage st(shapes, Layout::soa_double);
+      std::vector<IndexPair> got;
+      const auto stats = tracker.find_pairs(st.objects, got,
+                                            seed > 2 ? Changes::only(all) : Changes::everything());
+      ASSERT_NO_THROW(tracker.validate(st.objects));
+      ASSERT_EQ(sorted(got), oracle(st.objects));
+      ASSERT_EQ(stats.pairs, got.size());
+      if (stats.afresh) {
+        ++afresh;
+        EXPECT_LT(tracker.memory_bytes(), 1000u);
+        EXPECT_FALSE(stats.rebuilt);
+      }
+      rebuilt += stats.rebuilt ? 1 : 0;
+    }
+    // Built on the first call and after each run of afresh calls.
+    EXPECT_GE(afresh, 20);
+    EXPECT_GE(rebuilt, 2);
+    EXPECT_EQ(afresh + rebuilt, 30);
+  }
+  // Crowded cells (about five spheres on each of the lattice's places, too few
+  // for the kernel to refuse them, too many to search afresh): built each time.
+  Rng rng(3);
+  std::vector<Shape> shapes = random_world(World::lattice, 1000, rng);
+  PairTracker tracker;
+  for (int frame = 0; frame < 6; ++frame) {
+    for (Shape& s : shapes) s.center = random_shape(World::lattice, rng, 0).center;
+    Storage st(shapes, Layout::soa_double);
+    std::vector<IndexPair> got;
+    const auto stats = tracker.find_pairs(st.objects, got);
+    EXPECT_FALSE(stats.afresh);
+    ASSERT_EQ(sorted(got), oracle(st.objects));
+  }
+}
+
 TEST(Arrays, LargeObjectsKeepASkinOfTheirOwnSize) {
   Rng rng(31);
   std::vector<Shape> shapes = random_world(World::spheres, 2000, rng);

@@ -193,6 +193,13 @@ struct ArrayCallStats {
   /// Quiet objects the caller changed in this call (renewed, whether or not
   /// they left their box; those that did count in `renewed` too).
   std::uint64_t woken = 0;
+  /// The tracker found this call's pairs afresh, without an index: motion
+  /// outran the skin (so many objects left their boxes that the index
+  /// would be built again), and they are spheres in uncrowded cells, where
+  /// a new search is several times cheaper than a build. It does the same
+  /// for the next few calls, holding nothing meanwhile, then builds its
+  /// index again.
+  bool afresh = false;
   bool stopped = false;  ///< the sink asked to stop
 };
 

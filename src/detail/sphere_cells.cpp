@@ -161,6 +161,7 @@ bool SphereCells::build(const Objects& o) {
       count += start_[c];
     }
     if (crowd > static_cast<double>(kMaxCrowd) * count) return fail();
+    if (count > 0) crowd_ = std::max(crowd_, crowd / count);
   }
   for (std::size_t c = 1; c <= cells_; ++c) start_[c] += start_[c - 1];
   // Three records past the end that overlap nothing (a NaN centre fails
@@ -188,6 +189,7 @@ bool SphereCells::fail() {
 void SphereCells::release() {
   levels_.clear();
   cells_ = 0;
+  crowd_ = 0;
   start_ = {};
   placed_ = {};
 }

@@ -48,6 +48,9 @@ class SphereCells {
   std::size_t cell_count() const { return cells_; }
   /// The grids.
   std::size_t level_count() const { return levels_.size(); }
+  /// The largest over the grids of the mean, over their spheres, of the
+  /// spheres in a sphere's cell (itself included): 1 when none shares.
+  double crowd() const { return crowd_; }
   /// Appends the overlapping pairs found from the spheres of cells
   /// [c0, c1) to `out` (caller's indices, i < j), each pair of the set
   /// exactly once over all cells; returns the number of exact tests.
@@ -84,6 +87,7 @@ class SphereCells {
   double lo_[3] = {0, 0, 0};
   std::vector<Level> levels_;
   std::size_t cells_ = 0;
+  double crowd_ = 0;
   BigVector<std::uint32_t> start_;  // per cell, then one past the end
   // A sphere in cell order, with its index: one record, so that the
   // counting sort's scatter writes one line per sphere (five columns were
