@@ -70,13 +70,13 @@ CPU = {}  # id of a measurement's result -> median process CPU seconds
 
 
 def measure(fn, runs, budget=20.0):
-    """Median seconds of `runs` calls of fn (fewer when a call takes long:
+    """Median seconds of `runs` calls of fn after one untimed call (fewer when a call takes long:
     at least 1, and no more than `budget` seconds in all). Returns
     (median, runs done, last result). The median CPU time of the process
     (all its threads) is kept too: on a shared host the wall time carries
     the other tenants' load, the CPU time much less of it."""
     times, cpu = [], []
-    out = None
+    out = fn()  # one call untimed, for every method alike: first-touch and cache warm-up
     for _ in range(runs):
         t, c = time.perf_counter(), time.process_time()
         out = fn()
