@@ -158,10 +158,6 @@ ArrayCallStats cell_pairs(const detail::SphereCells& cells, const PairSink& sink
 ArrayCallStats one_shot(const Source& src, bool bipartite, const PairSink& sink,
                         const ArrayOptions& options) {
   ArrayCallStats stats;
-  if (!bipartite) {
-    detail::SphereCells cells;
-    if (cells.build(*src.a)) return cell_pairs(cells, sink, options);
-  }
   const detail::BigVector<AabbF> boxes = float_bounds(src);
   ArrayGrid grid;
   // Up to 8 bucket starts an object (32 bytes, freed with the call) buy
@@ -259,6 +255,12 @@ void check_objects(const Objects& o, const char* what) {
 
 ArrayCallStats find_pairs(const Objects& objects, const PairSink& sink,
                           const ArrayOptions& options) {
+  // The sphere kernel checks the values it reads in its first pass; a set
+  // it refuses, for a bad value or another reason, is checked here.
+  {
+    detail::SphereCells cells;
+    if (cells.build(objects)) return cell_pairs(cells, sink, options);
+  }
   check_objects(objects);
   Source src{&objects, nullptr, objects.count, objects.count};
   return one_shot(src, false, sink, options);

@@ -496,6 +496,28 @@ TEST(Arrays, BadValuesNameTheIndexAndLeaveTheTrackerAsItWas) {
       EXPECT_EQ(again, before);
     }
   }
+  // Spheres only: the one-shot call reads them first in the sphere kernel,
+  // which checks as it reads; the error is the same.
+  {
+    auto spheres = random_world(World::similar, 500, rng);
+    for (const Case& c : cases) {
+      if (!c.shape.is_sphere()) continue;
+      SCOPED_TRACE(::testing::Message() << c.what << " (spheres only)");
+      auto bad_shapes = spheres;
+      bad_shapes[c.index] = c.shape;
+      for (Layout layout : {Layout::soa_double, Layout::aos_float}) {
+        Storage bad(bad_shapes, layout);
+        try {
+          std::vector<IndexPair> out;
+          find_pairs(bad.objects, out);
+          ADD_FAILURE() << "no throw";
+        } catch (const InvalidObjects& e) {
+          EXPECT_EQ(e.index(), c.index);
+          EXPECT_NE(std::string(e.what()).find(c.pattern), std::string::npos) << e.what();
+        }
+      }
+    }
+  }
   // A kind byte that is neither 0 nor 1, a missing column, a bad change index.
   Storage st(shapes, Layout::soa_double);
   st.kinds[9] = 7;

@@ -14,15 +14,27 @@ bool SphereCells::build(const Objects& o) {
   if (o.kind != nullptr)
     for (std::size_t i = 0; i < n; ++i)
       if (o.kind[static_cast<std::ptrdiff_t>(i) * o.kind_stride] != 0) return false;
+  if (o.x.empty() || o.y.empty() || o.z.empty()) return false;
+  // One pass for the centres' box, the radii's extremes and the values'
+  // check (a bad value: false, and the caller's check names it). A pass of
+  // its own for the check cost 5% of a call at 1 000 000 spheres.
   double hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
   for (double& v : lo_) v = HUGE_VAL;
-  const Column* col[3] = {&o.x, &o.y, &o.z};
-  for (std::size_t i = 0; i < n; ++i)
-    for (int a = 0; a < 3; ++a) {
-      const double v = col[a]->at(i);
-      lo_[a] = std::min(lo_[a], v);
-      hi[a] = std::max(hi[a], v);
-    }
+  double rmin = HUGE_VAL, rmax_left = 0;
+  bool valid = true;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = o.x.at(i), y = o.y.at(i), z = o.z.at(i), r = o.radius.at(i);
+    valid &= std::isfinite(x) & std::isfinite(y) & std::isfinite(z) & std::isfinite(r) & (r >= 0);
+    lo_[0] = std::min(lo_[0], x);
+    hi[0] = std::max(hi[0], x);
+    lo_[1] = std::min(lo_[1], y);
+    hi[1] = std::max(hi[1], y);
+    lo_[2] = std::min(lo_[2], z);
+    hi[2] = std::max(hi[2], z);
+    rmin = std::min(rmin, r);
+    rmax_left = std::max(rmax_left, r);
+  }
+  if (!valid) return false;
 
   // Two spheres that overlap are at most ri + rj apart per axis. A sphere
   // sits on a grid whose cell is a hair wider than its diameter, and grids
@@ -63,15 +75,9 @@ bool SphereCells::build(const Objects& o) {
     return h;
   };
 
-  // The remaining spheres' smallest and largest radius, found with the
-  // box above and again with each grid's members; spheres of one size
-  // (or within a factor 2) then need no pass of their own here.
-  double rmin = HUGE_VAL, rmax_left = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double r = o.radius.at(i);
-    rmin = std::min(rmin, r);
-    rmax_left = std::max(rmax_left, r);
-  }
+  // The remaining spheres' smallest and largest radius (rmin, rmax_left),
+  // found with the box above and again with each grid's members: spheres
+  // of one size (or within a factor 2) need no pass of their own here.
   BigVector<std::uint8_t> level;
   std::size_t remaining = n;
   while (remaining > 0) {

@@ -35,8 +35,9 @@ class SphereCells {
   /// the kernel does not suit them: a box among them, fewer than
   /// `kMinObjects`, a grid that cannot be dense (under 2^26 cells along an
   /// axis), or spheres crowded into few cells (the sum of a grid's squared
-  /// cell counts over `kMaxCrowd` times its spheres). `o` must have passed
-  /// check_objects.
+  /// cell counts over `kMaxCrowd` times its spheres), or a value that
+  /// check_objects refuses (a centre or radius not finite, a negative
+  /// radius; the caller's check then names it). Missing columns: false.
   bool build(const Objects& o);
 
   static constexpr std::size_t kMinObjects = 64;
