@@ -1,24 +1,25 @@
-// The one-shot kernel for spheres (find_pairs on a single set): a few dense
-// grids of cells, each as wide as the largest diameter on it, the spheres
-// counting-sorted into them as columns of doubles, and each sphere tested
-// exactly, by the contract's predicate, against the spheres after it on
-// its own grid (the rest of its cell and 13 neighbours: 5 runs of
-// consecutive cells) and against every sphere within reach on the coarser
-// grids (2 or 3 cells a side).
+// The kernel for spheres (find_pairs on a single set of spheres, and the
+// tracker's calls afresh): a few dense grids of cells, each a hair wider
+// than the largest diameter on it, the spheres counting-sorted into them as
+// records of doubles, and each sphere tested exactly, by the contract's
+// predicate, against the spheres after it on its own grid (the rest of its
+// cell and 13 neighbours: 5 runs of consecutive cells) and against every
+// sphere within reach on the coarser grids (2 or 3 cells a side).
 //
 // The grids: the smallest remaining spheres, and all others up to twice
 // their size or up to the narrowest cell that the budget of cells allows
-// (kMaxCellsPerObject a sphere for all grids, each over the box of all
-// centres), go to one grid; the rest to the next. Spheres of one size
-// take one grid; radii over three decades three.
+// (kMaxCellsPerObject a sphere, each grid over the box of all centres), go
+// to one grid; the rest to the next. Spheres of one size take one grid;
+// radii over three decades three.
 //
 // Why beside ArrayGrid: ArrayGrid's power-of-two levels (one per octave)
 // and float boxes cost a box test on about 30 partners a sphere before the
 // exact test for spheres of one size, and a probe of every coarser octave
 // for spheres of many sizes; here the cells are the diameters themselves,
-// the levels few, and the exact test reads four adjacent columns. Measured
-// at 1 000 000 spheres of radius 0.00565 in the unit cube: 150-210 ms
-// against 310-420 ms; see `one_shot` for the spread of sizes.
+// the levels few, and the exact test reads one record. Measured on one
+// core (docs/arrays.md, point 5): 1 000 000 spheres of radius 0.00565 in
+// the unit cube 135-150 ms against 310-420; 100 000 over three decades of
+// radii 19-20 ms against 125.
 #pragma once
 
 #include <broadphase/arrays.hpp>
