@@ -116,6 +116,48 @@ def main(out):
                    [x * rng.uniform(1, 40) for x in direction(rng)]) for i in range(300)]
     write(os.path.join(out, "random-motion.scene"), objs)
 
+    # Touching pairs across every cut plane, away from the cuts of the other
+    # axes: an object whose face lies exactly on a cut must still reach the
+    # rank beyond it (whose subdomain holds the pair's point on the cut),
+    # although nothing else takes it there.
+    inner = [137.25, 611.5, 893.0]
+    objs = []
+    for a in range(3):
+        for c in cuts[1:-1]:
+            for k, o in enumerate(inner):
+                p = [inner[(k + 1) % 3], inner[(k + 2) % 3], o]
+                p.insert(a, c)
+                p = p[:3]
+                lo, hi = list(p), list(p)
+                lo[a], hi[a] = c - 2.0, c + 2.0
+                objs.append(sphere(lo, 2.0))
+                objs.append(sphere(hi, 2.0))
+                bl, bh = list(p), list(p)
+                bl[a], bh[a] = c - 0.75, c + 0.5
+                for b in (2, 1, 0):
+                    if b != a:
+                        bl[b] += 10.0
+                        bh[b] += 10.0
+                        break
+                objs.append(box(bl, (0.75, 0.75, 0.75)))
+                objs.append(box(bh, (0.5, 0.5, 0.5)))
+                # One object across the cut, its partner wholly beyond it:
+                # the pair's point lies beyond the cut, so the rank there
+                # must receive the straddling object (and the same mirrored).
+                for side in (1.0, -1.0):
+                    q = list(p)
+                    q[(a + 1) % 3] += 20.0 * side
+                    s1, s2 = list(q), list(q)
+                    s1[a], s2[a] = c - side, c + 2.0 * side
+                    objs.append(sphere(s1, 2.0))
+                    objs.append(sphere(s2, 1.0))
+                    q[(a + 2) % 3] += 20.0
+                    b1, b2 = list(q), list(q)
+                    b1[a], b2[a] = c - 0.5 * side, c + 1.5 * side
+                    objs.append(box(b1, (1.0, 1.0, 1.0)))
+                    objs.append(box(b2, (0.5, 0.25, 0.75)))
+    write(os.path.join(out, "cut-faces.scene"), objs)
+
 
 if __name__ == "__main__":
     main(sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), "..", "data", "mpi"))
