@@ -125,19 +125,24 @@ MpiReplay::MpiReplay(MPI_Comm comm, Share share, const distributed::Options& opt
       fail_abort_ = s.find(":abort") != std::string::npos;
     }
   }
-  shapes_.clear();
-  for (const Body& b : bodies_) shapes_.push_back(b.shape);
-  domain_.balance(shapes_);
+  {
+    std::vector<Shape> shapes;
+    shapes.reserve(bodies_.size());
+    for (const Body& b : bodies_) shapes.push_back(b.shape);
+    domain_.balance(shapes);
+  }
   FrameReport unused;
   migrate(unused);
 }
 
+Objects MpiReplay::view() const {
+  return distributed::shapes_view(bodies_.empty() ? nullptr : &bodies_[0].shape, bodies_.size(),
+                                  static_cast<std::ptrdiff_t>(sizeof(Body)));
+}
+
 void MpiReplay::migrate(FrameReport& r) {
-  std::vector<int> dest(bodies_.size());
-  for (std::size_t i = 0; i < bodies_.size(); ++i)
-    dest[i] = domain_.partition().owner(bodies_[i].shape.center);
   const distributed::Stats before = domain_.stats();
-  bodies_ = domain_.exchange<Body>(bodies_, dest);
+  domain_.migrate(bodies_, [](const Body& b) { return b.shape.center; });
   r.stats.bytes_sent += domain_.stats().bytes_sent - before.bytes_sent;
   r.stats.messages_sent += domain_.stats().messages_sent - before.messages_sent;
 }
@@ -182,13 +187,9 @@ FrameReport MpiReplay::next() {
   r.phases.migration = since(t);
 
   t = std::chrono::steady_clock::now();
-  shapes_.clear();
-  for (const Body& b : bodies_) shapes_.push_back(b.shape);
-  if (domain_.rebalance(shapes_)) {
+  if (domain_.rebalance(view())) {
     r.rebalanced = true;
     migrate(r);
-    shapes_.clear();
-    for (const Body& b : bodies_) shapes_.push_back(b.shape);
   }
   r.phases.balancing = since(t);
 
@@ -232,7 +233,7 @@ FrameReport MpiReplay::next() {
   r.phases.reduction = since(t);
 
   pairs_.clear();
-  domain_.find_pairs(ids_, shapes_, pairs_);
+  domain_.find_pairs(ids_, view(), pairs_);
   const distributed::Stats& s = domain_.stats();
   r.stats.owned = s.owned;
   r.stats.ghosts = s.ghosts;

@@ -74,12 +74,13 @@ class MpiReplay {
 
  private:
   void migrate(FrameReport& r);
+  // This rank's bodies as a borrowed view of their shapes (no copy).
+  Objects view() const;
   std::uint64_t n_;
   double world_;
   distributed::Domain domain_;
   std::vector<Body> bodies_;
   std::vector<std::uint32_t> ids_;
-  std::vector<Shape> shapes_;
   std::vector<distributed::IdPair> pairs_;
   int frame_ = 0;
   int fail_rank_ = -1, fail_frame_ = -1;

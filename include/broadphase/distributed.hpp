@@ -162,7 +162,23 @@ struct Stats {
   double local_seconds = 0;         ///< the local structure's build and pairs
 };
 
+/// What travels for one object in the ghost exchange: its shape and
+/// global id (64 bytes).
+struct GhostRecord {
+  Shape shape;
+  std::uint32_t id = 0;
+};
+
+/// A borrowed view (arrays.hpp) of `count` shapes laid out every
+/// `stride_bytes` bytes from `first`, such as the `shape` member of an
+/// array of structs: no copy.
+Objects shapes_view(const Shape* first, std::size_t count, std::ptrdiff_t stride_bytes);
+
 /// The decomposition and the collective calls over one communicator.
+///
+/// Thread safety: a Domain is used by one thread at a time (its calls are
+/// collective over its communicator and it keeps buffers between calls);
+/// Domains over different communicators are independent.
 class Domain {
  public:
   /// Collective. `world` is the box most objects live in (finite,
@@ -193,6 +209,9 @@ class Domain {
   /// for `balance`) holds more than the mean times `rebalance_threshold`;
   /// returns true when it did.
   bool rebalance(std::span<const Shape> shapes, std::span<const double> weights = {});
+  /// The same over a borrowed view of the caller's objects, weighed as
+  /// `Options::balance_by` says; copies nothing unless a cut is due.
+  bool rebalance(const Objects& objects);
 
   /// Collective. Sends `items[i]` to rank `dest[i]` (an all-to-all, so an
   /// item may go to any rank, not only a neighbour) and returns what this
@@ -203,6 +222,31 @@ class Domain {
     std::vector<T> out;
     exchange_bytes(items.data(), sizeof(T), items.size(), dest.data(), &resize_to<T>, &out);
     return out;
+  }
+
+  /// Collective. Sends every item whose centre (`centre_of(item)`, a Vec3)
+  /// this rank's subdomain does not hold to the rank whose subdomain does
+  /// (an all-to-all, so an item that jumped past a neighbour still
+  /// arrives). Items that stay are not copied out and keep their order;
+  /// arrivals are appended in the order of their source ranks.
+  template <class T, class CentreOf>
+  void migrate(std::vector<T>& items, CentreOf centre_of) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    std::vector<T> leaving;
+    std::vector<int> dest;
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      const Vec3 c = centre_of(items[i]);
+      if (partition_.holds(rank_, c)) {
+        if (kept != i) items[kept] = items[i];
+        ++kept;
+      } else {
+        leaving.push_back(items[i]);
+        dest.push_back(partition_.owner(c));
+      }
+    }
+    items.resize(kept);
+    exchange_bytes(leaving.data(), sizeof(T), leaving.size(), dest.data(), &append_to<T>, &items);
   }
 
   /// Collective. Every overlapping pair among the objects of all ranks,
@@ -230,6 +274,12 @@ class Domain {
   // Options::balance_by says.
   std::vector<double> weights_for(std::span<const Shape> shapes,
                                   std::span<const double> weights) const;
+  // The weight of every object when the caller gives none (collective
+  // when balancing by measured cost).
+  double default_weight() const;
+  // Collective: true when the most loaded rank's weight `mine` exceeds the
+  // mean by the threshold and by more than the heaviest object.
+  bool due(double mine, double heaviest) const;
   // Rebuilds the bisection's cuts, object i weighing w[i].
   void cut(std::span<const Shape> shapes, const std::vector<double>& w);
   // Sends count items of `size` bytes; the result goes to the buffer that
@@ -242,6 +292,20 @@ class Domain {
     v.resize(bytes / sizeof(T));
     return reinterpret_cast<std::byte*>(v.data());
   }
+  template <class T>
+  static std::byte* append_to(void* out, std::size_t bytes) {
+    auto& v = *static_cast<std::vector<T>*>(out);
+    const std::size_t old = v.size();
+    v.resize(old + bytes / sizeof(T));
+    return reinterpret_cast<std::byte*>(v.data() + old);
+  }
+  // find_pairs over any reader of this rank's shapes.
+  template <class ShapeAt>
+  void find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count, ShapeAt shape_at,
+                     std::vector<IdPair>& out);
+  // Makes room for `count` records in local_ from `used` on without
+  // shrinking it (so a frame like the last one writes no fresh pages).
+  GhostRecord* grow_local(std::size_t used, std::size_t count);
 
   MPI_Comm comm_;
   int rank_ = 0, size_ = 1;
@@ -249,6 +313,14 @@ class Domain {
   Options options_;
   Partition partition_;
   Stats stats_;
+  // Buffers kept between find_pairs calls: this rank's objects and ghosts
+  // (the first local_used_ of local_, with their ids apart in local_ids_),
+  // and what is sent.
+  std::vector<GhostRecord> local_, sent_, shared_mine_;
+  std::vector<std::uint32_t> local_ids_;
+  std::vector<int> dest_;
+  std::vector<std::byte> send_buffer_;
+  std::size_t local_used_ = 0;
 };
 
 /// Collective over `comm`: throws DistributedError on every rank when any

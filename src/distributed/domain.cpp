@@ -18,11 +18,7 @@ double since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// What travels for one object: its shape and global id.
-struct Record {
-  Shape shape;
-  std::uint32_t id;
-};
+using Record = GhostRecord;
 
 // Bins of one round of the bisection's histogram search. Eight rounds of 64
 // bins narrow a bracket by 2^48, and the search stops earlier when the
@@ -134,7 +130,11 @@ void Domain::exchange_bytes(const void* data, std::size_t size, std::size_t coun
   error.clear();
   if (total > INT_MAX) error = "rank " + std::to_string(rank_) + ": more than 2 GB to receive";
   agree(error);
-  std::vector<std::byte> send(static_cast<std::size_t>(at));
+  // Kept between calls and never shrunk: fresh pages cost a fault each
+  // on the machines measured (docs/distributed.md).
+  if (send_buffer_.size() < static_cast<std::size_t>(at))
+    send_buffer_.resize(static_cast<std::size_t>(at));
+  std::byte* send = send_buffer_.data();
   std::byte* recv = resize(out, static_cast<std::size_t>(total));
   std::vector<int> fill(send_displs);
   std::size_t self = static_cast<std::size_t>(recv_displs[me]);
@@ -145,12 +145,12 @@ void Domain::exchange_bytes(const void* data, std::size_t size, std::size_t coun
       std::memcpy(recv + self, bytes + i * size, size);
       self += size;
     } else {
-      std::memcpy(send.data() + fill[r], bytes + i * size, size);
+      std::memcpy(send + fill[r], bytes + i * size, size);
       fill[r] += static_cast<int>(size);
     }
   }
-  MPI_Alltoallv(send.data(), send_counts.data(), send_displs.data(), MPI_BYTE, recv,
-                recv_counts.data(), recv_displs.data(), MPI_BYTE, comm_);
+  MPI_Alltoallv(send, send_counts.data(), send_displs.data(), MPI_BYTE, recv, recv_counts.data(),
+                recv_displs.data(), MPI_BYTE, comm_);
   for (std::size_t r = 0; r < p; ++r)
     if (r != me && send_counts[r] > 0) {
       stats_.bytes_sent += static_cast<std::uint64_t>(send_counts[r]);
@@ -170,6 +170,10 @@ std::vector<double> Domain::weights_for(std::span<const Shape> shapes,
               std::to_string(weights[i]) + " (finite and >= 0 wanted)";
   agree(error);
   if (!weights.empty()) return {weights.begin(), weights.end()};
+  return std::vector<double>(shapes.size(), default_weight());
+}
+
+double Domain::default_weight() const {
   const bool measured =
       options_.balance_by == BalanceBy::measured && stats_.owned > 0 && stats_.local_seconds > 0;
   // Every rank must use one scale: a rank that has measured nothing yet
@@ -179,9 +183,9 @@ std::vector<double> Domain::weights_for(std::span<const Shape> shapes,
   double sum[2] = {0, 0};
   if (options_.balance_by == BalanceBy::measured)
     MPI_Allreduce(mine, sum, 2, MPI_DOUBLE, MPI_SUM, comm_);
-  if (sum[1] == 0) return std::vector<double>(shapes.size(), 1.0);
+  if (sum[1] == 0) return 1.0;
   if (!measured) each = sum[0] / sum[1];
-  return std::vector<double>(shapes.size(), each);
+  return each;
 }
 
 void Domain::balance(std::span<const Shape> shapes, std::span<const double> weights) {
@@ -341,6 +345,24 @@ bool Domain::rebalance(std::span<const Shape> shapes, std::span<const double> we
     mine += x;
     heaviest = std::max(heaviest, x);
   }
+  if (!due(mine, heaviest)) return false;
+  cut(shapes, w);
+  return true;
+}
+
+bool Domain::rebalance(const Objects& objects) {
+  if (options_.decomposition != Decomposition::bisection) return false;
+  // Every object weighs the same here: no vector of weights unless a cut
+  // is due.
+  const double each = default_weight();
+  if (!due(each * static_cast<double>(objects.count), objects.count > 0 ? each : 0.0)) return false;
+  std::vector<Shape> shapes(objects.count);
+  for (std::size_t i = 0; i < objects.count; ++i) shapes[i] = objects.shape(i);
+  cut(shapes, std::vector<double>(objects.count, each));
+  return true;
+}
+
+bool Domain::due(double mine, double heaviest) const {
   // The most loaded rank's weight and the heaviest object, in one reduction.
   double local_max[2] = {mine, heaviest}, global_max[2] = {0, 0}, sum = 0;
   MPI_Allreduce(local_max, global_max, 2, MPI_DOUBLE, MPI_MAX, comm_);
@@ -349,67 +371,127 @@ bool Domain::rebalance(std::span<const Shape> shapes, std::span<const double> we
   const double mean = sum / size_;
   // One object above the mean is the best cuts can do (8 objects on 8
   // ranks, objects on one point): no rebuild for that.
-  if (sum == 0 || most <= mean * options_.rebalance_threshold || most <= mean + top) return false;
-  cut(shapes, w);
-  return true;
+  return !(sum == 0 || most <= mean * options_.rebalance_threshold || most <= mean + top);
+}
+
+Objects shapes_view(const Shape* first, std::size_t count, std::ptrdiff_t stride) {
+  Objects view;
+  view.count = count;
+  if (first == nullptr || count == 0) {
+    view.count = 0;
+    return view;
+  }
+  view.x = {&first->center.x, stride, Real::f64};
+  view.y = {&first->center.y, stride, Real::f64};
+  view.z = {&first->center.z, stride, Real::f64};
+  view.radius = {&first->half.x, stride, Real::f64};  // a sphere's radius is its half.x
+  view.half_x = view.radius;
+  view.half_y = {&first->half.y, stride, Real::f64};
+  view.half_z = {&first->half.z, stride, Real::f64};
+  static_assert(sizeof(ShapeKind) == 1 && static_cast<int>(ShapeKind::sphere) == 0 &&
+                static_cast<int>(ShapeKind::box) == 1);
+  view.kind = reinterpret_cast<const std::uint8_t*>(&first->kind);
+  view.kind_stride = stride;
+  return view;
+}
+
+GhostRecord* Domain::grow_local(std::size_t used, std::size_t count) {
+  if (local_.size() < used + count) local_.resize(used + count);
+  if (local_ids_.size() < local_.size()) local_ids_.resize(local_.size());
+  return local_.data() + used;
 }
 
 void Domain::find_pairs(std::span<const std::uint32_t> ids, const Objects& objects,
                         std::vector<IdPair>& out) {
-  std::vector<Shape> shapes;
-  std::string error;
-  if (ids.size() != objects.count) {
-    error = "rank " + std::to_string(rank_) + ": " + std::to_string(ids.size()) + " ids for " +
-            std::to_string(objects.count) + " objects";
-  } else {
-    shapes.reserve(objects.count);
-    for (std::size_t i = 0; i < objects.count; ++i) shapes.push_back(objects.shape(i));
-  }
-  agree(error);
-  find_pairs(ids, shapes, out);
+  agree(ids.size() != objects.count
+            ? "rank " + std::to_string(rank_) + ": " + std::to_string(ids.size()) + " ids for " +
+                  std::to_string(objects.count) + " objects"
+            : std::string());
+  find_pairs_of(
+      ids, objects.count, [&](std::size_t i) { return objects.shape(i); }, out);
 }
 
 void Domain::find_pairs(std::span<const std::uint32_t> ids, std::span<const Shape> shapes,
                         std::vector<IdPair>& out) {
+  agree(ids.size() != shapes.size()
+            ? "rank " + std::to_string(rank_) + ": " + std::to_string(ids.size()) + " ids for " +
+                  std::to_string(shapes.size()) + " shapes"
+            : std::string());
+  find_pairs_of(
+      ids, shapes.size(), [&](std::size_t i) { return shapes[i]; }, out);
+}
+
+template <class ShapeAt>
+void Domain::find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count, ShapeAt shape_at,
+                           std::vector<IdPair>& out) {
   stats_ = Stats{};
-  stats_.owned = shapes.size();
+  stats_.owned = count;
   const auto t0 = std::chrono::steady_clock::now();
   std::string error;
-  if (ids.size() != shapes.size())
-    error = "rank " + std::to_string(rank_) + ": " + std::to_string(ids.size()) + " ids for " +
-            std::to_string(shapes.size()) + " shapes";
-  for (std::size_t i = 0; error.empty() && i < shapes.size(); ++i)
-    if (!is_valid(shapes[i]))
+
+  // Ghosts: each object to every rank its bounds reach, or to everyone. An
+  // object whose bounds, grown by the margin, stay inside this rank's
+  // subdomain reaches no other rank: it is written straight to local_ (the
+  // comparisons are ranks_meeting's, against the cuts that bound this
+  // subdomain), with no search of the cut tree and no exchange. Those come
+  // first in local_, and every pair with one of them is this rank's: when
+  // a's bounds lie in the subdomain and b's bounds meet a's, then per axis
+  // lo_a <= max(lo_a, lo_b) <= hi_a, inside the subdomain.
+  const Aabb& region = partition_.region(rank_);
+  const double margin = options_.margin;
+  sent_.clear();
+  dest_.clear();
+  shared_mine_.clear();
+  std::vector<Record> near_self;  // this rank's objects that reach others too
+  std::vector<int> reach;
+  std::size_t used = 0;
+  Record* inner = grow_local(0, count);
+  for (std::size_t i = 0; i < count; ++i) {
+    const Shape s = shape_at(i);
+    if (!is_valid(s)) {
       error = "rank " + std::to_string(rank_) + ": object " + std::to_string(ids[i]) +
               " cannot be placed: its shape is not finite or has a negative extent";
-  agree(error);
-
-  // Ghosts: each object to every rank its bounds reach, or to everyone.
-  std::vector<Record> sent, shared_mine;
-  std::vector<int> dest;
-  sent.reserve(shapes.size() + shapes.size() / 4);
-  dest.reserve(sent.capacity());
-  std::vector<int> reach;
-  for (std::size_t i = 0; i < shapes.size(); ++i) {
-    reach.clear();
-    partition_.ranks_meeting(bounds(shapes[i]), options_.margin, reach);
-    if (static_cast<int>(reach.size()) > options_.max_ghost_ranks) {
-      shared_mine.push_back({shapes[i], ids[i]});
+      break;
+    }
+    const Aabb box = bounds(s);
+    bool alone = true;
+    for (int a = 0; a < 3; ++a)
+      alone =
+          alone && !(box.hi[a] + margin >= region.hi[a]) && !(box.lo[a] - margin < region.lo[a]);
+    if (alone) {
+      inner[used] = {s, ids[i]};
+      local_ids_[used] = ids[i];
+      ++used;
       continue;
     }
-    for (int r : reach) {
-      sent.push_back({shapes[i], ids[i]});
-      dest.push_back(r);
+    reach.clear();
+    partition_.ranks_meeting(box, margin, reach);
+    if (static_cast<int>(reach.size()) > options_.max_ghost_ranks) {
+      shared_mine_.push_back({s, ids[i]});
+      continue;
     }
+    for (int r : reach)
+      if (r == rank_) {
+        near_self.push_back({s, ids[i]});
+      } else {
+        sent_.push_back({s, ids[i]});
+        dest_.push_back(r);
+      }
   }
-  std::vector<Record> local = exchange<Record>(sent, dest);
+  agree(error);
+  const std::size_t anchored = used;
+  std::copy(near_self.begin(), near_self.end(), grow_local(used, near_self.size()));
+  used += near_self.size();
   {
-    std::uint64_t from_me = 0;
-    for (int r : dest) from_me += r == rank_ ? 1 : 0;
-    stats_.ghosts = local.size() - from_me;
+    // Received ghosts go after this rank's own objects.
+    std::vector<Record> received;
+    exchange<Record>(sent_, dest_).swap(received);
+    stats_.ghosts = received.size();
+    std::copy(received.begin(), received.end(), grow_local(used, received.size()));
+    used += received.size();
   }
   // The shared list: every rank's big objects to every rank.
-  const int mine = static_cast<int>(shared_mine.size() * sizeof(Record));
+  const int mine = static_cast<int>(shared_mine_.size() * sizeof(Record));
   std::vector<int> counts(static_cast<std::size_t>(size_)), displs(counts.size());
   MPI_Allgather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_);
   long long total = 0;
@@ -418,12 +500,14 @@ void Domain::find_pairs(std::span<const std::uint32_t> ids, std::span<const Shap
     total += counts[r];
   }
   agree(total > INT_MAX ? "the shared list of large objects exceeds 2 GB" : "");
-  const std::size_t before = local.size();
-  local.resize(before + static_cast<std::size_t>(total) / sizeof(Record));
-  MPI_Allgatherv(shared_mine.data(), mine, MPI_BYTE, local.data() + before, counts.data(),
-                 displs.data(), MPI_BYTE, comm_);
+  const std::size_t before = used;
+  used += static_cast<std::size_t>(total) / sizeof(Record);
+  MPI_Allgatherv(shared_mine_.data(), mine, MPI_BYTE, grow_local(before, used - before),
+                 counts.data(), displs.data(), MPI_BYTE, comm_);
+  for (std::size_t i = anchored; i < used; ++i) local_ids_[i] = local_[i].id;
+  local_used_ = used;
   stats_.shared = static_cast<std::uint64_t>(total) / sizeof(Record);
-  stats_.ghosts += stats_.shared - shared_mine.size();
+  stats_.ghosts += stats_.shared - shared_mine_.size();
   if (mine > 0) {
     stats_.bytes_sent += static_cast<std::uint64_t>(mine) * static_cast<std::uint64_t>(size_ - 1);
     stats_.messages_sent += static_cast<std::uint64_t>(size_ - 1);
@@ -434,16 +518,20 @@ void Domain::find_pairs(std::span<const std::uint32_t> ids, std::span<const Shap
   const auto t1 = std::chrono::steady_clock::now();
   if (!options_.local_pairs) return;
   try {
-    std::vector<Aabb> box(local.size());
-    for (std::size_t i = 0; i < local.size(); ++i) box[i] = bounds(local[i].shape);
+    const Record* local = local_.data();
+    const std::uint32_t* local_id = local_ids_.data();
     const std::size_t first = out.size();
     // Keeps pair (i, j) of `local` when this rank's subdomain holds
-    // max(lo_i, lo_j); false stops (an id seen twice).
+    // max(lo_i, lo_j), known without a look when either lies in the
+    // subdomain (above); false stops (an id seen twice).
     auto keep = [&](std::size_t i, std::size_t j) {
-      const Vec3 at{std::max(box[i].lo.x, box[j].lo.x), std::max(box[i].lo.y, box[j].lo.y),
-                    std::max(box[i].lo.z, box[j].lo.z)};
-      if (!partition_.holds(rank_, at)) return true;
-      const std::uint32_t a = local[i].id, b = local[j].id;
+      if (i >= anchored && j >= anchored) {
+        const Aabb bi = bounds(local[i].shape), bj = bounds(local[j].shape);
+        const Vec3 at{std::max(bi.lo.x, bj.lo.x), std::max(bi.lo.y, bj.lo.y),
+                      std::max(bi.lo.z, bj.lo.z)};
+        if (!partition_.holds(rank_, at)) return true;
+      }
+      const std::uint32_t a = local_id[i], b = local_id[j];
       if (a == b) {
         error = "object id " + std::to_string(a) + " was passed on more than one rank or twice";
         return false;
@@ -452,25 +540,10 @@ void Domain::find_pairs(std::span<const std::uint32_t> ids, std::span<const Shap
       return true;
     };
     if (options_.algo == std::string_view(kLeanPath)) {
-      // The lean path reads the received records in place (arrays.hpp):
-      // no structure is built and no copy made.
-      const auto stride = static_cast<std::ptrdiff_t>(sizeof(Record));
-      const Shape* s0 = local.empty() ? nullptr : &local[0].shape;
-      Objects view;
-      view.count = local.size();
-      if (s0 != nullptr) {
-        view.x = {&s0->center.x, stride, Real::f64};
-        view.y = {&s0->center.y, stride, Real::f64};
-        view.z = {&s0->center.z, stride, Real::f64};
-        view.radius = {&s0->half.x, stride, Real::f64};  // a sphere's radius is its half.x
-        view.half_x = view.radius;
-        view.half_y = {&s0->half.y, stride, Real::f64};
-        view.half_z = {&s0->half.z, stride, Real::f64};
-        static_assert(sizeof(ShapeKind) == 1 && static_cast<int>(ShapeKind::sphere) == 0 &&
-                      static_cast<int>(ShapeKind::box) == 1);
-        view.kind = reinterpret_cast<const std::uint8_t*>(&s0->kind);
-        view.kind_stride = stride;
-      }
+      // The lean path reads the records in place (arrays.hpp): no
+      // structure is built and no copy made.
+      const Objects view =
+          shapes_view(&local[0].shape, used, static_cast<std::ptrdiff_t>(sizeof(Record)));
       broadphase::find_pairs(view, [&](std::span<const IndexPair> chunk) {
         for (const IndexPair& p : chunk)
           if (!keep(p.i, p.j)) return false;
@@ -479,7 +552,6 @@ void Domain::find_pairs(std::span<const std::uint32_t> ids, std::span<const Shap
     } else {
       Config config;
       config.world = world_;
-      const Aabb& region = partition_.region(rank_);
       Aabb clipped;
       bool usable = true;
       for (int a = 0; a < 3; ++a) {
@@ -488,9 +560,9 @@ void Domain::find_pairs(std::span<const std::uint32_t> ids, std::span<const Shap
         usable = usable && clipped.lo[a] < clipped.hi[a];
       }
       if (usable) config.world = clipped;
-      config.expected_objects = local.size();
+      config.expected_objects = used;
       auto structure = make_structure(options_.algo, config);
-      for (std::size_t i = 0; i < local.size(); ++i) structure->insert(local[i].shape, i);
+      for (std::size_t i = 0; i < used; ++i) structure->insert(local[i].shape, i);
       std::vector<HandlePair> pairs;
       structure->find_pairs(pairs);
       for (const HandlePair& p : pairs)
