@@ -64,6 +64,7 @@ struct Common {
   double threshold = 1.1;
   std::string balance_by = "objects";
   int max_ghost_ranks = 4;
+  double skin = 0;
   bool json = false;
   bool skip_local = false;
 };
@@ -94,6 +95,12 @@ void add_common(CLI::App* cmd, Common& o) {
                   "Objects reaching more ranks go to the list every rank holds")
       ->default_val(4)
       ->check(CLI::Range(1, 1 << 30));
+  cmd->add_option("--skin", o.skin,
+                  "Keep ghost lists and local pairs between frames while objects stay within "
+                  "this distance (world units) of where they were; objects then migrate only "
+                  "when the lists are rebuilt. 0: everything afresh every frame")
+      ->default_val(0)
+      ->check(CLI::Range(0.0, 1e300));
 }
 
 dist::Options domain_options(const Common& o) {
@@ -159,7 +166,7 @@ void run(const Common& o) {
   mpi_app::Share share = load(o);
   const double world = share.world;
   const auto t_setup = std::chrono::steady_clock::now();
-  mpi_app::MpiReplay replay(MPI_COMM_WORLD, std::move(share), options);
+  mpi_app::MpiReplay replay(MPI_COMM_WORLD, std::move(share), options, o.skin);
   const double setup_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_setup).count();
   const double load_s = std::chrono::duration<double>(t_setup - t_load).count();
@@ -169,7 +176,7 @@ void run(const Common& o) {
   RankTotals mine;
   std::vector<double> frame_ms;
   double worst_imbalance = 0, last_imbalance = 0;
-  int rebalances = 0;
+  int rebalances = 0, rebuilds = 0;
   for (int f = 0; f < o.frames; ++f) {
     mpi_app::FrameReport r;
     const auto t0 = std::chrono::steady_clock::now();
@@ -198,6 +205,7 @@ void run(const Common& o) {
     mine.messages += static_cast<double>(r.stats.messages_sent);
     mine.pairs += static_cast<double>(r.stats.local_pairs);
     rebalances += r.rebalanced ? 1 : 0;
+    rebuilds += r.rebuilt ? 1 : 0;
     const double mean = static_cast<double>(replay.size()) / world_size();
     last_imbalance = mean > 0 ? static_cast<double>(r.max_owned) / mean : 1.0;
     worst_imbalance = std::max(worst_imbalance, last_imbalance);
@@ -280,6 +288,8 @@ void run(const Common& o) {
   j["load_imbalance_last"] = last_imbalance;
   j["load_imbalance_worst"] = worst_imbalance;
   j["rebalances"] = rebalances;
+  j["skin"] = o.skin;
+  j["rebuilds"] = rebuilds;
   std::printf("%s\n", j.dump(2).c_str());
 }
 
@@ -333,7 +343,8 @@ void check(const Common& o, const CheckOptions& c) {
     }
     dist::agree(MPI_COMM_WORLD, error);
     MPI_Bcast(&frames, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    mpi_app::MpiReplay replay(MPI_COMM_WORLD, mpi_app::read_share(MPI_COMM_WORLD, path), options);
+    mpi_app::MpiReplay replay(MPI_COMM_WORLD, mpi_app::read_share(MPI_COMM_WORLD, path), options,
+                              o.skin);
     int rebalances = 0;
     for (int f = 0; f < frames; ++f) {
       const mpi_app::FrameReport r = replay.next();

@@ -109,11 +109,18 @@ Share generate_share(MPI_Comm comm, Distribution d, std::uint64_t n, std::uint64
   return s;
 }
 
-MpiReplay::MpiReplay(MPI_Comm comm, Share share, const distributed::Options& options)
+MpiReplay::MpiReplay(MPI_Comm comm, Share share, const distributed::Options& options, double skin)
     : n_(share.n),
       world_(share.world),
       domain_(comm, Aabb{{0, 0, 0}, {share.world, share.world, share.world}}, options),
+      skin_(skin),
       bodies_(std::move(share.bodies)) {
+  if (skin > 0) {
+    agree(comm, options.algo != distributed::kLeanPath
+                    ? "a skin works with the lean path (--algo arrays) only"
+                    : "");
+    tracker_ = std::make_unique<distributed::PairTracker>(domain_, skin);
+  }
   // A test hook: BROADPHASE_MPI_FAIL=RANK:FRAME[:abort] makes that rank
   // throw at that frame, inside an agreed phase or (abort) outside one.
   if (const char* f = std::getenv("BROADPHASE_MPI_FAIL")) {
@@ -181,27 +188,41 @@ FrameReport MpiReplay::next() {
   r.phases.step = since(t);
 
   // Migration to the owner of the new centre: an all-to-all, so an object
-  // that jumped past its neighbour still arrives.
+  // that jumped past its neighbour still arrives. With a skin, objects stay
+  // where they are until the tracker must rebuild its ghost lists anyway.
   t = std::chrono::steady_clock::now();
-  if (frame_ > 0) migrate(r);
+  r.rebuilt = tracker_ == nullptr || tracker_->rebuild_due(view());
+  if (frame_ > 0 && r.rebuilt) migrate(r);
   r.phases.migration = since(t);
 
   t = std::chrono::steady_clock::now();
-  if (domain_.rebalance(view())) {
+  if (r.rebuilt && domain_.rebalance(view())) {
     r.rebalanced = true;
     migrate(r);
   }
   r.phases.balancing = since(t);
 
-  // Every object owned by exactly one rank, inside that rank's subdomain.
+  // Every object owned by exactly one rank, inside that rank's subdomain
+  // (with a skin, between rebuilds: within the skin of it).
   t = std::chrono::steady_clock::now();
   ids_.clear();
   std::uint64_t local[3] = {bodies_.size(), 0, 0}, x = 0;
+  const double slack = r.rebuilt ? 0 : skin_;
+  const Aabb& region = domain_.partition().region(rank);
   for (const Body& b : bodies_) {
     ids_.push_back(b.id);
     local[1] += b.id;
     x ^= b.id;
-    if (!domain_.partition().holds(rank, b.shape.center)) ++local[2];
+    if (slack == 0) {
+      if (!domain_.partition().holds(rank, b.shape.center)) ++local[2];
+    } else {
+      for (int a = 0; a < 3; ++a)
+        if (!(region.lo[a] - slack <= b.shape.center[a] &&
+              b.shape.center[a] < region.hi[a] + slack)) {
+          ++local[2];
+          break;
+        }
+    }
   }
   std::uint64_t global[3], gx = 0, most = 0;
   MPI_Allreduce(local, global, 3, MPI_UINT64_T, MPI_SUM, comm);
@@ -233,8 +254,11 @@ FrameReport MpiReplay::next() {
   r.phases.reduction = since(t);
 
   pairs_.clear();
-  domain_.find_pairs(ids_, view(), pairs_);
-  const distributed::Stats& s = domain_.stats();
+  if (tracker_)
+    tracker_->find_pairs(ids_, view(), pairs_);
+  else
+    domain_.find_pairs(ids_, view(), pairs_);
+  const distributed::Stats& s = tracker_ ? tracker_->stats() : domain_.stats();
   r.stats.owned = s.owned;
   r.stats.ghosts = s.ghosts;
   r.stats.shared = s.shared;

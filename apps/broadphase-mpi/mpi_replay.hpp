@@ -7,6 +7,7 @@
 #include <broadphase/distributed.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -49,13 +50,16 @@ struct FrameReport {
   std::uint64_t owned = 0;
   std::uint64_t max_owned = 0;  ///< over the ranks
   bool rebalanced = false;
+  bool rebuilt = true;  ///< the ghost lists were chosen afresh (always without a skin)
 };
 
 /// Replays a scene frame by frame over the communicator's ranks.
 class MpiReplay {
  public:
   /// Collective. Balances (bisection) and sends every object to its owner.
-  MpiReplay(MPI_Comm comm, Share share, const distributed::Options& options);
+  /// `skin` > 0: frames go through distributed::PairTracker with that skin
+  /// (world units), and objects migrate only on the frames it rebuilds.
+  MpiReplay(MPI_Comm comm, Share share, const distributed::Options& options, double skin = 0);
 
   /// Collective. Evaluates the next frame: the pair count and hash of the
   /// whole world on every rank. Checks that every object is owned by
@@ -79,6 +83,8 @@ class MpiReplay {
   std::uint64_t n_;
   double world_;
   distributed::Domain domain_;
+  double skin_ = 0;
+  std::unique_ptr<distributed::PairTracker> tracker_;
   std::vector<Body> bodies_;
   std::vector<std::uint32_t> ids_;
   std::vector<distributed::IdPair> pairs_;

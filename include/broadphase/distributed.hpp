@@ -36,6 +36,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -158,6 +159,7 @@ struct Stats {
   std::uint64_t local_pairs = 0;    ///< pairs this rank reported
   std::uint64_t bytes_sent = 0;     ///< to other ranks
   std::uint64_t messages_sent = 0;  ///< to other ranks (non-empty sends)
+  bool rebuilt = true;              ///< PairTracker: the ghost lists were chosen afresh
   double exchange_seconds = 0;      ///< choosing and sending ghosts
   double local_seconds = 0;         ///< the local structure's build and pairs
 };
@@ -191,6 +193,9 @@ class Domain {
   MPI_Comm comm() const { return comm_; }
   const Options& options() const { return options_; }
   const Partition& partition() const { return partition_; }
+  /// How many times the cuts were rebuilt (balance, rebalance): a
+  /// PairTracker rebuilds when this changes.
+  std::uint64_t cuts() const { return cuts_; }
   const Aabb& world() const { return world_; }
 
   /// The rank that should own each object: the one whose subdomain holds
@@ -321,6 +326,61 @@ class Domain {
   std::vector<int> dest_;
   std::vector<std::byte> send_buffer_;
   std::size_t local_used_ = 0;
+  std::uint64_t cuts_ = 0;
+};
+
+/// Pairs frame after frame with a skin, as Verlet lists and LAMMPS's
+/// neighbour lists do: the ghost lists and the local pair index (the lean
+/// path's PairTracker over this rank's objects and ghosts) are kept while
+/// every object's bounds stay within `skin` of its bounds at the last
+/// rebuild. Ghosts go to every rank that bounds grown by the skin reach,
+/// so they cover the objects wherever they move inside it; on other frames
+/// only their current shapes travel, along the same lists. Every call is
+/// exact however far objects moved: one beyond its skin on any rank makes
+/// every rank rebuild.
+///
+/// Between rebuilds the caller keeps its objects in place: the same ids in
+/// the same order on each rank (an object may then stand outside its
+/// owner's subdomain by up to the skin; ownership never matters for
+/// exactness). `rebuild_due` tells the caller when to migrate and
+/// rebalance first. A call with other ids, or after new cuts, rebuilds.
+///
+/// Thread safety: as Domain (one thread at a time); it uses the Domain it
+/// was made with, which must outlive it.
+class PairTracker {
+ public:
+  /// `skin` in world units, finite and >= 0 (0: a rebuild whenever an
+  /// object moves). Throws DistributedError otherwise (local, no message:
+  /// every rank passes the same value).
+  PairTracker(Domain& domain, double skin);
+  ~PairTracker();
+  PairTracker(const PairTracker&) = delete;
+  PairTracker& operator=(const PairTracker&) = delete;
+
+  /// Collective. True on every rank when the next find_pairs would rebuild:
+  /// the first call, another count of objects on some rank, an object
+  /// beyond its skin on some rank, or new cuts.
+  bool rebuild_due(const Objects& objects);
+  /// Collective. As Domain::find_pairs: every overlapping pair of the
+  /// world once, on one rank; DistributedError on every rank for bad input.
+  void find_pairs(std::span<const std::uint32_t> ids, const Objects& objects,
+                  std::vector<IdPair>& out);
+  /// What the last find_pairs did on this rank.
+  const Stats& stats() const { return stats_; }
+  /// Rebuilds so far (the first call's included).
+  std::uint64_t rebuilds() const { return rebuilds_; }
+
+ private:
+  struct State;
+  // True when this rank's objects alone require a rebuild (no message).
+  bool beyond_skin(const Objects& objects) const;
+  void rebuild(std::span<const std::uint32_t> ids, const Objects& objects);
+  void refresh(const Objects& objects);
+  Domain& domain_;
+  double skin_;
+  Stats stats_;
+  std::uint64_t rebuilds_ = 0;
+  std::unique_ptr<State> state_;
 };
 
 /// Collective over `comm`: throws DistributedError on every rank when any

@@ -335,6 +335,7 @@ void Domain::cut(std::span<const Shape> shapes, const std::vector<double>& w) {
     level = std::move(next);
   }
   partition_ = Partition(std::move(nodes), size_);
+  ++cuts_;
 }
 
 bool Domain::rebalance(std::span<const Shape> shapes, std::span<const double> weights) {

@@ -53,6 +53,29 @@ assert j["ranks"] == 2 and len(j["ghosts_per_rank"]) == 2
 PY
 then ok; else no "--json: $(cat "$tmp/err")"; fi
 
+# A skin: the same frames, with ghost lists kept on most of them (slow
+# movers, a skin of 20 units), and rebuilt on every frame at a skin of 0.
+d=$data/mpi/decades.scene
+"$cli" run --scene "$d" --frames 60 >"$tmp/one"
+for sk in 0 20; do
+  if mpi 3 run --scene "$d" --frames 60 --bisect --skin "$sk" --json >"$tmp/json" 2>"$tmp/err" &&
+    python3 - "$tmp/json" "$tmp/one" "$sk" <<'PY'
+import json, sys
+j = json.load(open(sys.argv[1]))
+lines = open(sys.argv[2]).read().split()
+pairs = sum(int(lines[k]) for k in range(1, len(lines), 3))
+assert j["pairs_total"] == pairs, (j["pairs_total"], pairs)
+hashes = sum(int(lines[k], 16) for k in range(2, len(lines), 3)) % 2**64
+assert int(j["hash_total"], 16) == hashes, (j["hash_total"], hashes)
+assert j["skin"] == float(sys.argv[3])
+if j["skin"] == 0:
+    assert j["rebuilds"] == 60, j["rebuilds"]
+else:
+    assert 1 <= j["rebuilds"] <= 20, j["rebuilds"]
+PY
+  then ok; else no "--skin $sk: $(cat "$tmp/err")"; fi
+done
+
 # Failures: every rank exits non-zero, the message printed, no hang.
 expect_fail() {  # expect_fail NAME PATTERN RANKS ARGS...
   local name=$1 pattern=$2; shift 2
@@ -68,6 +91,7 @@ expect_fail "missing scene" "nowhere.scene" 2 run --scene "$tmp/nowhere.scene"
 expect_fail "unknown structure" "no-such" 2 run --scene "$s" --algo no-such
 expect_fail "grid that does not fit" "does not fit" 2 run --scene "$s" --grid 3x1x1
 expect_fail "unknown balance weight" "balance-by" 2 run --scene "$s" --bisect --balance-by cost
+expect_fail "a skin with a structure" "lean path" 2 run --scene "$s" --algo grid-hashed --skin 1
 BROADPHASE_MPI_FAIL=1:3 expect_fail "a rank that throws" "injected failure at frame 3" 3 run --scene "$s"
 if [ "$(wc -l <"$tmp/out")" -eq 3 ]; then ok; else no "frames before the failure: $(cat "$tmp/out")"; fi
 BROADPHASE_MPI_FAIL=2:2:abort expect_fail "a rank that throws outside a collective step" \

@@ -1,0 +1,308 @@
+// Pairs over frames with a skin: the ghost lists, the shared list and the
+// local pair index are kept between rebuilds (distributed.hpp, PairTracker).
+#include <algorithm>
+#include <broadphase/distributed.hpp>
+#include <chrono>
+#include <climits>
+#include <cmath>
+#include <string>
+
+namespace broadphase::distributed {
+
+namespace {
+
+double since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Bounds grown by the skin on every side (infinite sides stay infinite).
+Aabb grown(const Aabb& b, double skin) {
+  Aabb g;
+  for (int a = 0; a < 3; ++a) {
+    g.lo[a] = b.lo[a] - skin;
+    g.hi[a] = b.hi[a] + skin;
+  }
+  return g;
+}
+
+// True when `in` lies inside `out` (closed boxes).
+bool inside(const Aabb& in, const Aabb& out) {
+  return out.lo.x <= in.lo.x && in.hi.x <= out.hi.x && out.lo.y <= in.lo.y && in.hi.y <= out.hi.y &&
+         out.lo.z <= in.lo.z && in.hi.z <= out.hi.z;
+}
+
+}  // namespace
+
+// What is kept between rebuilds. local holds this rank's objects at their
+// own index [0, count), then the ghosts received [count, count + ghosts),
+// then the other ranks' shared objects.
+struct PairTracker::State {
+  std::size_t count = 0;
+  std::uint64_t cuts = 0;
+  std::vector<std::uint32_t> ids;                 // this rank's ids at the rebuild
+  std::vector<Aabb> fat;                          // their bounds grown by the skin
+  std::vector<std::uint32_t> send_index;          // objects sent, in send order
+  std::vector<int> send_dest;                     // and where
+  std::vector<std::uint32_t> shared_index;        // this rank's objects in the shared list
+  std::vector<int> shared_counts, shared_displs;  // bytes of Shapes per rank
+  std::size_t ghosts = 0, shared_others = 0, shared_total = 0;
+  std::vector<GhostRecord> local;
+  std::vector<std::uint32_t> local_ids;
+  std::vector<std::uint8_t> alone;  // bounds stay inside this subdomain
+  std::vector<std::uint32_t> changed;
+  std::vector<Shape> send, shared_mine, shared_all;
+  broadphase::PairTracker index;
+};
+
+PairTracker::PairTracker(Domain& domain, double skin)
+    : domain_(domain), skin_(skin), state_(std::make_unique<State>()) {
+  if (!(skin >= 0) || !std::isfinite(skin))
+    throw DistributedError("the skin must be finite and >= 0");
+}
+
+PairTracker::~PairTracker() = default;
+
+bool PairTracker::beyond_skin(const Objects& objects) const {
+  const State& st = *state_;
+  if (rebuilds_ == 0 || objects.count != st.count || domain_.cuts() != st.cuts) return true;
+  for (std::size_t i = 0; i < objects.count; ++i) {
+    const Shape s = objects.shape(i);
+    // An invalid shape rebuilds too: the rebuild names it.
+    if (!is_valid(s) || !inside(bounds(s), st.fat[i])) return true;
+  }
+  return false;
+}
+
+bool PairTracker::rebuild_due(const Objects& objects) {
+  int mine = beyond_skin(objects) ? 1 : 0, any = 0;
+  MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, domain_.comm());
+  return any != 0;
+}
+
+void PairTracker::find_pairs(std::span<const std::uint32_t> ids, const Objects& objects,
+                             std::vector<IdPair>& out) {
+  const int rank = domain_.rank();
+  domain_.agree(ids.size() != objects.count
+                    ? "rank " + std::to_string(rank) + ": " + std::to_string(ids.size()) +
+                          " ids for " + std::to_string(objects.count) + " objects"
+                    : std::string());
+  stats_ = Stats{};
+  stats_.owned = objects.count;
+  const Stats before = domain_.stats();
+  const auto t0 = std::chrono::steady_clock::now();
+  State& st = *state_;
+  int mine =
+      beyond_skin(objects) || !std::equal(ids.begin(), ids.end(), st.ids.begin(), st.ids.end()) ? 1
+                                                                                                : 0;
+  int any = 0;
+  MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, domain_.comm());
+  if (any != 0)
+    rebuild(ids, objects);
+  else
+    refresh(objects);
+  stats_.rebuilt = any != 0;
+  stats_.ghosts = st.ghosts + st.shared_others;
+  stats_.shared = st.shared_total;
+  stats_.bytes_sent = domain_.stats().bytes_sent - before.bytes_sent;
+  stats_.messages_sent = domain_.stats().messages_sent - before.messages_sent;
+  if (!st.shared_index.empty() && domain_.size() > 1) {
+    // The shared list goes to every other rank: records, then shapes.
+    const std::size_t each = stats_.rebuilt ? sizeof(GhostRecord) : sizeof(Shape);
+    const auto others = static_cast<std::uint64_t>(domain_.size() - 1);
+    stats_.bytes_sent += st.shared_index.size() * each * others;
+    stats_.messages_sent += others;
+  }
+  stats_.exchange_seconds = since(t0);
+  if (!domain_.options().local_pairs) return;
+
+  // Local pairs, kept when this rank's subdomain holds max(lo_a, lo_b); a
+  // pair with an object whose bounds stay inside the subdomain is this
+  // rank's without a look (as in Domain::find_pairs).
+  const auto t1 = std::chrono::steady_clock::now();
+  std::string error;
+  try {
+    const std::size_t n = st.count + st.ghosts + st.shared_others;
+    const GhostRecord* local = st.local.data();
+    const std::uint32_t* local_id = st.local_ids.data();
+    const std::uint8_t* alone = st.alone.data();
+    const Partition& partition = domain_.partition();
+    const std::size_t first = out.size();
+    auto keep = [&](std::size_t i, std::size_t j) {
+      if ((alone[i] | alone[j]) == 0) {
+        const Aabb bi = bounds(local[i].shape), bj = bounds(local[j].shape);
+        const Vec3 at{std::max(bi.lo.x, bj.lo.x), std::max(bi.lo.y, bj.lo.y),
+                      std::max(bi.lo.z, bj.lo.z)};
+        if (!partition.holds(rank, at)) return true;
+      }
+      const std::uint32_t a = local_id[i], b = local_id[j];
+      if (a == b) {
+        error = "object id " + std::to_string(a) + " was passed on more than one rank or twice";
+        return false;
+      }
+      out.push_back({std::min(a, b), std::max(a, b)});
+      return true;
+    };
+    const Objects view =
+        n == 0 ? Objects{}
+               : shapes_view(&local[0].shape, n, static_cast<std::ptrdiff_t>(sizeof(GhostRecord)));
+    const PairSink sink = [&](std::span<const IndexPair> chunk) {
+      for (const IndexPair& p : chunk)
+        if (!keep(p.i, p.j)) return false;
+      return true;
+    };
+    st.index.find_pairs(view, sink,
+                        stats_.rebuilt ? Changes::everything() : Changes::only(st.changed));
+    stats_.local_pairs = out.size() - first;
+  } catch (const std::exception& e) {
+    error = "rank " + std::to_string(rank) + ": " + e.what();
+    st.index.clear();
+  }
+  stats_.local_seconds = since(t1);
+  domain_.agree(error);
+}
+
+void PairTracker::rebuild(std::span<const std::uint32_t> ids, const Objects& objects) {
+  State& st = *state_;
+  const int me = domain_.rank();
+  std::string error;
+  for (std::size_t i = 0; i < objects.count; ++i)
+    if (!is_valid(objects.shape(i))) {
+      error = "rank " + std::to_string(me) + ": object " + std::to_string(ids[i]) +
+              " cannot be placed: its shape is not finite or has a negative extent";
+      break;
+    }
+  // A failed call leaves nothing to reuse: the next one rebuilds.
+  if (!error.empty()) rebuilds_ = 0;
+  domain_.agree(error);
+  ++rebuilds_;
+
+  const Partition& partition = domain_.partition();
+  const Aabb& region = partition.region(me);
+  const double margin = domain_.options().margin;
+  const int max_ranks = domain_.options().max_ghost_ranks;
+  const std::size_t n = objects.count;
+  st.count = n;
+  st.cuts = domain_.cuts();
+  st.ids.assign(ids.begin(), ids.end());
+  st.fat.resize(n);
+  st.local.resize(n);
+  st.alone.resize(n);
+  st.send_index.clear();
+  st.send_dest.clear();
+  st.shared_index.clear();
+  std::vector<int> reach;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Shape s = objects.shape(i);
+    const Aabb fat = grown(bounds(s), skin_);
+    st.fat[i] = fat;
+    st.local[i] = {s, ids[i]};
+    // ranks_meeting's comparisons against the cuts bounding this subdomain
+    // (see Domain::find_pairs).
+    bool alone = true;
+    for (int a = 0; a < 3; ++a)
+      alone =
+          alone && !(fat.hi[a] + margin >= region.hi[a]) && !(fat.lo[a] - margin < region.lo[a]);
+    st.alone[i] = alone ? 1 : 0;
+    if (alone) continue;
+    reach.clear();
+    partition.ranks_meeting(fat, margin, reach);
+    if (static_cast<int>(reach.size()) > max_ranks) {
+      st.shared_index.push_back(static_cast<std::uint32_t>(i));
+      continue;
+    }
+    for (int r : reach)
+      if (r != me) {
+        st.send_index.push_back(static_cast<std::uint32_t>(i));
+        st.send_dest.push_back(r);
+      }
+  }
+
+  // Ghosts, with their ids this time.
+  std::vector<GhostRecord> records(st.send_index.size());
+  for (std::size_t k = 0; k < records.size(); ++k) records[k] = st.local[st.send_index[k]];
+  const std::vector<GhostRecord> received = domain_.exchange<GhostRecord>(records, st.send_dest);
+  st.ghosts = received.size();
+  st.local.insert(st.local.end(), received.begin(), received.end());
+
+  // The shared list: every rank's objects that reach many ranks.
+  const int size = domain_.size();
+  MPI_Comm comm = domain_.comm();
+  records.resize(st.shared_index.size());
+  for (std::size_t k = 0; k < records.size(); ++k) records[k] = st.local[st.shared_index[k]];
+  const int bytes = static_cast<int>(records.size() * sizeof(GhostRecord));
+  std::vector<int> counts(static_cast<std::size_t>(size)), displs(counts.size());
+  MPI_Allgather(&bytes, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
+  long long total = 0;
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    displs[r] = static_cast<int>(std::min<long long>(total, INT_MAX));
+    total += counts[r];
+  }
+  domain_.agree(total > INT_MAX ? "the shared list of large objects exceeds 2 GB" : "");
+  std::vector<GhostRecord> all(static_cast<std::size_t>(total) / sizeof(GhostRecord));
+  MPI_Allgatherv(records.data(), bytes, MPI_BYTE, all.data(), counts.data(), displs.data(),
+                 MPI_BYTE, comm);
+  st.shared_counts.resize(counts.size());
+  st.shared_displs.resize(counts.size());
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    st.shared_counts[r] =
+        counts[r] / static_cast<int>(sizeof(GhostRecord)) * static_cast<int>(sizeof(Shape));
+    st.shared_displs[r] =
+        displs[r] / static_cast<int>(sizeof(GhostRecord)) * static_cast<int>(sizeof(Shape));
+    if (static_cast<int>(r) == me) continue;  // this rank's are at their own index
+    const auto* from = all.data() + displs[r] / static_cast<int>(sizeof(GhostRecord));
+    st.local.insert(st.local.end(), from, from + counts[r] / static_cast<int>(sizeof(GhostRecord)));
+  }
+  st.shared_total = all.size();
+  st.shared_others = all.size() - st.shared_index.size();
+  st.alone.resize(st.local.size(), 0);
+  st.local_ids.resize(st.local.size());
+  for (std::size_t i = 0; i < st.local.size(); ++i) st.local_ids[i] = st.local[i].id;
+  st.index.clear();
+}
+
+void PairTracker::refresh(const Objects& objects) {
+  State& st = *state_;
+  st.changed.clear();
+  for (std::size_t i = 0; i < st.count; ++i) {
+    const Shape s = objects.shape(i);
+    if (!(s == st.local[i].shape)) {
+      st.local[i].shape = s;
+      st.changed.push_back(static_cast<std::uint32_t>(i));
+    }
+  }
+  // The ghosts' current shapes, along the lists of the rebuild: they
+  // arrive in the same order (by source rank, in each sender's order).
+  st.send.resize(st.send_index.size());
+  for (std::size_t k = 0; k < st.send.size(); ++k) st.send[k] = st.local[st.send_index[k]].shape;
+  const std::vector<Shape> received = domain_.exchange<Shape>(st.send, st.send_dest);
+  std::string error;
+  if (received.size() != st.ghosts)
+    error = "rank " + std::to_string(domain_.rank()) + ": " + std::to_string(received.size()) +
+            " ghosts arrived where " + std::to_string(st.ghosts) + " were listed";
+  domain_.agree(error);
+  auto place = [&](std::size_t slot, const Shape& s) {
+    if (!(s == st.local[slot].shape)) {
+      st.local[slot].shape = s;
+      st.changed.push_back(static_cast<std::uint32_t>(slot));
+    }
+  };
+  for (std::size_t g = 0; g < received.size(); ++g) place(st.count + g, received[g]);
+
+  const int me = domain_.rank();
+  st.shared_mine.resize(st.shared_index.size());
+  for (std::size_t k = 0; k < st.shared_mine.size(); ++k)
+    st.shared_mine[k] = st.local[st.shared_index[k]].shape;
+  st.shared_all.resize(st.shared_total);
+  MPI_Allgatherv(st.shared_mine.data(), static_cast<int>(st.shared_mine.size() * sizeof(Shape)),
+                 MPI_BYTE, st.shared_all.data(), st.shared_counts.data(), st.shared_displs.data(),
+                 MPI_BYTE, domain_.comm());
+  std::size_t slot = st.count + st.ghosts;
+  for (std::size_t r = 0; r < st.shared_counts.size(); ++r) {
+    if (static_cast<int>(r) == me) continue;
+    const std::size_t from = static_cast<std::size_t>(st.shared_displs[r]) / sizeof(Shape);
+    const std::size_t k = static_cast<std::size_t>(st.shared_counts[r]) / sizeof(Shape);
+    for (std::size_t q = 0; q < k; ++q) place(slot++, st.shared_all[from + q]);
+  }
+}
+
+}  // namespace broadphase::distributed
