@@ -6,12 +6,13 @@
 # identical hashes over the rank counts. Writes one JSON file per run into
 # OUT and a summary (summary.md) from tools/mpi_bench_summary.py.
 #
-# Usage: tools/mpi_bench.sh OUT [PER_RANK] [FRAMES]
-#   (defaults 1024000 objects per rank, 3 frames)
+# Usage: [SKIN=10] [WEAK_ONLY=1] tools/mpi_bench.sh OUT [PER_RANK] [FRAMES]
+#   (defaults 1024000 objects per rank, 10 frames; WEAK_ONLY=1 runs the
+#   weak scaling alone, for repeats)
 set -eu
 out=$1
 per=${2:-1024000}
-frames=${3:-3}
+frames=${3:-10}
 bin=${BROADPHASE_MPI:-build/apps/broadphase-mpi/broadphase-mpi}
 mkdir -p "$out"
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
@@ -26,19 +27,33 @@ run() {  # run FILE RANKS ARGS...
 }
 uptime >"$out/load.txt"
 
-# Weak scaling: scaled-even on a grid, scaled-uneven on a bisection.
-for kind in scaled-even scaled-uneven; do
-  dec=--bisect
-  [ "$kind" = scaled-even ] && dec="--grid 2x1x1"
-  one=""
-  [ "$kind" = scaled-even ] && one="--grid 1x1x1"
-  run "weak-$kind-p1.json" 1 --gen "$kind" --per-rank "$per" --frames "$frames" $one
-  # The ceiling: the same one-rank run twice at once.
-  run "weak-$kind-pair-a.json" 1 --gen "$kind" --per-rank "$per" --frames "$frames" $one &
-  run "weak-$kind-pair-b.json" 1 --gen "$kind" --per-rank "$per" --frames "$frames" $one
-  wait
-  run "weak-$kind-p2.json" 2 --gen "$kind" --per-rank "$per" --frames "$frames" $dec
+# Weak scaling: scaled-even on a grid, scaled-uneven on a bisection; every
+# frame afresh, then with a skin of $SKIN units (default 10; the movers go
+# up to 2 units a frame).
+skin=${SKIN:-10}
+for variant in "" "-skin"; do
+  extra=""
+  [ -n "$variant" ] && extra="--skin $skin"
+  for kind in scaled-even scaled-uneven; do
+    dec=--bisect
+    [ "$kind" = scaled-even ] && dec="--grid 2x1x1"
+    one=""
+    [ "$kind" = scaled-even ] && one="--grid 1x1x1"
+    f="weak-$kind$variant"
+    run "$f-p1.json" 1 --gen "$kind" --per-rank "$per" --frames "$frames" $one $extra
+    # The ceiling: the same one-rank run twice at once.
+    run "$f-pair-a.json" 1 --gen "$kind" --per-rank "$per" --frames "$frames" $one $extra &
+    run "$f-pair-b.json" 1 --gen "$kind" --per-rank "$per" --frames "$frames" $one $extra
+    wait
+    run "$f-p2.json" 2 --gen "$kind" --per-rank "$per" --frames "$frames" $dec $extra
+  done
 done
+
+if [ -n "${WEAK_ONLY:-}" ]; then
+  uptime >>"$out/load.txt"
+  python3 "$(dirname "$0")/mpi_bench_summary.py" "$out" >"$out/summary.md"
+  exit 0
+fi
 
 # Targets at 1 024 000 per rank, decomposition only (no pairs).
 run "ghosts-scaled-even-p8-2x2x2.json" 8 --gen scaled-even --per-rank 1024000 --frames 1 \

@@ -27,11 +27,15 @@ print("## Weak scaling, 1 -> 2 ranks\n")
 print("| kind | objects per rank | 1 rank ms/frame | two 1-rank runs at once | 2 ranks | efficiency | ceiling | efficiency / ceiling |")
 print("|---|---|---|---|---|---|---|---|")
 phase_rows = []
-for kind in ("scaled-even", "scaled-uneven"):
+for kind in ("scaled-even", "scaled-uneven", "scaled-even-skin", "scaled-uneven-skin"):
     p1, a, b, p2 = (load("weak-%s-%s.json" % (kind, s)) for s in ("p1", "pair-a", "pair-b", "p2"))
     if not (p1 and a and b and p2):
-        print("| %s | not measured (run did not finish) | | | | | | |" % kind)
+        if not kind.endswith("-skin"):
+            print("| %s | not measured (run did not finish) | | | | | | |" % kind)
         continue
+    if kind.endswith("-skin"):
+        kind = "%s, skin %g (%d and %d rebuilds in %d frames)" % (
+            kind[:-5], p2.get("skin", 0), p1.get("rebuilds", 0), p2.get("rebuilds", 0), p2["frames"])
     t1 = p1["median_frame_ms"]
     tp = mean([a["median_frame_ms"], b["median_frame_ms"]])
     t2 = p2["median_frame_ms"]

@@ -330,14 +330,13 @@ class Domain {
 };
 
 /// Pairs frame after frame with a skin, as Verlet lists and LAMMPS's
-/// neighbour lists do: the ghost lists and the local pair index (the lean
-/// path's PairTracker over this rank's objects and ghosts) are kept while
+/// neighbour lists do: the ghost lists (which rank gets which object, the
+/// shared list, which objects lie inside this subdomain) are kept while
 /// every object's bounds stay within `skin` of its bounds at the last
-/// rebuild. Ghosts go to every rank that bounds grown by the skin reach,
-/// so they cover the objects wherever they move inside it; on other frames
-/// only their current shapes travel, along the same lists. Every call is
-/// exact however far objects moved: one beyond its skin on any rank makes
-/// every rank rebuild.
+/// rebuild. The local pairs are found afresh by the lean path each call. Ghosts go to every rank
+/// that bounds grown by the skin reach, so they cover the objects wherever they move inside it; on
+/// other frames only their current shapes travel, along the same lists. Every call is exact however
+/// far objects moved: one beyond its skin on any rank makes every rank rebuild.
 ///
 /// Between rebuilds the caller keeps its objects in place: the same ids in
 /// the same order on each rank (an object may then stand outside its
@@ -375,7 +374,10 @@ class PairTracker {
   // True when this rank's objects alone require a rebuild (no message).
   bool beyond_skin(const Objects& objects) const;
   void rebuild(std::span<const std::uint32_t> ids, const Objects& objects);
-  void refresh(const Objects& objects);
+  // Copies this rank's shapes in and says whether a rebuild is due here.
+  bool take(const Objects& objects);
+  // Sends the current shapes along the kept ghost lists.
+  void refresh();
   Domain& domain_;
   double skin_;
   Stats stats_;
