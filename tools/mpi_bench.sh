@@ -61,6 +61,11 @@ run "ghosts-scaled-even-p8-2x2x2.json" 8 --gen scaled-even --per-rank 1024000 --
 run "imbalance-scaled-uneven-p8-bisect.json" 8 --gen scaled-uneven --per-rank 1024000 --frames 2 \
   --bisect --skip-local
 
+# Identical hashes at 8 192 000 objects: one process against 8 ranks (2x2x2),
+# pairs included, every rank generating its share.
+run "hash-big-p1.json" 1 --gen scaled-even --n 8192000 --frames 3 --grid 1x1x1
+run "hash-big-p8.json" 8 --gen scaled-even --n 8192000 --frames 3 --grid 2x2x2
+
 # Identical hashes over the rank counts (one scene, full pairs).
 for p in 1 2 3 4 8; do
   run "hash-p$p.json" "$p" --gen scaled-uneven --n 32000 --frames 3 --bisect
