@@ -8,7 +8,9 @@
 //   centre, and each rank at most once;
 // - for two objects that overlap, the owner of the per-axis maximum of
 //   their lower corners is reached by both: the rank that reports the pair
-//   holds both objects, so no pair is lost and none is reported twice.
+//   holds both objects, so no pair is lost and none is reported twice;
+// - an object that alone() places inside a rank reaches that rank only,
+//   and a pair with it is that rank's.
 // It needs only mpi.h's declarations, no MPI runtime: the exchange itself
 // runs in the MPI tests under mpirun (tests/mpi), which libFuzzer cannot
 // drive.
@@ -53,6 +55,10 @@ void check_reach(const bd::Partition& p, const Shape& s, double margin, std::vec
     fuzz::finding("ranks_meeting lists a rank twice");
   for (int r : reach)
     if (r < 0 || r >= p.size()) fuzz::finding("ranks_meeting lists rank " + std::to_string(r));
+  for (int r = 0; r < p.size(); ++r)
+    if (p.alone(r, bounds(s), margin) && !(reach.size() == 1 && reach[0] == r))
+      fuzz::finding("alone() says rank " + std::to_string(r) +
+                    " only, ranks_meeting lists others or not it");
 }
 
 bool reaches(const std::vector<int>& reach, int rank) {
@@ -116,6 +122,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const Vec3 q{std::max(a.lo.x, b.lo.x), std::max(a.lo.y, b.lo.y), std::max(a.lo.z, b.lo.z)};
       check_owner(part, q, "a pair's point");
       const int o = part.owner(q);
+      for (const Aabb* box : {&a, &b})
+        for (int r = 0; r < part.size(); ++r)
+          if (part.alone(r, *box, margin) && r != o)
+            fuzz::finding("objects " + std::to_string(i) + " and " + std::to_string(j) +
+                          " overlap and one lies inside rank " + std::to_string(r) +
+                          ", but their pair is rank " + std::to_string(o) + "'s");
       if (!reaches(reach[i], o) || !reaches(reach[j], o))
         fuzz::finding("objects " + std::to_string(i) + " and " + std::to_string(j) +
                       " overlap, but the rank that reports their pair (" + std::to_string(o) +

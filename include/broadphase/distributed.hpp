@@ -134,6 +134,12 @@ class Partition {
   int size() const { return static_cast<int>(regions_.size()); }
   /// True when p lies in rank r's half-open subdomain.
   bool holds(int rank, const Vec3& p) const;
+  /// True when `box`, grown by `margin`, lies inside rank r's subdomain so
+  /// that ranks_meeting would list r alone (the same comparisons, against
+  /// the cuts that bound r's subdomain; false for a NaN box). Then every
+  /// pair of that object with one it overlaps is r's: per axis
+  /// lo_a <= max(lo_a, lo_b) <= hi_a, inside the subdomain.
+  bool alone(int rank, const Aabb& box, double margin) const;
 
   /// A node of the tree: a cut (leaf = -1 - rank in `left`).
   struct Node {

@@ -455,11 +455,7 @@ void Domain::find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count
       break;
     }
     const Aabb box = bounds(s);
-    bool alone = true;
-    for (int a = 0; a < 3; ++a)
-      alone =
-          alone && !(box.hi[a] + margin >= region.hi[a]) && !(box.lo[a] - margin < region.lo[a]);
-    if (alone) {
+    if (partition_.alone(rank_, box, margin)) {
       inner[used] = {s, ids[i]};
       local_ids_[used] = ids[i];
       ++used;

@@ -112,6 +112,15 @@ bool Partition::holds(int rank, const Vec3& p) const {
          p.z < r.hi.z;
 }
 
+bool Partition::alone(int rank, const Aabb& box, double margin) const {
+  const Aabb& r = regions_[static_cast<std::size_t>(rank)];
+  // ranks_meeting goes above a cut when hi + margin >= cut and below it
+  // when lo - margin < cut; written so that a NaN is never alone.
+  for (int a = 0; a < 3; ++a)
+    if (!(box.hi[a] + margin < r.hi[a]) || !(box.lo[a] - margin >= r.lo[a])) return false;
+  return true;
+}
+
 std::array<int, 3> parse_dims(const std::string& text) {
   std::array<int, 3> d{};
   std::size_t pos = 0;

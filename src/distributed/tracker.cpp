@@ -190,7 +190,6 @@ void PairTracker::rebuild(std::span<const std::uint32_t> ids, const Objects& obj
   ++rebuilds_;
 
   const Partition& partition = domain_.partition();
-  const Aabb& region = partition.region(me);
   const double margin = domain_.options().margin;
   const int max_ranks = domain_.options().max_ghost_ranks;
   const std::size_t n = objects.count;
@@ -209,12 +208,7 @@ void PairTracker::rebuild(std::span<const std::uint32_t> ids, const Objects& obj
     const Aabb fat = grown(bounds(s), skin_);
     st.fat[i] = fat;
     st.local[i] = {s, ids[i]};
-    // ranks_meeting's comparisons against the cuts bounding this subdomain
-    // (see Domain::find_pairs).
-    bool alone = true;
-    for (int a = 0; a < 3; ++a)
-      alone =
-          alone && !(fat.hi[a] + margin >= region.hi[a]) && !(fat.lo[a] - margin < region.lo[a]);
+    const bool alone = partition.alone(me, fat, margin);
     st.alone[i] = alone ? 1 : 0;
     if (alone) continue;
     reach.clear();
