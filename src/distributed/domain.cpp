@@ -10,6 +10,8 @@
 #include <string>
 #include <string_view>
 
+#include "pair_rule.hpp"
+
 namespace broadphase::distributed {
 
 namespace {
@@ -522,19 +524,8 @@ void Domain::find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count
     // max(lo_i, lo_j), known without a look when either lies in the
     // subdomain (above); false stops (an id seen twice).
     auto keep = [&](std::size_t i, std::size_t j) {
-      if (i >= anchored && j >= anchored) {
-        const Aabb bi = bounds(local[i].shape), bj = bounds(local[j].shape);
-        const Vec3 at{std::max(bi.lo.x, bj.lo.x), std::max(bi.lo.y, bj.lo.y),
-                      std::max(bi.lo.z, bj.lo.z)};
-        if (!partition_.holds(rank_, at)) return true;
-      }
-      const std::uint32_t a = local_id[i], b = local_id[j];
-      if (a == b) {
-        error = "object id " + std::to_string(a) + " was passed on more than one rank or twice";
-        return false;
-      }
-      out.push_back({std::min(a, b), std::max(a, b)});
-      return true;
+      return detail::keep_pair(partition_, rank_, local, local_id, i, j,
+                               i < anchored || j < anchored, out, error);
     };
     if (options_.algo == std::string_view(kLeanPath)) {
       // The lean path reads the records in place (arrays.hpp): no

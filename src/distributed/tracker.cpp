@@ -7,6 +7,8 @@
 #include <cmath>
 #include <string>
 
+#include "pair_rule.hpp"
+
 namespace broadphase::distributed {
 
 namespace {
@@ -138,19 +140,8 @@ void PairTracker::find_pairs(std::span<const std::uint32_t> ids, const Objects& 
     const Partition& partition = domain_.partition();
     const std::size_t first = out.size();
     auto keep = [&](std::size_t i, std::size_t j) {
-      if ((alone[i] | alone[j]) == 0) {
-        const Aabb bi = bounds(local[i].shape), bj = bounds(local[j].shape);
-        const Vec3 at{std::max(bi.lo.x, bj.lo.x), std::max(bi.lo.y, bj.lo.y),
-                      std::max(bi.lo.z, bj.lo.z)};
-        if (!partition.holds(rank, at)) return true;
-      }
-      const std::uint32_t a = local_id[i], b = local_id[j];
-      if (a == b) {
-        error = "object id " + std::to_string(a) + " was passed on more than one rank or twice";
-        return false;
-      }
-      out.push_back({std::min(a, b), std::max(a, b)});
-      return true;
+      return detail::keep_pair(partition, rank, local, local_id, i, j, (alone[i] | alone[j]) != 0,
+                               out, error);
     };
     const Objects view =
         n == 0 ? Objects{}
