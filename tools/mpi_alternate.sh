@@ -6,7 +6,8 @@
 # (tools/mpi_alternate_summary.py).
 #
 # Usage: [SKIN=10] tools/mpi_alternate.sh OUT [REPEATS] [PER_RANK] [FRAMES]
-#   (defaults 4 repeats, 1024000 objects per rank, 10 frames)
+#   (defaults 4 repeats, 1024000 objects per rank, 10 frames; every
+#   configuration runs with no skin and with SKIN, SKIN=0 runs no skin only)
 set -eu
 out=$1
 repeats=${2:-4}
@@ -22,7 +23,9 @@ run() {  # run FILE RANKS ARGS... (unbound: see tools/mpi_bench.sh)
 }
 uptime >"$out/load.txt"
 for rep in $(seq 1 "$repeats"); do
-  for sk in 0 "$skin"; do
+  skins="0 $skin"
+  [ "$skin" = 0 ] && skins=0
+  for sk in $skins; do
     for kind in scaled-even scaled-uneven; do
       dec=--bisect
       [ "$kind" = scaled-even ] && dec="--grid 2x1x1"
