@@ -11,6 +11,7 @@
 #include <limits>
 #include <set>
 
+#include "detail/array_grid.hpp"
 #include "detail/sphere_cells.hpp"
 #include "testing.hpp"
 
@@ -904,6 +905,44 @@ TEST(Arrays, GeneratedScenesMatchBruteForce) {
           f == 0 ? Changes::everything() : Changes::only(movers));
       ASSERT_EQ(d, testing::brute_force(scene.objects)) << "frame " << f;
     }
+  }
+}
+
+// A tracker's compactions build a new grid with the last grid's finest cell
+// as the least (ArrayGrid::build's min_cell). Given back its own finest
+// cell, the grid must keep it exactly: rounding it up again raised the
+// cells by a quarter octave at every compaction, and 300 frames of a
+// moving workload (20% of 100 000 spheres moving) went from 17 to 900 ms a
+// call as the cells filled.
+TEST(ArrayGrid, KeepsTheFinestCellItIsGiven) {
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    Rng rng(seed);
+    const std::size_t n = 1 + rng.below(5000);
+    const double spread = std::exp2(rng.uniform(0, 12));  // sizes over up to 12 octaves
+    std::vector<AabbF> boxes(n);
+    for (AabbF& b : boxes) {
+      const double h = 0.001 * std::exp2(-rng.uniform(0, std::log2(spread)));
+      for (int a = 0; a < 3; ++a) {
+        const double c = rng.uniform();
+        b.lo[a] = round_down(c - h);
+        b.hi[a] = round_up(c + h);
+      }
+    }
+    SCOPED_TRACE(::testing::Message() << "seed " << seed << " n " << n << " spread " << spread);
+    detail::ArrayGrid grid;
+    grid.build(boxes);
+    const double first = grid.base_cell();
+    ASSERT_GT(first, 0);
+    for (int compaction = 0; compaction < 10; ++compaction) {
+      detail::ArrayGrid next;
+      next.build(boxes, 1, grid.base_cell());
+      ASSERT_EQ(next.base_cell(), first) << "after " << compaction + 1 << " builds";
+      grid = std::move(next);
+    }
+    // A least cell wider than the sample's gives that cell.
+    detail::ArrayGrid wide;
+    wide.build(boxes, 1, 3 * first);
+    EXPECT_EQ(wide.base_cell(), 3 * first);
   }
 }
 

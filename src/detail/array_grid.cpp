@@ -60,8 +60,13 @@ void ArrayGrid::build(std::span<const AabbF> boxes, std::uint32_t dense, double 
       for (double s : sample)
         if (s > 0 && (w == 0 || s < w)) w = s;
     }
-    w = std::max(w, min_cell);
-    if (w > 0 && std::isfinite(w)) {
+    if (min_cell > 0 && w <= min_cell && std::isfinite(min_cell)) {
+      // The caller's finest cells, exactly: rounding them up like a
+      // sample's width (below) raised a tracker's cells by a quarter octave
+      // at each compaction, 8 times in 100 frames of its moving workload,
+      // and the calls grew from 17 to 900 ms.
+      base = min_cell;
+    } else if (w > 0 && std::isfinite(w)) {
       int e = 0;
       std::frexp(w, &e);  // w in [2^(e-1), 2^e)
       base = std::ldexp(1.0, e);
