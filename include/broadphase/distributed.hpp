@@ -343,8 +343,9 @@ class Domain {
 /// every object's bounds stay within `skin` of its bounds at the last
 /// rebuild. The local pairs are found afresh by the lean path each call. Ghosts go to every rank
 /// that bounds grown by the skin reach, so they cover the objects wherever they move inside it; on
-/// other frames only their current shapes travel, along the same lists. Every call is exact however
-/// far objects moved: one beyond its skin on any rank makes every rank rebuild.
+/// other frames only the ghosts whose shape changed travel, along the same lists, each with its id
+/// (the shared list travels whole). Every call is exact however far objects moved: one beyond its
+/// skin on any rank makes every rank rebuild.
 ///
 /// Between rebuilds the caller keeps its objects in place: the same ids in
 /// the same order on each rank (an object may then stand outside its
@@ -384,7 +385,8 @@ class PairTracker {
   void rebuild(std::span<const std::uint32_t> ids, const Objects& objects);
   // Copies this rank's shapes in and says whether a rebuild is due here.
   bool take(const Objects& objects);
-  // Sends the current shapes along the kept ghost lists.
+  // Sends the shapes that changed along the kept ghost lists, and the
+  // shared list whole.
   void refresh();
   Domain& domain_;
   double skin_;

@@ -51,7 +51,18 @@ struct PairTracker::State {
   std::vector<GhostRecord> local;
   std::vector<std::uint32_t> local_ids;
   std::vector<std::uint8_t> alone;  // bounds stay inside this subdomain
-  std::vector<Shape> send, shared_mine, shared_all;
+  std::vector<Shape> shared_mine, shared_all;
+  // The shape each listed ghost had when it was last sent (what its
+  // receiver holds), and the changed ones of a refresh with their ids.
+  std::vector<Shape> sent;
+  std::vector<GhostRecord> changed;
+  std::vector<int> changed_dest;
+  // The ghosts received, (id, slot in local) by id: where a changed one goes.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> ghost_slot;
+  // False from the start of a rebuild or refresh until it ends: a call
+  // that failed in between leaves lists the ranks may not agree on, and the
+  // next call rebuilds.
+  bool valid = false;
 };
 
 PairTracker::PairTracker(Domain& domain, double skin)
@@ -64,7 +75,7 @@ PairTracker::~PairTracker() = default;
 
 bool PairTracker::beyond_skin(const Objects& objects) const {
   const State& st = *state_;
-  if (rebuilds_ == 0 || objects.count != st.count || domain_.cuts() != st.cuts) return true;
+  if (!st.valid || objects.count != st.count || domain_.cuts() != st.cuts) return true;
   for (std::size_t i = 0; i < objects.count; ++i) {
     const Shape s = objects.shape(i);
     // An invalid shape rebuilds too: the rebuild names it.
@@ -75,7 +86,7 @@ bool PairTracker::beyond_skin(const Objects& objects) const {
 
 bool PairTracker::take(const Objects& objects) {
   State& st = *state_;
-  if (rebuilds_ == 0 || objects.count != st.count || domain_.cuts() != st.cuts) return true;
+  if (!st.valid || objects.count != st.count || domain_.cuts() != st.cuts) return true;
   // One pass: the copy a refresh needs and the skin check (a rebuild
   // overwrites the copy).
   bool beyond = false;
@@ -175,8 +186,7 @@ void PairTracker::rebuild(std::span<const std::uint32_t> ids, const Objects& obj
               " cannot be placed: its shape is not finite or has a negative extent";
       break;
     }
-  // A failed call leaves nothing to reuse: the next one rebuilds.
-  if (!error.empty()) rebuilds_ = 0;
+  st.valid = false;  // until this rebuild ends
   domain_.agree(error);
   ++rebuilds_;
 
@@ -221,6 +231,12 @@ void PairTracker::rebuild(std::span<const std::uint32_t> ids, const Objects& obj
   const std::vector<GhostRecord> received = domain_.exchange<GhostRecord>(records, st.send_dest);
   st.ghosts = received.size();
   st.local.insert(st.local.end(), received.begin(), received.end());
+  st.sent.resize(records.size());
+  for (std::size_t k = 0; k < records.size(); ++k) st.sent[k] = records[k].shape;
+  st.ghost_slot.resize(received.size());
+  for (std::size_t g = 0; g < received.size(); ++g)
+    st.ghost_slot[g] = {received[g].id, static_cast<std::uint32_t>(n + g)};
+  std::sort(st.ghost_slot.begin(), st.ghost_slot.end());
 
   // The shared list: every rank's objects that reach many ranks.
   const int size = domain_.size();
@@ -255,22 +271,39 @@ void PairTracker::rebuild(std::span<const std::uint32_t> ids, const Objects& obj
   st.alone.resize(st.local.size(), 0);
   st.local_ids.resize(st.local.size());
   for (std::size_t i = 0; i < st.local.size(); ++i) st.local_ids[i] = st.local[i].id;
+  st.valid = true;
 }
 
 void PairTracker::refresh() {
   State& st = *state_;
-  // The ghosts' current shapes, along the lists of the rebuild: they
-  // arrive in the same order (by source rank, in each sender's order).
-  st.send.resize(st.send_index.size());
-  for (std::size_t k = 0; k < st.send.size(); ++k) st.send[k] = st.local[st.send_index[k]].shape;
-  const std::vector<Shape> received = domain_.exchange<Shape>(st.send, st.send_dest);
+  st.valid = false;  // until this refresh ends
+  // Only the ghosts whose shape changed since they were last sent, each
+  // with its id (a rank's movers are a fifth of its objects in the lab's
+  // scenes, and its quiet ghosts need nothing). They arrive by source rank.
+  st.changed.clear();
+  st.changed_dest.clear();
+  for (std::size_t k = 0; k < st.send_index.size(); ++k) {
+    const GhostRecord& g = st.local[st.send_index[k]];
+    if (g.shape == st.sent[k]) continue;
+    st.sent[k] = g.shape;
+    st.changed.push_back(g);
+    st.changed_dest.push_back(st.send_dest[k]);
+  }
+  const std::vector<GhostRecord> received =
+      domain_.exchange<GhostRecord>(st.changed, st.changed_dest);
   std::string error;
-  if (received.size() != st.ghosts)
-    error = "rank " + std::to_string(domain_.rank()) + ": " + std::to_string(received.size()) +
-            " ghosts arrived where " + std::to_string(st.ghosts) + " were listed";
+  for (const GhostRecord& g : received) {
+    const auto at = std::lower_bound(st.ghost_slot.begin(), st.ghost_slot.end(),
+                                     std::pair<std::uint32_t, std::uint32_t>{g.id, 0});
+    if (at == st.ghost_slot.end() || at->first != g.id) {
+      error = "rank " + std::to_string(domain_.rank()) + ": a changed ghost, object " +
+              std::to_string(g.id) + ", is not among the ghosts listed at the last rebuild";
+      break;
+    }
+    st.local[at->second].shape = g.shape;
+  }
   domain_.agree(error);
   auto place = [&](std::size_t slot, const Shape& s) { st.local[slot].shape = s; };
-  for (std::size_t g = 0; g < received.size(); ++g) place(st.count + g, received[g]);
 
   const int me = domain_.rank();
   st.shared_mine.resize(st.shared_index.size());
@@ -287,6 +320,7 @@ void PairTracker::refresh() {
     const std::size_t k = static_cast<std::size_t>(st.shared_counts[r]) / sizeof(Shape);
     for (std::size_t q = 0; q < k; ++q) place(slot++, st.shared_all[from + q]);
   }
+  st.valid = true;
 }
 
 }  // namespace broadphase::distributed
