@@ -530,8 +530,10 @@ void Domain::find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count
     if (options_.algo == std::string_view(kLeanPath)) {
       // The lean path reads the records in place (arrays.hpp): no
       // structure is built and no copy made.
-      const Objects view =
-          shapes_view(&local[0].shape, used, static_cast<std::ptrdiff_t>(sizeof(Record)));
+      // (A rank with nothing local has no record to point into.)
+      const Objects view = used == 0 ? Objects{}
+                                     : shapes_view(&local[0].shape, used,
+                                                   static_cast<std::ptrdiff_t>(sizeof(Record)));
       broadphase::find_pairs(view, [&](std::span<const IndexPair> chunk) {
         for (const IndexPair& p : chunk)
           if (!keep(p.i, p.j)) return false;
