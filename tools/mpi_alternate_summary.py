@@ -31,14 +31,19 @@ def load(out):
     return runs
 
 
+def times(p2, a, b):
+    """A repeat's two-rank frame, the slower and the mean of its two
+    one-rank runs at once (ms, each run's median frame)."""
+    ta, tb = a["median_frame_ms"], b["median_frame_ms"]
+    return p2["median_frame_ms"], max(ta, tb), (ta + tb) / 2
+
+
 def repeats_table(runs):
     print("| kind | skin | repeat | 2 ranks | twice at once: slower | mean | efficiency / ceiling (slower; mean) | rebuilds in 2 ranks |")
     print("|---|---|---|---|---|---|---|---|")
     for (kind, skin), rows in sorted(runs.items()):
         for rep, p2, a, b in sorted(rows, key=lambda r: r[0]):
-            t2 = p2["median_frame_ms"]
-            slow = max(a["median_frame_ms"], b["median_frame_ms"])
-            avg = (a["median_frame_ms"] + b["median_frame_ms"]) / 2
+            t2, slow, avg = times(p2, a, b)
             print("| %s | %g | %d | %.0f | %.0f | %.0f | %.1f%%; %.1f%% | %d of %d |" % (
                 kind, skin, rep, t2, slow, avg, 100 * slow / t2, 100 * avg / t2,
                 p2.get("rebuilds", p2["frames"]), p2["frames"]))
@@ -53,11 +58,10 @@ def medians_table(runs, label):
     for (kind, skin), rows in sorted(runs.items()):
         t2s, slow, avg, rs, ra = [], [], [], [], []
         for rep, p2, a, b in rows:
-            t2 = p2["median_frame_ms"]
-            ta, tb = a["median_frame_ms"], b["median_frame_ms"]
+            t2, s, m = times(p2, a, b)
             t2s.append(t2)
-            slow.append(max(ta, tb))
-            avg.append((ta + tb) / 2)
+            slow.append(s)
+            avg.append(m)
             rs.append(slow[-1] / t2)
             ra.append(avg[-1] / t2)
         m = statistics.median

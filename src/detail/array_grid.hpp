@@ -44,7 +44,8 @@ class ArrayGrid {
   /// object count (rounded up to a power of two) gets one bucket per cell
   /// of that box, laid out row by row (see `Level::ky`); others are hashed
   /// into one bucket per object. The finest level's cells are at least
-  /// `min_cell` wide.
+  /// `min_cell` wide, and exactly that wide when the boxes' own choice
+  /// would be no wider (so a grid rebuilt with its own base_cell keeps it).
   void build(std::span<const AabbF> boxes, std::uint32_t dense = 1, double min_cell = 0);
   /// The finest level's cell side (0 before a build or with no level).
   double base_cell() const { return levels_.empty() ? 0 : levels_.front().h; }
