@@ -308,6 +308,24 @@ TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
     std::vector<IndexPair> got;
     cells.pairs(0, cells.cell_count(), got);
     EXPECT_EQ(sorted(got), oracle(st.objects));
+    // The probe of a sphere from outside the set (the tracker's movers
+    // mode): the first of each touching pair in the cells, the second
+    // probing them, finds exactly its partners.
+    std::vector<std::uint32_t> firsts;
+    for (std::uint32_t k = 1; k < shapes.size(); k += 2) firsts.push_back(k);
+    detail::SphereCells half;
+    ASSERT_TRUE(half.build(st.objects, firsts));
+    std::vector<IndexPair> probed, expected;
+    for (std::uint32_t k = 2; k < shapes.size(); k += 2) {
+      const Shape& s = shapes[k];
+      half.probe(s.center.x, s.center.y, s.center.z, s.half.x, [&](std::uint32_t j) {
+        probed.push_back({std::min(j, k), std::max(j, k)});
+      });
+      for (std::uint32_t j : firsts)
+        if (overlaps(s, shapes[j])) expected.push_back({std::min(j, k), std::max(j, k)});
+    }
+    EXPECT_EQ(sorted(probed), sorted(expected));
+    EXPECT_GE(expected.size(), 800u);
   }
   // The same across grids: small spheres touching big ones (centres
   // exactly ri + rj apart along x), the big centres swept across the
@@ -622,6 +640,113 @@ TEST(Arrays, TrackerMatchesOracleUnderRandomChanges) {
           ASSERT_EQ(got, first) << "order differs on " << t + 1 << " threads";
       }
     }
+  }
+}
+
+// Movers mode: spheres of which about one in ten moves each frame (listed),
+// with quiet ones woken, movers stopping, teleports, resizes, a sphere
+// turned into a box and back, appends, removals and "everything" now and
+// then: the oracle's pairs on every frame, the same order on 1 to 3
+// threads, the invariants after every call, and the mode taken on most
+// frames (so that the checks above are of it).
+TEST(Arrays, TrackerMoversModeMatchesOracle) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(10)); ++seed) {
+    Rng rng(seed * 104729);
+    // (Not the lattice: its cells are too crowded for the mode.)
+    const World kinds[] = {World::spheres, World::similar, World::sizes};
+    const World w = kinds[seed % std::size(kinds)];
+    const Layout layout = kLayouts[seed % std::size(kLayouts)];
+    std::vector<Shape> shapes = random_world(w, 300 + rng.below(1500), rng);
+    const double world = 20.0 * std::cbrt(static_cast<double>(shapes.size()) / 10.0) + 1;
+    std::vector<std::uint32_t> movers;
+    for (std::uint32_t i = 0; i < shapes.size(); ++i)
+      if (rng.below(10) == 0) movers.push_back(i);
+    PairTracker trackers[3];
+    for (unsigned t = 0; t < 3; ++t) {
+      ArrayOptions o;
+      o.threads = t + 1;
+      trackers[t] = PairTracker(o);
+    }
+    int in_mode = 0;
+    const int frames = 40;
+    for (int frame = 0; frame < frames; ++frame) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << " world " << name(w) << " layout "
+                                        << name(layout) << " frame " << frame);
+      std::vector<std::uint32_t> changed;
+      bool tell_all = false;
+      for (std::uint32_t i : movers)
+        if (i < shapes.size()) {
+          const Vec3 d{rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)};
+          shapes[i].center = shapes[i].center + d * rng.uniform(0, 3);
+          changed.push_back(i);
+        }
+      const auto pick = [&] { return static_cast<std::uint32_t>(rng.below(shapes.size())); };
+      switch (frame == 0 ? 99 : rng.below(24)) {
+        case 0: {  // wake a few quiet ones
+          for (int k = 0; k < 5; ++k) {
+            const std::uint32_t i = pick();
+            shapes[i].center = shapes[i].center + Vec3{0.5, -0.25, 0.125};
+            changed.push_back(i);
+          }
+          break;
+        }
+        case 1: {  // teleports and a resize
+          const std::uint32_t i = pick(), j = pick();
+          shapes[i].center = random_shape(w, rng, world).center;
+          shapes[j].half = Vec3{1, 1, 1} * rng.uniform(0, 6);
+          changed.insert(changed.end(), {i, j});
+          break;
+        }
+        case 2: {  // a sphere turns into a box, and back a few frames later
+          const std::uint32_t i = pick();
+          shapes[i] = Shape::box(shapes[i].center, {1, 2, 0.5});
+          changed.push_back(i);
+          break;
+        }
+        case 3:  // append
+          shapes.push_back(random_shape(w, rng, world));
+          break;
+        case 4: {  // remove by moving the last into its place
+          const std::uint32_t i = pick();
+          shapes[i] = shapes.back();
+          shapes.pop_back();
+          if (i < shapes.size()) changed.push_back(i);
+          break;
+        }
+        case 5:  // half the movers stop
+          movers.resize(movers.size() / 2);
+          break;
+        case 6:
+          tell_all = rng.below(3) == 0;
+          break;
+        default:
+          break;
+      }
+      for (Shape& s : shapes)  // boxes turn back into spheres after a while
+        if (!s.is_sphere() && rng.below(4) == 0) {
+          s = Shape::sphere(s.center, 1);
+          changed.push_back(static_cast<std::uint32_t>(&s - shapes.data()));
+        }
+      std::erase_if(changed, [&](std::uint32_t i) { return i >= shapes.size(); });
+      Storage st(shapes, layout);
+      const auto want = oracle(st.objects);
+      std::vector<IndexPair> first;
+      for (unsigned t = 0; t < 3; ++t) {
+        std::vector<IndexPair> got;
+        const auto stats = trackers[t].find_pairs(
+            st.objects, got, tell_all ? Changes::everything() : Changes::only(changed));
+        if (t == 0) in_mode += stats.movers ? 1 : 0;
+        ASSERT_EQ(stats.pairs, got.size());
+        ASSERT_NO_THROW(trackers[t].validate(st.objects)) << "threads " << t + 1;
+        ASSERT_EQ(sorted(got), want) << "threads " << t + 1;
+        if (t == 0)
+          first = got;
+        else
+          ASSERT_EQ(got, first) << "order differs on " << t + 1 << " threads";
+      }
+    }
+    EXPECT_GE(in_mode, frames / 3)
+        << "seed " << seed << ": movers mode taken on " << in_mode << " of " << frames << " frames";
   }
 }
 

@@ -200,6 +200,12 @@ struct ArrayCallStats {
   /// for the next few calls, holding nothing meanwhile, then builds its
   /// index again.
   bool afresh = false;
+  /// The tracker is in movers mode: a set of spheres most of which are
+  /// quiet keeps them in grids of their own and finds the other objects'
+  /// pairs afresh on every call (among themselves, and by a probe of the
+  /// quiet grids each), with no skin, nothing to renew and no index of
+  /// the movers. `compacted` is then set on a call that partitioned anew.
+  bool movers = false;
   bool stopped = false;  ///< the sink asked to stop
 };
 

@@ -8,12 +8,23 @@
 namespace broadphase::detail {
 
 bool SphereCells::build(const Objects& o) {
+  return build_over(o, o.count, [](std::size_t k) { return k; });
+}
+
+bool SphereCells::build(const Objects& o, std::span<const std::uint32_t> subset) {
+  for (const std::uint32_t i : subset)
+    if (i >= o.count) return fail();
+  return build_over(o, subset.size(), [subset](std::size_t k) -> std::size_t { return subset[k]; });
+}
+
+// The k-th sphere of the set is object at(k) of `o`.
+template <class At>
+bool SphereCells::build_over(const Objects& o, std::size_t n, At at) {
   release();
-  const std::size_t n = o.count;
   if (n < kMinObjects || n >= 0xFFFFFFFFu || o.radius.empty()) return false;
   if (o.kind != nullptr)
     for (std::size_t i = 0; i < n; ++i)
-      if (o.kind[static_cast<std::ptrdiff_t>(i) * o.kind_stride] != 0) return false;
+      if (o.kind[static_cast<std::ptrdiff_t>(at(i)) * o.kind_stride] != 0) return false;
   if (o.x.empty() || o.y.empty() || o.z.empty()) return false;
   // One pass for the centres' box, the radii's extremes and the values'
   // check (a bad value: false, and the caller's check names it). A pass of
@@ -23,7 +34,8 @@ bool SphereCells::build(const Objects& o) {
   double rmin = HUGE_VAL, rmax_left = 0;
   bool valid = true;
   for (std::size_t i = 0; i < n; ++i) {
-    const double x = o.x.at(i), y = o.y.at(i), z = o.z.at(i), r = o.radius.at(i);
+    const std::size_t k = at(i);
+    const double x = o.x.at(k), y = o.y.at(k), z = o.z.at(k), r = o.radius.at(k);
     valid &= std::isfinite(x) & std::isfinite(y) & std::isfinite(z) & std::isfinite(r) & (r >= 0);
     lo_[0] = std::min(lo_[0], x);
     hi[0] = std::max(hi[0], x);
@@ -104,7 +116,7 @@ bool SphereCells::build(const Objects& o) {
         members = 0;
         for (std::size_t i = 0; i < n; ++i)
           if (level[i] == 0xFF) {
-            const double r = o.radius.at(i);
+            const double r = o.radius.at(at(i));
             if (2 * kMargin * r <= limit) {
               rmax = std::max(rmax, r);
               ++members;
@@ -139,7 +151,7 @@ bool SphereCells::build(const Objects& o) {
     rmax_left = 0;
     for (std::size_t i = 0; i < n; ++i)
       if (level[i] == 0xFF) {
-        const double r = o.radius.at(i);
+        const double r = o.radius.at(at(i));
         if (2 * kMargin * r <= h) {
           level[i] = static_cast<std::uint8_t>(l);
           --remaining;
@@ -154,7 +166,8 @@ bool SphereCells::build(const Objects& o) {
   start_.assign(cells_ + 1, 0);
   for (std::size_t i = 0; i < n; ++i) {
     const Level& lv = level.empty() ? levels_[0] : levels_[level[i]];
-    const std::size_t c = lv.cell_of(lo_, o.x.at(i), o.y.at(i), o.z.at(i));
+    const std::size_t k = at(i);
+    const std::size_t c = lv.cell_of(lo_, o.x.at(k), o.y.at(k), o.z.at(k));
     key[i] = static_cast<std::uint32_t>(c);
     ++start_[c + 1];
   }
@@ -180,7 +193,8 @@ bool SphereCells::build(const Objects& o) {
   // Stable: a cell lists its spheres by increasing index.
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t p = start_[key[i]]++;
-    placed_[p] = {o.x.at(i), o.y.at(i), o.z.at(i), o.radius.at(i), static_cast<std::uint32_t>(i)};
+    const std::size_t k = at(i);
+    placed_[p] = {o.x.at(k), o.y.at(k), o.z.at(k), o.radius.at(k), static_cast<std::uint32_t>(k)};
   }
   for (std::size_t c = cells_; c > 0; --c) start_[c] = start_[c - 1];
   start_[0] = 0;

@@ -22,8 +22,12 @@
 // radii 19-20 ms against 125.
 #pragma once
 
+#include <algorithm>
+#include <bit>
 #include <broadphase/arrays.hpp>
+#include <cmath>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "big_vector.hpp"
@@ -40,6 +44,9 @@ class SphereCells {
   /// check_objects refuses (a centre or radius not finite, a negative
   /// radius; the caller's check then names it). Missing columns: false.
   bool build(const Objects& o);
+  /// The same over the objects `subset` of `o` only (distinct indices):
+  /// the pairs and probes then name them by their indices in `o`.
+  bool build(const Objects& o, std::span<const std::uint32_t> subset);
 
   static constexpr std::size_t kMinObjects = 64;
   static constexpr std::size_t kMaxCellsPerObject = 4;
@@ -57,6 +64,87 @@ class SphereCells {
   /// [c0, c1) to `out` (caller's indices, i < j), each pair of the set
   /// exactly once over all cells; returns the number of exact tests.
   std::uint64_t pairs(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
+
+  /// Calls `hit(i)` for every sphere i of the set that overlaps the sphere
+  /// (x, y, z, r) by the contract's predicate, any size, on every grid (in
+  /// the grids' order); returns the number of exact tests. A probe reads
+  /// the cells within reach, widened past the rounding as in `pairs`, or a
+  /// whole grid's spheres when they are fewer than those cells.
+  template <class Hit>
+  std::uint64_t probe(double x, double y, double z, double r, Hit&& hit) const {
+    std::uint64_t tests = 0;
+    const double centre[3] = {x, y, z};
+    const std::uint32_t* st = start_.data();
+    const Placed* P = placed_.data();
+    // The predicate of spheres_overlap, without a branch per partner (as
+    // in `pairs`: four at a time into a mask; the three NaN records past
+    // the end keep the reads in bounds).
+    auto test = [&](std::uint32_t b, std::uint32_t e) {
+      tests += e - b;
+      while (b < e) {
+        const std::uint32_t len = std::min<std::uint32_t>(e - b, 64);
+        std::uint64_t hits = 0;
+        for (std::uint32_t t = 0; t < len; t += 4) {
+          std::uint64_t four = 0;
+          for (std::uint32_t u = 0; u < 4; ++u) {
+            const Placed& q = P[b + t + u];
+            const double dx = x - q.x, dy = y - q.y, dz = z - q.z;
+            const double d2 = dx * dx + dy * dy + dz * dz;
+            const double sr = r + q.r;
+            four |= static_cast<std::uint64_t>(d2 <= sr * sr) << u;
+          }
+          hits |= four << t;
+        }
+        if (len < 64) hits &= (std::uint64_t{1} << len) - 1;
+        for (; hits != 0; hits &= hits - 1)
+          hit(P[b + static_cast<std::uint32_t>(std::countr_zero(hits))].id);
+        b += len;
+      }
+    };
+    for (const Level& g : levels_) {
+      const double reach = (r + g.rmax) * (1 + 0x1p-20);
+      std::size_t from[3], to[3];
+      double cells = 1;
+      for (int ax = 0; ax < 3; ++ax) {
+        const double pad = reach + std::abs(centre[ax]) * 0x1p-48;
+        from[ax] = g.index(ax, lo_[ax], centre[ax] - pad);
+        to[ax] = g.index(ax, lo_[ax], centre[ax] + pad);
+        cells *= static_cast<double>(to[ax] - from[ax] + 1);
+      }
+      const std::uint32_t b0 = st[g.first], e0 = st[g.first + g.cells];
+      if (cells > static_cast<double>(e0 - b0)) {
+        test(b0, e0);
+        continue;
+      }
+      for (std::size_t cz = from[2]; cz <= to[2]; ++cz)
+        for (std::size_t cy = from[1]; cy <= to[1]; ++cy) {
+          const std::size_t row = g.first + cz * g.nxy + cy * g.nx;
+          test(st[row + from[0]], st[row + to[0] + 1]);
+        }
+    }
+    return tests;
+  }
+
+  /// A key that orders points as the finest grid's cells do (clamped to
+  /// its outer layer): probes made in its order read nearby memory.
+  std::size_t cell_key(double x, double y, double z) const {
+    const Level& g = levels_.front();
+    return (g.index(2, lo_[2], z) * g.dims[1] + g.index(1, lo_[1], y)) * g.dims[0] +
+           g.index(0, lo_[0], x);
+  }
+
+  /// Calls `f(i, x, y, z, r)` for every sphere of the set as it was read.
+  template <class F>
+  void for_each(F&& f) const {
+    for (std::size_t k = 0; k + 3 < placed_.size(); ++k)
+      f(placed_[k].id, placed_[k].x, placed_[k].y, placed_[k].z, placed_[k].r);
+  }
+  /// Spheres in the set.
+  std::size_t size() const { return placed_.size() < 3 ? 0 : placed_.size() - 3; }
+  /// Bytes held (the cells' starts and the records).
+  std::size_t memory_bytes() const {
+    return start_.capacity() * sizeof(std::uint32_t) + placed_.capacity() * sizeof(Placed);
+  }
 
  private:
   struct Level {
@@ -83,6 +171,8 @@ class SphereCells {
              static_cast<std::size_t>((x - lo[0]) * inv) + 1;
     }
   };
+  template <class At>
+  bool build_over(const Objects& o, std::size_t n, At at);
   void release();
   bool fail();  // release(), false
 
