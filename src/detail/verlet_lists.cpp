@@ -7,6 +7,8 @@
 #include <string>
 #include <type_traits>
 
+#include "sort_keys.hpp"
+
 namespace broadphase::detail {
 
 namespace {
@@ -31,24 +33,6 @@ std::size_t with_room(std::size_t n) { return n + n / 2 + 1024; }
 
 // Pieces joined in order: every chunk of a pass.
 using Joined = InOrder<WorkShares::kMaxThreads * WorkShares::kChunksPerShare + 1>;
-
-// Sorts keys by their high 32 bits, stably: an LSD radix sort, 11 bits a
-// pass, as many passes as the largest key needs (std::sort took half of a
-// pool compaction's time at 102 400 objects).
-void sort_by_high_word(std::vector<std::uint64_t>& keys) {
-  constexpr int kBits = 11;
-  constexpr std::size_t kBuckets = std::size_t{1} << kBits;
-  std::uint64_t top = 0;
-  for (const std::uint64_t k : keys) top = std::max(top, k >> 32);
-  std::vector<std::uint64_t> out(keys.size());
-  for (int shift = 32; shift < 64 && (top >> (shift - 32)) > 0; shift += kBits) {
-    std::vector<std::uint32_t> start(kBuckets + 1, 0);
-    for (const std::uint64_t k : keys) ++start[((k >> shift) & (kBuckets - 1)) + 1];
-    for (std::size_t b = 0; b < kBuckets; ++b) start[b + 1] += start[b];
-    for (const std::uint64_t k : keys) out[start[(k >> shift) & (kBuckets - 1)]++] = k;
-    keys.swap(out);
-  }
-}
 
 }  // namespace
 
