@@ -198,7 +198,9 @@ struct ArrayCallStats {
   /// would be built again), and they are spheres in uncrowded cells, where
   /// a new search is several times cheaper than a build. It does the same
   /// for the next few calls, holding nothing meanwhile, then builds its
-  /// index again.
+  /// index again. Also a tracker with no index yet (its first call, a new
+  /// count) on such spheres: the next call that lists its changes may then
+  /// enter movers mode without the index's build.
   bool afresh = false;
   /// The tracker is in movers mode: a set of spheres most of which are
   /// quiet keeps them in grids of their own and finds the other objects'
