@@ -199,8 +199,9 @@ struct ArrayCallStats {
   /// a new search is several times cheaper than a build. It does the same
   /// for the next few calls, holding nothing meanwhile, then builds its
   /// index again. Also a tracker with no index yet (its first call, a new
-  /// count) on such spheres: the next call that lists its changes may then
-  /// enter movers mode without the index's build.
+  /// count) on such spheres, which keeps that call's cells and pairs: the
+  /// next call that lists its changes then enters movers mode from them,
+  /// without the index's build (one that does not builds the index).
   bool afresh = false;
   /// The tracker is in movers mode: a set of spheres most of which are
   /// quiet keeps them in grids of their own and finds the other objects'
