@@ -1,8 +1,9 @@
 // The lean path's tracker (arrays.hpp, PairTracker): a multi-level hashed
 // grid over skin-fattened float boxes kept between calls, candidate rows
 // per object, renewals of objects that leave their box, quiet objects, and
-// calls afresh when motion outruns the skin; exact tests read from the
-// caller's data.
+// calls afresh when motion outruns the skin; for sets of spheres that are
+// mostly quiet, movers mode instead (no index of the movers at all); exact
+// tests read from the caller's data.
 #include <algorithm>
 #include <bit>
 #include <broadphase/arrays.hpp>
@@ -168,10 +169,10 @@ struct PairTracker::Impl {
   // so there is no skin to leave, nothing to renew or compact: the work of
   // a call follows the movers' count. Measured on one core (docs/arrays.md,
   // point 9): 100 000 spheres with 20% moving a tenth of a radius a frame,
-  // 100 calls, median 8.9 -> 6.8 ms and mean 14.7 -> 6.9 ms (the renewal
+  // 100 calls, median 9.2 -> 5.9 ms and mean 14.7 -> 6.0 ms (the renewal
   // waves and compactions gone), own memory 76.6 -> 51.9 B/object;
-  // scaled-even 1 024 000, 16 calls, median 196 -> 150 ms, mean 248 -> 168,
-  // 73.8 -> 54.8 B/object.
+  // scaled-even 1 024 000, 16 calls, median 206-215 -> 143-160 ms, mean
+  // 263-269 -> 154-163, 73.8 -> 54.8 B/object.
   bool movers = false;
   detail::SphereCells quiet_cells;
   std::vector<std::uint32_t> active;  // increasing
@@ -179,16 +180,18 @@ struct PairTracker::Impl {
   std::size_t quiet_at_partition = 0;
   std::uint32_t movers_calls = 0;  // calls since the partition
   bool movers_refused = false;     // the quiet spheres did not suit it (since the rebuild)
-  // The last call searched afresh with no index, holding nothing but the
-  // count, so that a call listing its changes may enter movers mode.
+  // The last call searched afresh with no index, keeping the count and
+  // (when its sink took them all) its cells and pairs, so that a call
+  // listing its changes may enter movers mode from them.
   bool pending = false;
   // Partitions the objects by `changed` (those it does not list become
   // quiet) into movers mode, dropping the index; false, with nothing
   // changed, when the set does not suit it.
   bool enter_movers(const Objects& o, const std::vector<std::uint64_t>& changed);
-  // Enters movers mode from the cells and pairs of a pending call: the
-  // objects `changed` lists become movers (their records stale), the others
-  // quiet; false, with nothing changed, when the set does not suit it.
+  // Enters movers mode from the pairs of a pending call: the objects
+  // `changed` lists become movers and their pairs go, the others are quiet
+  // and sorted into cells of their own; false, with nothing changed, when
+  // the set does not suit it.
   bool enter_from_pending(const Objects& o, const std::vector<std::uint64_t>& changed);
   // Whether the movers mode can take this call (else the index is rebuilt).
   bool movers_suit(const Objects& o, const Changes& changes,
@@ -703,8 +706,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
         [&](std::size_t begin, std::size_t end, PairChunk& out) {
           out.pairs.clear();
           out.tests = 0;
-          // (The records of woken objects, and of movers entered from a
-          // pending call, are stale: skipped, when there are any.)
+          // (Woken objects' records are stale: skipped, when there are any.)
           const bool any_woken = quiet_cells.size() != quiet_count;
           for (std::size_t k = begin; k < end; ++k) {
             const std::uint32_t i = ids[k];
@@ -1097,12 +1099,12 @@ void PairTracker::Impl::check_movers(const Objects& objects) const {
     if (role[i] == kNone) fail("object " + std::to_string(i) + " is neither quiet nor a mover");
     if (!objects.is_sphere(i)) fail("object " + std::to_string(i) + " is not a sphere");
   }
-  // The quiet cells hold every quiet and woken object once (and maybe
-  // movers, entered from a pending call), the quiet ones exactly as they
-  // are now.
+  // The quiet cells hold every quiet and woken object once, and no other,
+  // the quiet ones exactly as they are now.
   std::vector<char> held(n, 0);
   im.quiet_cells.for_each([&](std::uint32_t i, double x, double y, double z, double r) {
-    if (i >= n || held[i]) fail("quiet cells hold " + std::to_string(i) + " wrongly or twice");
+    if (i >= n || held[i] || role[i] == kActive)
+      fail("quiet cells hold " + std::to_string(i) + " wrongly or twice");
     held[i] = 1;
     if (role[i] == kQuiet && (x != objects.x.at(i) || y != objects.y.at(i) ||
                               z != objects.z.at(i) || r != objects.radius.at(i)))
