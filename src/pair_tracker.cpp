@@ -180,6 +180,7 @@ struct PairTracker::Impl {
   std::size_t quiet_at_partition = 0;
   std::uint32_t movers_calls = 0;  // calls since the partition
   bool movers_refused = false;     // the quiet spheres did not suit it (since the rebuild)
+  std::uint32_t last_box = std::numeric_limits<std::uint32_t>::max();  // a box that kept it out
   // The last call searched afresh with no index, keeping the count and
   // (when its sink took them all) its cells and pairs, so that a call
   // listing its changes may enter movers mode from them.
@@ -517,14 +518,23 @@ void PairTracker::Impl::compact(const Objects& o, const std::vector<std::uint64_
 }
 
 bool PairTracker::Impl::enter_movers(const Objects& o, const std::vector<std::uint64_t>& changed) {
+  // The cheap refusals first: the index tries this on every call while it
+  // has quiet objects.
   const auto n = static_cast<std::uint32_t>(o.count);
   if (o.radius.empty()) return false;
-  if (o.kind != nullptr)
+  std::size_t listed = 0;
+  for (const std::uint64_t w : changed) listed += static_cast<std::size_t>(std::popcount(w));
+  if (listed * kMoversShare > n) return false;
+  if (o.kind != nullptr) {
+    if (last_box < n && !o.is_sphere(last_box)) return false;  // still a box
     for (std::uint32_t i = 0; i < n; ++i)
-      if (!o.is_sphere(i)) return false;
+      if (!o.is_sphere(i)) {
+        last_box = i;
+        return false;
+      }
+  }
   std::vector<std::uint32_t> still, moving;
   for (std::uint32_t i = 0; i < n; ++i) (test_bit(changed, i) ? moving : still).push_back(i);
-  if (moving.size() * kMoversShare > n) return false;
   detail::SphereCells cells;
   if (!cells.build(o, still) || cells.crowd() > kMoversCrowd) {
     movers_refused = true;  // not tried again before a rebuild: a build is dear
