@@ -541,16 +541,9 @@ bool PairTracker::Impl::enter_movers(const Objects& o, const std::vector<std::ui
     return false;
   }
   std::vector<IndexPair> hits;
-  run_in_order<PairChunk>(
-      cells.cell_count(), thread_count(options.threads),
-      [&](std::size_t begin, std::size_t end, PairChunk& out) {
-        out.pairs.clear();
-        out.tests = cells.pairs(begin, end, out.pairs);
-      },
-      [&](PairChunk& c) {
-        hits.insert(hits.end(), c.pairs.begin(), c.pairs.end());
-        return true;
-      });
+  ArrayOptions unsorted = options;
+  unsorted.sorted = false;
+  cell_pairs(cells, append_to(hits), unsorted);
   hits.shrink_to_fit();
   Impl next;
   next.options = options;
@@ -881,18 +874,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
       const std::uint32_t quiet_after = im.quiet_after;
       clear();
       std::vector<IndexPair> all;
-      Emitter emit(sink, options.sorted, stats);
-      run_in_order<PairChunk>(
-          cells.cell_count(), thread_count(options.threads),
-          [&](std::size_t begin, std::size_t end, PairChunk& out) {
-            out.pairs.clear();
-            out.tests = cells.pairs(begin, end, out.pairs);
-          },
-          [&](PairChunk& c) {
-            all.insert(all.end(), c.pairs.begin(), c.pairs.end());
-            return emit.deliver(c);
-          });
-      emit.finish();
+      stats = cell_pairs(cells, sink, options, &all);
       im.quiet_after = quiet_after;
       im.pending = true;
       im.count = objects.count;

@@ -560,6 +560,27 @@ TEST(Arrays, BadValuesNameTheIndexAndLeaveTheTrackerAsItWas) {
 // The tracker over random frames: moves, teleports, resizes, kind changes,
 // appends and removals (swap with the last), told everything or only what
 // changed, on 1, 2 and 3 threads in lockstep.
+// One call of each of three trackers (on 1, 2 and 3 threads) on the same
+// objects: the oracle's pairs, the invariants after the call, one order on
+// every thread count; `stats` is the first tracker's.
+void call_on_each(PairTracker (&trackers)[3], const Objects& objects, const Changes& changes,
+                  const std::vector<IndexPair>& want, ArrayCallStats& stats) {
+  std::vector<IndexPair> first;
+  for (unsigned t = 0; t < 3; ++t) {
+    std::vector<IndexPair> got;
+    const ArrayCallStats s = trackers[t].find_pairs(objects, got, changes);
+    ASSERT_EQ(s.pairs, got.size());
+    ASSERT_NO_THROW(trackers[t].validate(objects)) << "threads " << t + 1;
+    ASSERT_EQ(sorted(got), want) << "threads " << t + 1;
+    if (t == 0) {
+      first = got;
+      stats = s;
+    } else {
+      ASSERT_EQ(got, first) << "order differs on " << t + 1 << " threads";
+    }
+  }
+}
+
 TEST(Arrays, TrackerMatchesOracleUnderRandomChanges) {
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(12)); ++seed) {
     Rng rng(seed * 7919);
@@ -626,19 +647,10 @@ TEST(Arrays, TrackerMatchesOracleUnderRandomChanges) {
       // Odd seeds say "everything" rarely, so that objects become quiet
       // and some are woken by a listed change or by "everything".
       const bool tell_all = rng.below(seed % 2 ? 16 : 3) == 0;
-      std::vector<IndexPair> first;
-      for (unsigned t = 0; t < 3; ++t) {
-        std::vector<IndexPair> got;
-        const auto stats = trackers[t].find_pairs(
-            st.objects, got, tell_all ? Changes::everything() : Changes::only(changed));
-        ASSERT_EQ(stats.pairs, got.size());
-        ASSERT_NO_THROW(trackers[t].validate(st.objects)) << "threads " << t + 1;
-        ASSERT_EQ(sorted(got), want) << "threads " << t + 1;
-        if (t == 0)
-          first = got;
-        else
-          ASSERT_EQ(got, first) << "order differs on " << t + 1 << " threads";
-      }
+      ArrayCallStats stats;
+      ASSERT_NO_FATAL_FAILURE(
+          call_on_each(trackers, st.objects,
+                       tell_all ? Changes::everything() : Changes::only(changed), want, stats));
     }
   }
 }
@@ -730,20 +742,11 @@ TEST(Arrays, TrackerMoversModeMatchesOracle) {
       std::erase_if(changed, [&](std::uint32_t i) { return i >= shapes.size(); });
       Storage st(shapes, layout);
       const auto want = oracle(st.objects);
-      std::vector<IndexPair> first;
-      for (unsigned t = 0; t < 3; ++t) {
-        std::vector<IndexPair> got;
-        const auto stats = trackers[t].find_pairs(
-            st.objects, got, tell_all ? Changes::everything() : Changes::only(changed));
-        if (t == 0) in_mode += stats.movers ? 1 : 0;
-        ASSERT_EQ(stats.pairs, got.size());
-        ASSERT_NO_THROW(trackers[t].validate(st.objects)) << "threads " << t + 1;
-        ASSERT_EQ(sorted(got), want) << "threads " << t + 1;
-        if (t == 0)
-          first = got;
-        else
-          ASSERT_EQ(got, first) << "order differs on " << t + 1 << " threads";
-      }
+      ArrayCallStats stats;
+      ASSERT_NO_FATAL_FAILURE(
+          call_on_each(trackers, st.objects,
+                       tell_all ? Changes::everything() : Changes::only(changed), want, stats));
+      in_mode += stats.movers ? 1 : 0;
     }
     EXPECT_GE(in_mode, frames / 3)
         << "seed " << seed << ": movers mode taken on " << in_mode << " of " << frames << " frames";

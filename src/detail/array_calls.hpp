@@ -98,9 +98,11 @@ inline IndexPair ordered(std::uint32_t p, std::uint32_t q) {
   return p < q ? IndexPair{p, q} : IndexPair{q, p};
 }
 
-// The pairs of the spheres sorted into `cells`, handed over in order.
+// The pairs of the spheres sorted into `cells`, handed over in order (and,
+// with `keep`, appended to it as they are handed over).
 inline ArrayCallStats cell_pairs(const detail::SphereCells& cells, const PairSink& sink,
-                                 const ArrayOptions& options) {
+                                 const ArrayOptions& options,
+                                 std::vector<IndexPair>* keep = nullptr) {
   ArrayCallStats stats;
   Emitter emit(sink, options.sorted, stats);
   run_in_order<PairChunk>(
@@ -109,7 +111,10 @@ inline ArrayCallStats cell_pairs(const detail::SphereCells& cells, const PairSin
         out.pairs.clear();
         out.tests = cells.pairs(begin, end, out.pairs);
       },
-      [&](PairChunk& c) { return emit.deliver(c); });
+      [&](PairChunk& c) {
+        if (keep != nullptr) keep->insert(keep->end(), c.pairs.begin(), c.pairs.end());
+        return emit.deliver(c);
+      });
   emit.finish();
   return stats;
 }

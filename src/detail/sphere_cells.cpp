@@ -230,38 +230,19 @@ std::uint64_t SphereCells::pairs(std::size_t c0, std::size_t c1,
     for (std::uint32_t a = st[c]; a < st[c + 1]; ++a) {
       const double xi = P[a].x, yi = P[a].y, zi = P[a].z, ri = P[a].r;
       const std::uint32_t ia = P[a].id;
-      // The exact test without a branch per partner (about half of the
-      // partners overlap in a dense set, a coin toss for a branch): a mask
-      // of hits per 64 partners, then one step per hit.
+      // Partners after it: a pair per hit, handed on in batches.
       auto run = [&](std::uint32_t b, std::uint32_t e) {
         tests += e - b;
-        while (b < e) {
-          const std::uint32_t len = std::min<std::uint32_t>(e - b, 64);
-          std::uint64_t hits = 0;
-          // Four at a time, the bits past the run dropped after: a run
-          // holds 4 partners on average, and a loop per partner paid a
-          // mispredicted exit a run.
-          for (std::uint32_t t = 0; t < len; t += 4) {
-            std::uint64_t four = 0;
-            for (std::uint32_t u = 0; u < 4; ++u) {
-              const Placed& q = P[b + t + u];
-              const double dx = xi - q.x, dy = yi - q.y, dz = zi - q.z;
-              const double d2 = dx * dx + dy * dy + dz * dz;
-              const double sr = ri + q.r;
-              four |= static_cast<std::uint64_t>(d2 <= sr * sr) << u;
-            }
-            hits |= four << t;
-          }
-          if (len < 64) hits &= (std::uint64_t{1} << len) - 1;
-          for (; hits != 0; hits &= hits - 1) {
-            const std::uint32_t jb = P[b + static_cast<std::uint32_t>(std::countr_zero(hits))].id;
-            buf[m++] = {std::min(ia, jb), std::max(ia, jb)};
-          }
+        for (; b < e; b += 64) {
+          test_block(P, xi, yi, zi, ri, b, std::min<std::uint32_t>(e - b, 64),
+                     [&](std::uint32_t k) {
+                       const std::uint32_t jb = P[k].id;
+                       buf[m++] = {std::min(ia, jb), std::max(ia, jb)};
+                     });
           if (m >= kBuffer) {
             out.insert(out.end(), buf, buf + m);
             m = 0;
           }
-          b += len;
         }
       };
       // Own grid, half the neighbours: the rest of this cell and the next

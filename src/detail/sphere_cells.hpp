@@ -76,30 +76,11 @@ class SphereCells {
     const double centre[3] = {x, y, z};
     const std::uint32_t* st = start_.data();
     const Placed* P = placed_.data();
-    // The predicate of spheres_overlap, without a branch per partner (as
-    // in `pairs`: four at a time into a mask; the three NaN records past
-    // the end keep the reads in bounds).
     auto test = [&](std::uint32_t b, std::uint32_t e) {
       tests += e - b;
-      while (b < e) {
-        const std::uint32_t len = std::min<std::uint32_t>(e - b, 64);
-        std::uint64_t hits = 0;
-        for (std::uint32_t t = 0; t < len; t += 4) {
-          std::uint64_t four = 0;
-          for (std::uint32_t u = 0; u < 4; ++u) {
-            const Placed& q = P[b + t + u];
-            const double dx = x - q.x, dy = y - q.y, dz = z - q.z;
-            const double d2 = dx * dx + dy * dy + dz * dz;
-            const double sr = r + q.r;
-            four |= static_cast<std::uint64_t>(d2 <= sr * sr) << u;
-          }
-          hits |= four << t;
-        }
-        if (len < 64) hits &= (std::uint64_t{1} << len) - 1;
-        for (; hits != 0; hits &= hits - 1)
-          hit(P[b + static_cast<std::uint32_t>(std::countr_zero(hits))].id);
-        b += len;
-      }
+      for (; b < e; b += 64)
+        test_block(P, x, y, z, r, b, std::min<std::uint32_t>(e - b, 64),
+                   [&](std::uint32_t k) { hit(P[k].id); });
     };
     for (const Level& g : levels_) {
       const double reach = (r + g.rmax) * (1 + 0x1p-20);
@@ -173,6 +154,7 @@ class SphereCells {
   };
   template <class At>
   bool build_over(const Objects& o, std::size_t n, At at);
+
   void release();
   bool fail();  // release(), false
 
@@ -189,6 +171,39 @@ class SphereCells {
     std::uint32_t id;
   };
   BigVector<Placed> placed_;
+
+  // Calls `hit(k)` for every record k in [b, b + len) (len at most 64)
+  // that overlaps the sphere (x, y, z, r) by the predicate of
+  // spheres_overlap, in increasing k, without a branch per record: four at
+  // a time into a mask, then one step per hit (about half of the partners
+  // overlap in a dense set, a coin toss for a branch; a loop per record
+  // paid a mispredicted exit a run, a run holding 4 records on average).
+  // Reads up to three records past the block: the three NaN records past
+  // the end keep that in bounds. The callers go through a run a block at a
+  // time (the kernel's scan hands its pairs on between blocks: doing so
+  // between hits instead cost 9% of a call at 10^6 spheres).
+  template <class Hit>
+  static void test_block(const Placed* __restrict P, double x, double y, double z, double r,
+                         std::uint32_t b, std::uint32_t len, Hit&& hit);
 };
+
+template <class Hit>
+void SphereCells::test_block(const Placed* __restrict P, double x, double y, double z, double r,
+                             std::uint32_t b, std::uint32_t len, Hit&& hit) {
+  std::uint64_t hits = 0;
+  for (std::uint32_t t = 0; t < len; t += 4) {
+    std::uint64_t four = 0;
+    for (std::uint32_t u = 0; u < 4; ++u) {
+      const Placed& q = P[b + t + u];
+      const double dx = x - q.x, dy = y - q.y, dz = z - q.z;
+      const double d2 = dx * dx + dy * dy + dz * dz;
+      const double sr = r + q.r;
+      four |= static_cast<std::uint64_t>(d2 <= sr * sr) << u;
+    }
+    hits |= four << t;
+  }
+  if (len < 64) hits &= (std::uint64_t{1} << len) - 1;
+  for (; hits != 0; hits &= hits - 1) hit(b + static_cast<std::uint32_t>(std::countr_zero(hits)));
+}
 
 }  // namespace broadphase::detail
