@@ -83,16 +83,13 @@ constexpr double kMoversCrowd = 5;
 constexpr std::size_t kWokenShare = 8;
 constexpr std::uint32_t kMoversPatience = 8;
 
-namespace {
-
+// (Inline with external linkage: the header is read by two sources.)
 inline bool test_bit(const std::vector<std::uint64_t>& bits, std::uint32_t k) {
   return (bits[k >> 6] >> (k & 63)) & 1;
 }
 inline void set_bit(std::vector<std::uint64_t>& bits, std::uint32_t k) {
   bits[k >> 6] |= std::uint64_t{1} << (k & 63);
 }
-
-}  // namespace
 
 struct PairTracker::Impl {
   ArrayOptions options;
