@@ -28,8 +28,8 @@ void PairTracker::Impl::rebuild(const Objects& o) {
   movers_refused = false;
   pending = false;
   quiet_cells = detail::SphereCells{};
-  active = {};
-  woken = {};
+  free_vector(active);
+  free_vector(woken);
   margin_used = margin(o);
   rel_skin = kOwnSkinShare * (options.skin > 0 ? options.skin : 0.25);
   std::vector<AabbF> boxes(n);

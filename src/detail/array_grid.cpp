@@ -238,12 +238,12 @@ std::size_t ArrayGrid::memory_bytes() const {
 }
 
 void ArrayGrid::release() {
-  levels_ = {};
-  level_of_ = {};
-  start_ = {};
-  entries_ = {};
-  big_ = {};
-  summary_ = {};
+  free_vector(levels_);
+  free_vector(level_of_);
+  free_vector(start_);
+  free_vector(entries_);
+  free_vector(big_);
+  free_vector(summary_);
   boxes_ = {};
 }
 

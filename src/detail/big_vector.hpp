@@ -60,4 +60,11 @@ struct BigAllocator {
 template <class T>
 using BigVector = std::vector<T, BigAllocator<T>>;
 
+// Empties a vector and returns its memory. (`v = {}` does not: it is the
+// assignment from an empty initializer list, which keeps the capacity.)
+template <class V>
+void free_vector(V& v) noexcept {
+  V().swap(v);
+}
+
 }  // namespace broadphase::detail

@@ -210,8 +210,8 @@ void SphereCells::release() {
   levels_.clear();
   cells_ = 0;
   crowd_ = 0;
-  start_ = {};
-  placed_ = {};
+  free_vector(start_);
+  free_vector(placed_);
 }
 
 std::uint64_t SphereCells::pairs(std::size_t c0, std::size_t c1,
