@@ -81,7 +81,6 @@ void PairTracker::Impl::rebuild(const Objects& o) {
   quiet.shrink_to_fit();
   quiet_count = 0;
   quiet_hits.clear();
-  quiet_hits.shrink_to_fit();
   count = n;
   built = true;
   fresh = true;
@@ -171,7 +170,11 @@ void PairTracker::Impl::renew(const std::vector<std::uint32_t>& leave) {
 // object for a rebuild.
 void PairTracker::Impl::compact(const Objects& o, const std::vector<std::uint64_t>* changed) {
   const std::size_t rows = grid.probe_count();
-  std::erase_if(quiet_hits, [&](const IndexPair& q) { return is_renewed(q.i) || is_renewed(q.j); });
+  // The quiet pairs of objects not renewed, and those the rows give up below.
+  std::vector<IndexPair> hits;
+  hits.reserve(quiet_hits.size());
+  quiet_hits.expand(0, quiet_hits.size(), hits,
+                    [&](const IndexPair& q) { return !is_renewed(q.i) && !is_renewed(q.j); });
   std::vector<AabbF> by_object(count);
   for (std::size_t k = 0; k < rows; ++k) by_object[grid.probe_object(k)] = fat[k];
   // With `changed`, the objects it does not list become quiet. A quiet
@@ -244,7 +247,7 @@ void PairTracker::Impl::compact(const Objects& o, const std::vector<std::uint64_
         next_partner[cursor[ka]++] = moved[kb] | bit;
         break;
       case Fate::quiet:
-        if (bit != 0) quiet_hits.push_back(ordered(grid.probe_object(ka), grid.probe_object(kb)));
+        if (bit != 0) hits.push_back(ordered(grid.probe_object(ka), grid.probe_object(kb)));
         break;
       case Fate::drop:
         break;
@@ -257,7 +260,8 @@ void PairTracker::Impl::compact(const Objects& o, const std::vector<std::uint64_
         take(static_cast<std::uint32_t>(k), q, partner[p] & kOverlapBit);
   }
   for (const LoosePair& lp : loose) take(lp.a, lp.b & kIndexMask, lp.b & kOverlapBit);
-  quiet_hits.shrink_to_fit();
+  quiet_hits.assign(hits, count);
+  free_vector(hits);
   grid = std::move(next);
   adopt(by_object);
   offset = std::move(next_offset);
@@ -275,6 +279,21 @@ PairTracker::PairTracker(const ArrayOptions& options) : impl_(std::make_unique<I
 PairTracker::~PairTracker() = default;
 PairTracker::PairTracker(PairTracker&&) noexcept = default;
 PairTracker& PairTracker::operator=(PairTracker&&) noexcept = default;
+
+bool PairTracker::Impl::deliver_quiet(Emitter& emit, unsigned threads, bool any_dead) const {
+  return run_in_order<PairChunk>(
+      quiet_hits.size(), threads,
+      [&](std::size_t begin, std::size_t end, PairChunk& out) {
+        out.pairs.clear();
+        out.tests = 0;
+        if (any_dead)
+          quiet_hits.expand(begin, end, out.pairs,
+                            [&](const IndexPair& q) { return is_quiet(q.i) && is_quiet(q.j); });
+        else
+          quiet_hits.expand(begin, end, out.pairs, [](const IndexPair&) { return true; });
+      },
+      [&](PairChunk& c) { return emit.deliver(c); });
+}
 
 ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& sink,
                                        const Changes& changes) {
@@ -423,8 +442,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
       im.pending = true;
       im.count = objects.count;
       if (!stats.stopped) {  // (a sink that stopped early saw only some)
-        all.shrink_to_fit();
-        im.quiet_hits = std::move(all);
+        im.quiet_hits.assign(all, objects.count);
         im.quiet_cells = std::move(cells);
       }
       stats.afresh = true;
@@ -535,21 +553,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
           },
           [&](PairChunk& c) { return emit.deliver(c); });
     if (!go_on || emit.stopped()) return;
-    if (!any_renewed) {
-      emit.deliver_slices(im.quiet_hits);  // as they stand
-      return;
-    }
-    run_in_order<PairChunk>(
-        im.quiet_hits.size(), threads,
-        [&](std::size_t begin, std::size_t end, PairChunk& out) {
-          out.pairs.clear();
-          out.tests = 0;
-          for (std::size_t p = begin; p < end; ++p) {
-            const IndexPair q = im.quiet_hits[p];
-            if (!im.is_renewed(q.i) && !im.is_renewed(q.j)) out.pairs.push_back(q);
-          }
-        },
-        [&](PairChunk& c) { return emit.deliver(c); });
+    im.deliver_quiet(emit, threads, any_renewed);
   };
   // When many objects changed, most objects take part in a test, and the
   // tests' reads of the caller's columns (one cache miss a column, in the
@@ -590,7 +594,7 @@ std::size_t PairTracker::memory_bytes() const {
   const Impl& im = *impl_;
   return sizeof(Impl) + im.fat.capacity() * sizeof(AabbF) + im.grid.memory_bytes() +
          im.quiet.capacity() * sizeof(std::uint64_t) +
-         im.quiet_hits.capacity() * sizeof(IndexPair) + im.grid.slim_bytes() +
+         im.quiet_hits.memory_bytes() + im.grid.slim_bytes() +
          (im.place.capacity() + im.offset.capacity() + im.partner.capacity() +
           im.renewed_list.capacity()) *
              sizeof(std::uint32_t) +
@@ -690,17 +694,17 @@ void PairTracker::validate(const Objects& objects) const {
            ") has no renewed object");
     check_pair(i, j | (lp.b & kOverlapBit));
   }
-  for (const IndexPair& q : im.quiet_hits) {
+  im.quiet_hits.for_each([&](const IndexPair& q) {
     if (q.i >= q.j || q.j >= n)
       fail("quiet pair (" + std::to_string(q.i) + ", " + std::to_string(q.j) +
            ") out of order or range");
-    if (im.is_renewed(q.i) || im.is_renewed(q.j)) continue;  // dead
+    if (im.is_renewed(q.i) || im.is_renewed(q.j)) return;  // dead
     const std::string name =
         "quiet pair (" + std::to_string(q.i) + ", " + std::to_string(q.j) + ")";
     if (!im.is_quiet(q.i) || !im.is_quiet(q.j)) fail(name + " has an object that is not quiet");
     if (!seen.insert((std::uint64_t(q.i) << 32) | q.j).second) fail(name + " listed twice");
     if (!overlaps(objects.shape(q.i), objects.shape(q.j))) fail(name + " does not overlap");
-  }
+  });
   // Completeness: every pair of overlapping fat boxes is a candidate
   // (quadratic, so checked only on small sets).
   if (n <= 3000)

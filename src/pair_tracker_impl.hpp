@@ -15,6 +15,7 @@
 #include "detail/array_calls.hpp"
 #include "detail/array_grid.hpp"
 #include "detail/in_order.hpp"
+#include "detail/pairs_by_first.hpp"
 #include "detail/sort_keys.hpp"
 #include "detail/sphere_cells.hpp"
 
@@ -147,7 +148,10 @@ struct PairTracker::Impl {
   // move: their pairs are then copied, not scanned.
   std::vector<std::uint64_t> quiet;
   std::size_t quiet_count = 0;
-  std::vector<IndexPair> quiet_hits;
+  detail::PairsByFirst quiet_hits;
+  // Hands the quiet pairs over in order, those with a renewed or woken
+  // object (`dead`) left out; false when the sink stopped.
+  bool deliver_quiet(Emitter& emit, unsigned threads, bool any_dead) const;
   // A call that says everything may have changed wakes every quiet object
   // (which costs a rebuild when they are many), so objects become quiet
   // only after this many calls in a row that listed their changes, four

@@ -32,7 +32,6 @@ bool PairTracker::Impl::enter_movers(const Objects& o, const std::vector<std::ui
   ArrayOptions unsorted = options;
   unsorted.sorted = false;
   cell_pairs(cells, append_to(hits), unsorted);
-  hits.shrink_to_fit();
   Impl next;
   next.options = options;
   next.quiet_after = quiet_after;
@@ -41,7 +40,8 @@ bool PairTracker::Impl::enter_movers(const Objects& o, const std::vector<std::ui
   next.built = true;
   next.movers = true;
   next.quiet_cells = std::move(cells);
-  next.quiet_hits = std::move(hits);
+  next.quiet_hits.assign(hits, n);
+  free_vector(hits);
   next.active = std::move(moving);
   next.set_quiet(changed);
   next.quiet_at_partition = next.quiet_count;
@@ -72,10 +72,8 @@ bool PairTracker::Impl::enter_from_pending(const Objects& o,
   detail::SphereCells cells;
   if (!cells.build(o, still) || cells.crowd() > kMoversCrowd) return false;
   quiet_cells = std::move(cells);
-  std::erase_if(quiet_hits, [&](const IndexPair& p) {
-    return test_bit(changed, p.i) || test_bit(changed, p.j);
-  });
-  quiet_hits.shrink_to_fit();
+  quiet_hits.erase_if(
+      [&](const IndexPair& p) { return test_bit(changed, p.i) || test_bit(changed, p.j); });
   set_quiet(changed);
   active = std::move(moving);
   woken.clear();
@@ -159,21 +157,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
   Emitter emit(sink, options.sorted, stats);
   const unsigned threads = thread_count(options.threads);
   // The quiet pairs as they stand (without those of woken objects).
-  bool go_on;
-  if (woken.empty()) {
-    go_on = emit.deliver_slices(quiet_hits);
-  } else {
-    go_on = run_in_order<PairChunk>(
-        quiet_hits.size(), threads,
-        [&](std::size_t begin, std::size_t end, PairChunk& out) {
-          out.pairs.clear();
-          out.tests = 0;
-          for (std::size_t p = begin; p < end; ++p)
-            if (is_quiet(quiet_hits[p].i) && is_quiet(quiet_hits[p].j))
-              out.pairs.push_back(quiet_hits[p]);
-        },
-        [&](PairChunk& c) { return emit.deliver(c); });
-  }
+  bool go_on = deliver_quiet(emit, threads, !woken.empty());
   // The movers among themselves: the one-shot call.
   if (go_on && !emit.stopped()) {
     Objects view;
@@ -260,7 +244,7 @@ void PairTracker::Impl::check_movers(const Objects& objects) const {
   // The quiet pairs: each once, i < j, of two objects quiet at the
   // partition, overlapping while both still are; all of them on small sets.
   std::unordered_set<std::uint64_t> seen;
-  for (const IndexPair& q : im.quiet_hits) {
+  im.quiet_hits.for_each([&](const IndexPair& q) {
     const std::string name =
         "quiet pair (" + std::to_string(q.i) + ", " + std::to_string(q.j) + ")";
     if (q.i >= q.j || q.j >= n) fail(name + " out of order or range");
@@ -269,7 +253,7 @@ void PairTracker::Impl::check_movers(const Objects& objects) const {
     if (role[q.i] == kQuiet && role[q.j] == kQuiet &&
         !overlaps(objects.shape(q.i), objects.shape(q.j)))
       fail(name + " does not overlap");
-  }
+  });
   if (n <= 3000)
     for (std::uint32_t i = 0; i < n; ++i)
       for (std::uint32_t j = i + 1; j < n; ++j)

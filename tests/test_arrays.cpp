@@ -12,6 +12,7 @@
 #include <set>
 
 #include "detail/array_grid.hpp"
+#include "detail/pairs_by_first.hpp"
 #include "detail/sphere_cells.hpp"
 #include "testing.hpp"
 
@@ -254,6 +255,54 @@ TEST(Arrays, ScalarRadiusAndSortedOutput) {
     std::vector<IndexPair> got;
     find_pairs(st.objects, got, opt);
     EXPECT_EQ(got, oracle(st.objects)) << name(layout);
+  }
+}
+
+// The tracker's store of quiet pairs against a model: the pairs in the order
+// given, stably sorted by i; random erasures; every range of positions.
+TEST(Arrays, PairsByFirstMatchesItsModel) {
+  for (std::uint64_t seed = 1; seed <= 30; ++seed) {
+    SCOPED_TRACE(::testing::Message() << "seed " << seed);
+    Rng rng(seed * 104729);
+    const std::size_t n = 1 + rng.below(seed % 3 == 0 ? 5 : 300);
+    std::set<std::pair<std::uint32_t, std::uint32_t>> taken;
+    std::vector<IndexPair> given;
+    const std::size_t want = seed % 5 == 0 ? 0 : rng.below(n * 3);
+    for (std::size_t k = 0; k < want && n > 1; ++k) {
+      auto a = static_cast<std::uint32_t>(rng.below(n)), b = static_cast<std::uint32_t>(rng.below(n));
+      if (a == b || !taken.insert({std::min(a, b), std::max(a, b)}).second) continue;
+      given.push_back({std::min(a, b), std::max(a, b)});
+    }
+    std::vector<IndexPair> model = given;
+    std::stable_sort(model.begin(), model.end(),
+                     [](const IndexPair& p, const IndexPair& q) { return p.i < q.i; });
+    detail::PairsByFirst store;
+    store.assign(given, n);
+    auto check = [&] {
+      ASSERT_EQ(store.size(), model.size());
+      std::vector<IndexPair> all;
+      store.for_each([&](const IndexPair& q) { all.push_back(q); });
+      ASSERT_EQ(all, model);
+      for (int r = 0; r < 20; ++r) {
+        const std::size_t b = rng.below(model.size() + 1);
+        const std::size_t e = b + rng.below(model.size() - b + 1);
+        std::vector<IndexPair> got, want_range(model.begin() + static_cast<std::ptrdiff_t>(b),
+                                               model.begin() + static_cast<std::ptrdiff_t>(e));
+        store.expand(b, e, got, [](const IndexPair&) { return true; });
+        ASSERT_EQ(got, want_range) << "positions [" << b << ", " << e << ")";
+      }
+      if (model.empty()) {
+        EXPECT_EQ(store.memory_bytes(), 0u);
+      }
+    };
+    check();
+    for (int round = 0; round < 3; ++round) {
+      const auto gone = static_cast<std::uint32_t>(rng.below(n));
+      auto drop = [&](const IndexPair& q) { return q.i == gone || q.j % 3 == std::uint32_t(round); };
+      store.erase_if(drop);
+      std::erase_if(model, drop);
+      check();
+    }
   }
 }
 
