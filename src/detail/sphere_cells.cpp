@@ -8,18 +8,27 @@
 namespace broadphase::detail {
 
 bool SphereCells::build(const Objects& o) {
-  return build_over(o, o.count, [](std::size_t k) { return k; });
+  return build(o, kMaxCellsPerObject);
 }
 
-bool SphereCells::build(const Objects& o, std::span<const std::uint32_t> subset) {
+bool SphereCells::build(const Objects& o, std::size_t cells_per_object) {
+  return build_over(o, o.count, [](std::size_t k) { return k; },
+                    std::max<std::size_t>(cells_per_object, 1));
+}
+
+bool SphereCells::build(const Objects& o, std::span<const std::uint32_t> subset,
+                        std::size_t cells_per_object) {
   for (const std::uint32_t i : subset)
     if (i >= o.count) return fail();
-  return build_over(o, subset.size(), [subset](std::size_t k) -> std::size_t { return subset[k]; });
+  return build_over(
+      o, subset.size(), [subset](std::size_t k) -> std::size_t { return subset[k]; },
+      std::max<std::size_t>(cells_per_object, 1));
 }
 
 // The k-th sphere of the set is object at(k) of `o`.
 template <class At>
-bool SphereCells::build_over(const Objects& o, std::size_t n, At at) {
+bool SphereCells::build_over(const Objects& o, std::size_t n, At at,
+                             std::size_t cells_per_object) {
   release();
   if (n < kMinObjects || n >= 0xFFFFFFFFu || o.radius.empty()) return false;
   if (o.kind != nullptr)
@@ -68,14 +77,14 @@ bool SphereCells::build_over(const Objects& o, std::size_t n, At at) {
     }
     return cells;
   };
-  // A grid of m spheres has at most kMaxCellsPerObject cells a sphere (and
+  // A grid of m spheres has at most cells_per_object cells a sphere (and
   // 64), or, while all grids together stay within that many cells per
   // sphere of the set, as many as its own diameter needs: a grid of few
   // large spheres is then as fine as they are (with one budget for all
   // grids the finest took nearly all of it, and the largest spheres of
   // scaled-uneven got cells 1.25 times their diameter, twice the tests).
-  const double budget = static_cast<double>(kMaxCellsPerObject * n + 64 * kMaxLevels);
-  auto most = [](std::size_t m) { return static_cast<double>(kMaxCellsPerObject * m + 64); };
+  const double budget = static_cast<double>(cells_per_object * n + 64 * kMaxLevels);
+  auto most = [&](std::size_t m) { return static_cast<double>(cells_per_object * m + 64); };
   auto allowed = [&](std::size_t m) {
     return std::max(most(m), budget - static_cast<double>(cells_));
   };

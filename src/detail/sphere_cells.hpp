@@ -44,9 +44,13 @@ class SphereCells {
   /// check_objects refuses (a centre or radius not finite, a negative
   /// radius; the caller's check then names it). Missing columns: false.
   bool build(const Objects& o);
+  /// The same with at most `cells_per_object` cells a sphere.
+  bool build(const Objects& o, std::size_t cells_per_object);
   /// The same over the objects `subset` of `o` only (distinct indices):
-  /// the pairs and probes then name them by their indices in `o`.
-  bool build(const Objects& o, std::span<const std::uint32_t> subset);
+  /// the pairs and probes then name them by their indices in `o`; at most
+  /// `cells_per_object` cells a sphere (kMaxCellsPerObject by default).
+  bool build(const Objects& o, std::span<const std::uint32_t> subset,
+             std::size_t cells_per_object = kMaxCellsPerObject);
 
   static constexpr std::size_t kMinObjects = 64;
   static constexpr std::size_t kMaxCellsPerObject = 4;
@@ -72,6 +76,12 @@ class SphereCells {
   /// whole grid's spheres when they are fewer than those cells.
   template <class Hit>
   std::uint64_t probe(double x, double y, double z, double r, Hit&& hit) const {
+    return probe_records(x, y, z, r, [&](std::uint32_t k) { hit(placed_[k].id); });
+  }
+  /// As `probe`, but calls `hit(k)` with the record k of each sphere found
+  /// (record_id(k) is its index; records are in the grids' order).
+  template <class Hit>
+  std::uint64_t probe_records(double x, double y, double z, double r, Hit&& hit) const {
     std::uint64_t tests = 0;
     const double centre[3] = {x, y, z};
     const std::uint32_t* st = start_.data();
@@ -79,8 +89,7 @@ class SphereCells {
     auto test = [&](std::uint32_t b, std::uint32_t e) {
       tests += e - b;
       for (; b < e; b += 64)
-        test_block(P, x, y, z, r, b, std::min<std::uint32_t>(e - b, 64),
-                   [&](std::uint32_t k) { hit(P[k].id); });
+        test_block(P, x, y, z, r, b, std::min<std::uint32_t>(e - b, 64), hit);
     };
     for (const Level& g : levels_) {
       const double reach = (r + g.rmax) * (1 + 0x1p-20);
@@ -104,6 +113,23 @@ class SphereCells {
         }
     }
     return tests;
+  }
+
+  /// The largest radius in the set.
+  double max_radius() const {
+    double r = 0;
+    for (const Level& g : levels_) r = std::max(r, g.rmax);
+    return r;
+  }
+  /// The index of the sphere of record k.
+  std::uint32_t record_id(std::uint32_t k) const { return placed_[k].id; }
+  /// Whether the sphere (x, y, z, r) overlaps that of record k, by the
+  /// predicate of spheres_overlap (the arithmetic of test_block).
+  bool overlaps_record(double x, double y, double z, double r, std::uint32_t k) const {
+    const Placed& q = placed_[k];
+    const double dx = x - q.x, dy = y - q.y, dz = z - q.z;
+    const double sr = r + q.r;
+    return dx * dx + dy * dy + dz * dz <= sr * sr;
   }
 
   /// A key that orders points as the finest grid's cells do (clamped to
@@ -153,7 +179,7 @@ class SphereCells {
     }
   };
   template <class At>
-  bool build_over(const Objects& o, std::size_t n, At at);
+  bool build_over(const Objects& o, std::size_t n, At at, std::size_t cells_per_object);
 
   void release();
   bool fail();  // release(), false
