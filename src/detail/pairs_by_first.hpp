@@ -52,11 +52,17 @@ class PairsByFirst {
     auto i = static_cast<std::uint32_t>(
         std::upper_bound(start_.begin(), start_.end(), static_cast<std::uint32_t>(begin)) -
         start_.begin() - 1);
-    for (std::size_t p = begin; p < end; ++p) {
-      while (start_[i + 1] <= p) ++i;
-      const IndexPair q{i, partner_[p]};
-      if (keep(q)) out.push_back(q);
+    const std::size_t base = out.size();
+    out.resize(base + (end - begin));
+    IndexPair* w = out.data() + base;
+    for (std::size_t p = begin; p < end; ++i) {
+      const std::size_t stop = std::min<std::size_t>(end, start_[i + 1]);
+      for (; p < stop; ++p) {
+        *w = {i, partner_[p]};
+        w += keep(*w) ? 1 : 0;
+      }
     }
+    out.resize(static_cast<std::size_t>(w - out.data()));
   }
   /// Calls f(pair) for every pair, in increasing i.
   template <class F>
