@@ -30,6 +30,7 @@ void PairTracker::Impl::rebuild(const Objects& o) {
   quiet_cells = detail::SphereCells{};
   free_vector(active);
   free_vector(woken);
+  free_mover_lists();
   margin_used = margin(o);
   rel_skin = kOwnSkinShare * (options.skin > 0 ? options.skin : 0.25);
   std::vector<AabbF> boxes(n);
@@ -600,7 +601,9 @@ std::size_t PairTracker::memory_bytes() const {
              sizeof(std::uint32_t) +
          im.renewed.capacity() * sizeof(std::uint64_t) + im.loose.capacity() * sizeof(LoosePair) +
          im.quiet_cells.memory_bytes() +
-         (im.active.capacity() + im.woken.capacity()) * sizeof(std::uint32_t);
+         (im.active.capacity() + im.woken.capacity() + im.list_pool.capacity()) *
+             sizeof(std::uint32_t) +
+         im.mover_lists.capacity() * sizeof(Impl::MoverList);
 }
 
 void PairTracker::clear() {

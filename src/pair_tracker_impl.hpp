@@ -88,6 +88,13 @@ constexpr std::size_t kMoversShare = 4;
 // 257 -> 125 B/object; the others do not change.
 constexpr double kMoversCrowd = detail::SphereCells::kMaxCrowd;
 constexpr std::size_t kWokenShare = 8;
+// A mover's list of quiet candidates reaches this many calls of its last
+// speed past it, and at least kListSkinShare of its radius (see MoverList).
+constexpr double kListSkinCalls = 3;
+constexpr double kListSkinShare = 0.25;
+constexpr std::size_t kCoarseCellsPerObject = 1;
+constexpr double kCoarseCrowd = 8;
+constexpr double kCoarseSpread = 2;
 constexpr std::uint32_t kMoversPatience = 8;
 
 // (Inline with external linkage: the header is read by two sources.)
@@ -185,6 +192,35 @@ struct PairTracker::Impl {
   std::vector<std::uint32_t> woken;   // in the order the calls listed them
   std::size_t quiet_at_partition = 0;
   std::uint32_t movers_calls = 0;  // calls since the partition
+  // Each mover's list of quiet candidates (slot k: the k-th of `active`,
+  // then `woken`): the quiet records within `reach` plus their radius of
+  // the centre (cx, cy, cz) when it was made. While the mover's distance
+  // from that centre plus its radius is at most `reach` (with a margin for
+  // rounding), every quiet sphere it overlaps is in the list, so a call
+  // tests the list, not the quiet grids; past it, the mover probes them
+  // again (a renewal). The centre is the mover's, rounded to float (exact
+  // as a double); the reach is its radius plus a skin of kListSkinCalls
+  // calls at its speed since its last list, or kListSkinShare of its
+  // radius, rounded up. 24 bytes a mover and 4 a candidate.
+  struct MoverList {
+    float cx = 0, cy = 0, cz = 0;
+    float reach = -1;  // < 0: no list (a new slot, or too long a list)
+    std::uint32_t first = 0;
+    std::uint16_t len = 0;
+    std::uint16_t stamp = 0;  // movers_calls (mod 2^16) when it was made
+    // Whether a mover at (x, y, z) of radius r is within its reach.
+    bool holds(double x, double y, double z, double r, double quiet_rmax) const;
+    // The next list of a mover at (x, y, z) of radius r on call `now`.
+    MoverList next(double x, double y, double z, double r, std::uint16_t now) const;
+  };
+  std::vector<MoverList> mover_lists;
+  std::vector<std::uint32_t> list_pool;  // the lists' quiet records
+  std::size_t list_pool_live = 0;        // entries of the current lists
+  void free_mover_lists() {
+    free_vector(mover_lists);
+    free_vector(list_pool);
+    list_pool_live = 0;
+  }
   bool movers_refused = false;     // the quiet spheres did not suit it (since the rebuild)
   std::uint32_t last_box = std::numeric_limits<std::uint32_t>::max();  // a box that kept it out
   // The last call searched afresh with no index, keeping the count and

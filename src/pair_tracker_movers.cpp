@@ -5,6 +5,101 @@
 
 namespace broadphase {
 
+namespace {
+
+// A list longer than this is not kept (the mover probes on every call).
+constexpr std::size_t kMaxListLength = 0xFFFF;
+
+// Cells over the spheres `subset` of `o` (all of them when empty) with one
+// cell a sphere (kCoarseCellsPerObject), where their radii span more than a
+// factor kCoarseSpread and they are then no more crowded than
+// kCoarseCrowd; false otherwise, with `cells` empty. Spheres of about one
+// size keep the kernel's cells, as fine as their diameter.
+bool build_coarse_cells(detail::SphereCells& cells, const Objects& o,
+                        std::span<const std::uint32_t> subset) {
+  double rmin = HUGE_VAL, rmax = 0;
+  const std::size_t n = subset.empty() ? o.count : subset.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const double r = o.radius.at(subset.empty() ? k : subset[k]);
+    rmin = std::min(rmin, r);
+    rmax = std::max(rmax, r);
+  }
+  if (!(rmax > kCoarseSpread * rmin)) return false;
+  const bool built = subset.empty() ? cells.build(o, kCoarseCellsPerObject)
+                                    : cells.build(o, subset, kCoarseCellsPerObject);
+  if (built && cells.crowd() <= kCoarseCrowd) return true;
+  cells = detail::SphereCells{};
+  return false;
+}
+
+// The quiet spheres' cells: coarse ones where they suit (see
+// build_coarse_cells), else as many as the one-shot kernel takes. False
+// when the kernel refuses them.
+bool build_quiet_cells(detail::SphereCells& cells, const Objects& o,
+                       std::span<const std::uint32_t> still) {
+  if (build_coarse_cells(cells, o, still)) return true;
+  return cells.build(o, still) && cells.crowd() <= kMoversCrowd;
+}
+
+}  // namespace
+
+// Its distance from the list's centre plus its radius at most the reach,
+// less a margin far above the rounding of this test, of the predicate and of
+// the probe that made the list (relative 2^-40 of the magnitudes involved,
+// against errors of a few 2^-53).
+bool PairTracker::Impl::MoverList::holds(double x, double y, double z, double r,
+                                         double quiet_rmax) const {
+  if (!(reach >= 0)) return false;
+  const double dx = x - static_cast<double>(cx), dy = y - static_cast<double>(cy),
+               dz = z - static_cast<double>(cz);
+  const double d = std::sqrt(dx * dx + dy * dy + dz * dz);
+  const double slack =
+      (std::abs(x) + std::abs(y) + std::abs(z) + reach + quiet_rmax) * 0x1p-40;
+  return d * (1 + 0x1p-40) + r <= static_cast<double>(reach) - slack;
+}
+
+namespace {
+
+// v rounded up to a float.
+float float_up(double v) {
+  auto f = static_cast<float>(v);
+  if (static_cast<double>(f) < v) f = std::nextafter(f, HUGE_VALF);
+  return f;
+}
+
+}  // namespace
+
+// Centred on the mover (rounded to float), reaching its radius plus a skin
+// of kListSkinCalls calls at the speed it left this list with, at least
+// kListSkinShare of its radius, at most four radii, and far above the
+// centre's rounding (2^-20 of its coordinates against 2^-24). reach < 0
+// where a float cannot hold it.
+PairTracker::Impl::MoverList PairTracker::Impl::MoverList::next(double x, double y, double z,
+                                                                double r,
+                                                                std::uint16_t now) const {
+  const MoverList& old = *this;
+  MoverList l;
+  double skin = kListSkinShare * r;
+  if (old.reach >= 0) {
+    const auto calls = static_cast<std::uint16_t>(now - old.stamp);
+    const double dx = x - static_cast<double>(old.cx), dy = y - static_cast<double>(old.cy),
+                 dz = z - static_cast<double>(old.cz);
+    if (calls > 0)
+      skin = std::max(skin, std::min(4 * r, kListSkinCalls *
+                                                std::sqrt(dx * dx + dy * dy + dz * dz) / calls));
+  }
+  skin = std::max(skin, (std::abs(x) + std::abs(y) + std::abs(z)) * 0x1p-20);
+  l.cx = static_cast<float>(x);
+  l.cy = static_cast<float>(y);
+  l.cz = static_cast<float>(z);
+  l.reach = float_up(r + skin);
+  l.stamp = now;
+  if (!std::isfinite(l.cx) || !std::isfinite(l.cy) || !std::isfinite(l.cz) ||
+      !std::isfinite(l.reach))
+    l.reach = -1;
+  return l;
+}
+
 bool PairTracker::Impl::enter_movers(const Objects& o, const std::vector<std::uint64_t>& changed) {
   // The cheap refusals first: the index tries this on every call while it
   // has quiet objects.
@@ -24,7 +119,7 @@ bool PairTracker::Impl::enter_movers(const Objects& o, const std::vector<std::ui
   std::vector<std::uint32_t> still, moving;
   for (std::uint32_t i = 0; i < n; ++i) (test_bit(changed, i) ? moving : still).push_back(i);
   detail::SphereCells cells;
-  if (!cells.build(o, still) || cells.crowd() > kMoversCrowd) {
+  if (!build_quiet_cells(cells, o, still)) {
     movers_refused = true;  // not tried again before a rebuild: a build is dear
     return false;
   }
@@ -70,13 +165,14 @@ bool PairTracker::Impl::enter_from_pending(const Objects& o,
   for (std::uint32_t i = 0; i < n; ++i)
     if (!test_bit(changed, i)) still.push_back(i);
   detail::SphereCells cells;
-  if (!cells.build(o, still) || cells.crowd() > kMoversCrowd) return false;
+  if (!build_quiet_cells(cells, o, still)) return false;
   quiet_cells = std::move(cells);
   quiet_hits.erase_if(
       [&](const IndexPair& p) { return test_bit(changed, p.i) || test_bit(changed, p.j); });
   set_quiet(changed);
   active = std::move(moving);
   woken.clear();
+  free_mover_lists();
   quiet_at_partition = quiet_count;
   movers_calls = 0;
   movers = true;
@@ -170,29 +266,119 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
     ArrayOptions one = options;
     one.sorted = false;
     std::vector<IndexPair> among;
-    stats.tests += broadphase::find_pairs(view, among, one).tests;
+    detail::SphereCells cells;
+    if (build_coarse_cells(cells, view, {}))
+      stats.tests += cell_pairs(cells, append_to(among), one).tests;
+    else
+      stats.tests += broadphase::find_pairs(view, among, one).tests;
     for (IndexPair& p : among) p = ordered(ids[p.i], ids[p.j]);
     go_on = emit.deliver_slices(among);
   }
-  // The movers with the quiet: a probe each.
-  if (go_on && !emit.stopped())
-    run_in_order<PairChunk>(
+  // The movers with the quiet: each tests its list of quiet candidates
+  // while it holds, else probes the quiet grids for a new one.
+  if (go_on && !emit.stopped()) {
+    if (mover_lists.size() < m) mover_lists.resize(m);
+    const auto now = static_cast<std::uint16_t>(movers_calls);
+    const double quiet_rmax = quiet_cells.max_radius();
+    // (Woken objects' records are stale: skipped, when there are any.)
+    const bool any_woken = quiet_cells.size() != quiet_count;
+    struct Renewal {
+      std::uint32_t slot;
+      MoverList list;
+      std::size_t at;  // its records in the chunk's `records`
+    };
+    struct Chunk {
+      std::vector<IndexPair> pairs;
+      std::uint64_t tests = 0;
+      std::vector<Renewal> renewals;
+      std::vector<std::uint32_t> records;
+    };
+    std::vector<Renewal> renewals;
+    std::vector<std::uint32_t> records;
+    run_in_order<Chunk>(
         m, threads,
-        [&](std::size_t begin, std::size_t end, PairChunk& out) {
+        [&](std::size_t begin, std::size_t end, Chunk& out) {
           out.pairs.clear();
           out.tests = 0;
-          // (Woken objects' records are stale: skipped, when there are any.)
-          const bool any_woken = quiet_cells.size() != quiet_count;
+          out.renewals.clear();
+          out.records.clear();
           for (std::size_t k = begin; k < end; ++k) {
             const std::uint32_t i = ids[k];
-            out.tests += quiet_cells.probe(xyzr[4 * k], xyzr[4 * k + 1], xyzr[4 * k + 2],
-                                           xyzr[4 * k + 3], [&](std::uint32_t j) {
-                                             if (!any_woken || is_quiet(j))
-                                               out.pairs.push_back(ordered(i, j));
-                                           });
+            const auto slot = static_cast<std::uint32_t>(keyed[k]);
+            const double x = xyzr[4 * k], y = xyzr[4 * k + 1], z = xyzr[4 * k + 2],
+                         r = xyzr[4 * k + 3];
+            auto test = [&](std::uint32_t q) {
+              if (quiet_cells.overlaps_record(x, y, z, r, q)) {
+                const std::uint32_t j = quiet_cells.record_id(q);
+                if (!any_woken || is_quiet(j)) out.pairs.push_back(ordered(i, j));
+              }
+            };
+            const MoverList& held = mover_lists[slot];
+            if (held.holds(x, y, z, r, quiet_rmax)) {
+              out.tests += held.len;
+              for (std::uint32_t p = held.first; p < held.first + held.len; ++p) test(list_pool[p]);
+              continue;
+            }
+            const MoverList next = held.next(x, y, z, r, now);
+            if (next.reach < 0) {  // no list: a probe
+              out.tests += quiet_cells.probe_records(x, y, z, r, test);
+              out.renewals.push_back({slot, next, out.records.size()});
+              continue;
+            }
+            const std::size_t at = out.records.size();
+            out.tests += quiet_cells.probe_records(
+                next.cx, next.cy, next.cz, next.reach,
+                [&](std::uint32_t q) { out.records.push_back(q); });
+            out.tests += out.records.size() - at;
+            for (std::size_t p = at; p < out.records.size(); ++p) test(out.records[p]);
+            Renewal renewal{slot, next, at};
+            if (out.records.size() - at > kMaxListLength) {
+              renewal.list.reach = -1;
+              out.records.resize(at);
+            }
+            renewal.list.len = static_cast<std::uint16_t>(out.records.size() - at);
+            out.renewals.push_back(renewal);
           }
         },
-        [&](PairChunk& c) { return emit.deliver(c); });
+        [&](Chunk& c) {
+          stats.tests += c.tests;
+          for (Renewal& rn : c.renewals) {
+            rn.at += records.size();
+            renewals.push_back(rn);
+          }
+          records.insert(records.end(), c.records.begin(), c.records.end());
+          return emit.deliver(std::span<const IndexPair>(c.pairs));
+        });
+    // The new lists, in place of the old ones where they fit, else at the
+    // end of the pool, which is compacted once a fifth of it is dead.
+    stats.renewed = renewals.size();
+    for (const Renewal& rn : renewals) {
+      MoverList& held = mover_lists[rn.slot];
+      MoverList next = rn.list;
+      list_pool_live -= held.len;
+      if (next.len > held.len) {
+        next.first = static_cast<std::uint32_t>(list_pool.size());
+        list_pool.insert(list_pool.end(), records.begin() + static_cast<std::ptrdiff_t>(rn.at),
+                         records.begin() + static_cast<std::ptrdiff_t>(rn.at + next.len));
+      } else {
+        next.first = held.first;
+        std::copy_n(records.begin() + static_cast<std::ptrdiff_t>(rn.at), next.len,
+                    list_pool.begin() + held.first);
+      }
+      list_pool_live += next.len;
+      held = next;
+    }
+    if (list_pool.size() > list_pool_live + list_pool_live / 4 + 4096) {
+      std::vector<std::uint32_t> pool;
+      pool.reserve(list_pool_live);
+      for (MoverList& l : mover_lists) {
+        const std::uint32_t first = l.first;
+        l.first = static_cast<std::uint32_t>(pool.size());
+        pool.insert(pool.end(), list_pool.begin() + first, list_pool.begin() + first + l.len);
+      }
+      list_pool = std::move(pool);
+    }
+  }
   emit.finish();
   return stats;
 }
@@ -262,6 +448,31 @@ void PairTracker::Impl::check_movers(const Objects& objects) const {
             !seen.count((std::uint64_t(i) << 32) | j))
           fail("overlapping quiet objects " + std::to_string(i) + " and " + std::to_string(j) +
                " are not a quiet pair");
+  // The movers' lists: within the pool, live entries counted, each exactly
+  // the quiet records a probe of its centre and reach finds (on sets small
+  // enough to probe once a list).
+  if (im.mover_lists.size() > im.active.size() + im.woken.size())
+    fail("more movers' lists than movers");
+  std::size_t live = 0;
+  for (std::size_t k = 0; k < im.mover_lists.size(); ++k) {
+    const MoverList& l = im.mover_lists[k];
+    const std::string name = "mover list " + std::to_string(k);
+    if (!(l.reach >= 0)) {
+      if (l.len != 0) fail(name + " has no reach but entries");
+      continue;
+    }
+    live += l.len;
+    if (std::size_t{l.first} + l.len > im.list_pool.size()) fail(name + " is outside the pool");
+    if (n > 20000) continue;
+    std::vector<std::uint32_t> want, got(im.list_pool.begin() + l.first,
+                                         im.list_pool.begin() + l.first + l.len);
+    im.quiet_cells.probe_records(l.cx, l.cy, l.cz, l.reach,
+                                 [&](std::uint32_t q) { want.push_back(q); });
+    if (got != want)
+      fail(name + " holds " + std::to_string(got.size()) + " records, its probe finds " +
+           std::to_string(want.size()));
+  }
+  if (live != im.list_pool_live) fail("the movers' lists' live entries miscounted");
 }
 
 }  // namespace broadphase

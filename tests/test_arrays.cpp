@@ -710,6 +710,50 @@ TEST(Arrays, TrackerMatchesOracleUnderRandomChanges) {
 // then: the oracle's pairs on every frame, the same order on 1 to 3
 // threads, the invariants after every call, and the mode taken on most
 // frames (so that the checks above are of it).
+// Movers in movers mode running through rows of quiet spheres, head on, in
+// small steps (a fortieth of their skin and more): each sphere begins to
+// touch its mover at some step, at every distance from where the mover's
+// list of quiet candidates was made, so a list kept past its reach misses a
+// pair (a list kept to 0.97 of its reach's distance fails here).
+TEST(Arrays, MoverListsHoldToTheirReach) {
+  for (const double speed : {0.006, 0.03}) {
+    SCOPED_TRACE(::testing::Message() << "step " << speed);
+    Rng rng(11);
+    std::vector<Shape> shapes;
+    constexpr int kRows = 16;
+    for (int row = 0; row < kRows; ++row) {
+      double x = rng.uniform(0, 3);
+      for (int k = 0; k < 10; ++k, x += rng.uniform(2.5, 5))
+        shapes.push_back(Shape::sphere({x, 0, 10.0 * row}, 1));
+    }
+    std::vector<std::uint32_t> movers;
+    for (int row = 0; row < kRows; ++row) {
+      movers.push_back(static_cast<std::uint32_t>(shapes.size()));
+      shapes.push_back(Shape::sphere({-3, 0, 10.0 * row}, 1));
+    }
+    PairTracker tracker;
+    std::vector<IndexPair> got;
+    tracker.find_pairs(Storage(shapes, Layout::soa_double).objects, got);
+    std::uint64_t renewed = 0, calls = 0;
+    for (int step = 0; shapes[movers[0]].center.x < 20; ++step) {
+      for (const std::uint32_t i : movers) shapes[i].center.x += speed;
+      Storage st(shapes, Layout::soa_double);
+      got.clear();
+      const auto stats = tracker.find_pairs(st.objects, got, Changes::only(movers));
+      ASSERT_EQ(sorted(got), oracle(st.objects)) << "step " << step;
+      if (step % 16 == 0) {
+        ASSERT_NO_THROW(tracker.validate(st.objects)) << "step " << step;
+      }
+      if (stats.movers) {
+        ++calls;
+        renewed += stats.renewed;
+      }
+    }
+    EXPECT_GT(calls, 700u);
+    EXPECT_LT(renewed * 4, calls * kRows);  // most movers test their lists
+  }
+}
+
 TEST(Arrays, TrackerMoversModeMatchesOracle) {
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(10)); ++seed) {
     Rng rng(seed * 104729);
@@ -948,6 +992,7 @@ TEST(Arrays, LargeObjectsKeepASkinOfTheirOwnSize) {
   for (Shape& s : shapes) s.half = {0.5, 0.5, 0.5};  // the median size
   const auto big = static_cast<std::uint32_t>(shapes.size());
   shapes.push_back(Shape::sphere({10, 10, 10}, 100));
+  shapes.push_back(Shape::box({-500, -500, -500}, {0.5, 0.5, 0.5}));  // the index, not movers mode
   PairTracker tracker;  // skin 0.25 of the median half-extent: 0.125
   std::vector<IndexPair> got;
   tracker.find_pairs(Storage(shapes, Layout::soa_double).objects, got);
@@ -958,6 +1003,7 @@ TEST(Arrays, LargeObjectsKeepASkinOfTheirOwnSize) {
     const std::vector<std::uint32_t> moved{big};
     const auto stats = tracker.find_pairs(st.objects, got, Changes::only(moved));
     EXPECT_EQ(stats.renewed, 0u) << "frame " << frame;
+    EXPECT_FALSE(stats.movers);
     ASSERT_EQ(sorted(got), oracle(st.objects)) << "frame " << frame;
     ASSERT_NO_THROW(tracker.validate(st.objects));
   }

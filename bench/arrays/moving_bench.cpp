@@ -97,7 +97,8 @@ int main(int argc, char** argv) {
     in_movers_mode += s.movers ? 1 : 0;
     rebuilt += s.rebuilt ? 1 : 0;
     if (verbose)
-      std::printf("%d %zu pairs %.2f ms%s%s%s\n", f, out.size(), ms, s.movers ? " movers" : "",
+      std::printf("%d %zu pairs %.2f ms renewed %llu%s%s%s\n", f, out.size(), ms,
+                  static_cast<unsigned long long>(s.renewed), s.movers ? " movers" : "",
                   s.rebuilt ? " rebuilt" : "", s.compacted ? " compacted" : "");
   }
   std::vector<double> sorted = calls;

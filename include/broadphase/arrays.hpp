@@ -180,7 +180,9 @@ struct ArrayCallStats {
   std::uint64_t tests = 0;  ///< exact predicate evaluations
   bool rebuilt = false;     ///< the tracker rebuilt its index in this call
   /// Objects the tracker renewed alone in this call (they had left their
-  /// fat box and got a new one, without a rebuild).
+  /// fat box and got a new one, without a rebuild). In movers mode: movers
+  /// that probed the quiet grids for a new list of quiet candidates (they
+  /// had left the old one's reach, or had none).
   std::uint64_t renewed = 0;
   /// The tracker folded its renewed objects' candidates back into its rows
   /// (a new grid over the same fat boxes; no candidate search).
@@ -205,9 +207,10 @@ struct ArrayCallStats {
   bool afresh = false;
   /// The tracker is in movers mode: a set of spheres most of which are
   /// quiet keeps them in grids of their own and finds the other objects'
-  /// pairs afresh on every call (among themselves, and by a probe of the
-  /// quiet grids each), with no skin, nothing to renew and no index of
-  /// the movers. `compacted` is then set on a call that partitioned anew.
+  /// pairs on every call: among themselves afresh, and with the quiet ones
+  /// from each mover's list of quiet candidates within a skin, probing the
+  /// quiet grids for a new list when it leaves it; no index of the movers.
+  /// `compacted` is then set on a call that partitioned anew.
   bool movers = false;
   bool stopped = false;  ///< the sink asked to stop
 };
