@@ -282,6 +282,7 @@ PairTracker::PairTracker(PairTracker&&) noexcept = default;
 PairTracker& PairTracker::operator=(PairTracker&&) noexcept = default;
 
 bool PairTracker::Impl::deliver_quiet(Emitter& emit, unsigned threads, bool any_dead) const {
+  if (!any_dead && quiet_hits.plain()) return emit.deliver_slices(quiet_hits.pairs());
   return run_in_order<PairChunk>(
       quiet_hits.size(), threads,
       [&](std::size_t begin, std::size_t end, PairChunk& out) {

@@ -259,25 +259,33 @@ TEST(Arrays, ScalarRadiusAndSortedOutput) {
 }
 
 // The tracker's store of quiet pairs against a model: the pairs in the order
-// given, stably sorted by i; random erasures; every range of positions.
+// given, stably sorted by i where kept by it; random erasures; every range
+// of positions.
 TEST(Arrays, PairsByFirstMatchesItsModel) {
+  int plain_sets = 0, by_first_sets = 0;
   for (std::uint64_t seed = 1; seed <= 30; ++seed) {
     SCOPED_TRACE(::testing::Message() << "seed " << seed);
     Rng rng(seed * 104729);
     const std::size_t n = 1 + rng.below(seed % 3 == 0 ? 5 : 300);
     std::set<std::pair<std::uint32_t, std::uint32_t>> taken;
     std::vector<IndexPair> given;
-    const std::size_t want = seed % 5 == 0 ? 0 : rng.below(n * 3);
+    const std::size_t want =
+        seed % 5 == 0 ? 0 : (seed % 2 ? rng.below(2 * n) : 2 * n + rng.below(4 * n));
     for (std::size_t k = 0; k < want && n > 1; ++k) {
       auto a = static_cast<std::uint32_t>(rng.below(n)), b = static_cast<std::uint32_t>(rng.below(n));
       if (a == b || !taken.insert({std::min(a, b), std::max(a, b)}).second) continue;
       given.push_back({std::min(a, b), std::max(a, b)});
     }
+    // Fewer than kByFirstShare pairs an object stay as given.
+    bool plain = given.size() < detail::PairsByFirst::kByFirstShare * n;
     std::vector<IndexPair> model = given;
-    std::stable_sort(model.begin(), model.end(),
-                     [](const IndexPair& p, const IndexPair& q) { return p.i < q.i; });
+    if (!plain)
+      std::stable_sort(model.begin(), model.end(),
+                       [](const IndexPair& p, const IndexPair& q) { return p.i < q.i; });
     detail::PairsByFirst store;
     store.assign(given, n);
+    EXPECT_EQ(store.plain(), plain || given.empty());
+    (plain ? plain_sets : by_first_sets) += given.empty() ? 0 : 1;
     auto check = [&] {
       ASSERT_EQ(store.size(), model.size());
       std::vector<IndexPair> all;
@@ -302,8 +310,13 @@ TEST(Arrays, PairsByFirstMatchesItsModel) {
       store.erase_if(drop);
       std::erase_if(model, drop);
       check();
+      // Kept by i while still many (else as IndexPairs from then on).
+      plain = plain || model.size() < detail::PairsByFirst::kByFirstShare * n;
+      EXPECT_EQ(store.plain(), plain);
     }
   }
+  EXPECT_GE(plain_sets, 5);
+  EXPECT_GE(by_first_sets, 5);
 }
 
 TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
