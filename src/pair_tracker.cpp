@@ -595,8 +595,8 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, std::vector<Index
 std::size_t PairTracker::memory_bytes() const {
   const Impl& im = *impl_;
   return sizeof(Impl) + im.fat.capacity() * sizeof(AabbF) + im.grid.memory_bytes() +
-         im.quiet.capacity() * sizeof(std::uint64_t) +
-         im.quiet_hits.memory_bytes() + im.grid.slim_bytes() +
+         im.quiet.capacity() * sizeof(std::uint64_t) + im.quiet_hits.memory_bytes() +
+         im.grid.slim_bytes() +
          (im.place.capacity() + im.offset.capacity() + im.partner.capacity() +
           im.renewed_list.capacity()) *
              sizeof(std::uint32_t) +

@@ -221,7 +221,7 @@ struct PairTracker::Impl {
     free_vector(list_pool);
     list_pool_live = 0;
   }
-  bool movers_refused = false;     // the quiet spheres did not suit it (since the rebuild)
+  bool movers_refused = false;  // the quiet spheres did not suit it (since the rebuild)
   std::uint32_t last_box = std::numeric_limits<std::uint32_t>::max();  // a box that kept it out
   // The last call searched afresh with no index, keeping the count and
   // (when its sink took them all) its cells and pairs, so that a call

@@ -53,8 +53,7 @@ bool PairTracker::Impl::MoverList::holds(double x, double y, double z, double r,
   const double dx = x - static_cast<double>(cx), dy = y - static_cast<double>(cy),
                dz = z - static_cast<double>(cz);
   const double d = std::sqrt(dx * dx + dy * dy + dz * dz);
-  const double slack =
-      (std::abs(x) + std::abs(y) + std::abs(z) + reach + quiet_rmax) * 0x1p-40;
+  const double slack = (std::abs(x) + std::abs(y) + std::abs(z) + reach + quiet_rmax) * 0x1p-40;
   return d * (1 + 0x1p-40) + r <= static_cast<double>(reach) - slack;
 }
 
@@ -75,8 +74,7 @@ float float_up(double v) {
 // centre's rounding (2^-20 of its coordinates against 2^-24). reach < 0
 // where a float cannot hold it.
 PairTracker::Impl::MoverList PairTracker::Impl::MoverList::next(double x, double y, double z,
-                                                                double r,
-                                                                std::uint16_t now) const {
+                                                                double r, std::uint16_t now) const {
   const MoverList& old = *this;
   MoverList l;
   double skin = kListSkinShare * r;
@@ -85,8 +83,8 @@ PairTracker::Impl::MoverList PairTracker::Impl::MoverList::next(double x, double
     const double dx = x - static_cast<double>(old.cx), dy = y - static_cast<double>(old.cy),
                  dz = z - static_cast<double>(old.cz);
     if (calls > 0)
-      skin = std::max(skin, std::min(4 * r, kListSkinCalls *
-                                                std::sqrt(dx * dx + dy * dy + dz * dz) / calls));
+      skin = std::max(
+          skin, std::min(4 * r, kListSkinCalls * std::sqrt(dx * dx + dy * dy + dz * dz) / calls));
   }
   skin = std::max(skin, (std::abs(x) + std::abs(y) + std::abs(z)) * 0x1p-20);
   l.stamp = now;
@@ -338,9 +336,9 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
               continue;
             }
             const std::size_t at = out.records.size();
-            out.tests += quiet_cells.probe_records(
-                next.cx, next.cy, next.cz, next.reach,
-                [&](std::uint32_t q) { out.records.push_back(q); });
+            out.tests +=
+                quiet_cells.probe_records(next.cx, next.cy, next.cz, next.reach,
+                                          [&](std::uint32_t q) { out.records.push_back(q); });
             out.tests += out.records.size() - at;
             for (std::size_t p = at; p < out.records.size(); ++p) test(out.records[p]);
             Renewal renewal{slot, next, at};
@@ -476,8 +474,8 @@ void PairTracker::Impl::check_movers(const Objects& objects) const {
     live += l.len;
     if (std::size_t{l.first} + l.len > im.list_pool.size()) fail(name + " is outside the pool");
     if (n > 20000) continue;
-    std::vector<std::uint32_t> want, got(im.list_pool.begin() + l.first,
-                                         im.list_pool.begin() + l.first + l.len);
+    std::vector<std::uint32_t> want,
+        got(im.list_pool.begin() + l.first, im.list_pool.begin() + l.first + l.len);
     im.quiet_cells.probe_records(l.cx, l.cy, l.cz, l.reach,
                                  [&](std::uint32_t q) { want.push_back(q); });
     if (got != want)

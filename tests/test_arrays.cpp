@@ -272,7 +272,8 @@ TEST(Arrays, PairsByFirstMatchesItsModel) {
     const std::size_t want =
         seed % 5 == 0 ? 0 : (seed % 2 ? rng.below(2 * n) : 2 * n + rng.below(4 * n));
     for (std::size_t k = 0; k < want && n > 1; ++k) {
-      auto a = static_cast<std::uint32_t>(rng.below(n)), b = static_cast<std::uint32_t>(rng.below(n));
+      auto a = static_cast<std::uint32_t>(rng.below(n)),
+           b = static_cast<std::uint32_t>(rng.below(n));
       if (a == b || !taken.insert({std::min(a, b), std::max(a, b)}).second) continue;
       given.push_back({std::min(a, b), std::max(a, b)});
     }
@@ -306,7 +307,9 @@ TEST(Arrays, PairsByFirstMatchesItsModel) {
     check();
     for (int round = 0; round < 3; ++round) {
       const auto gone = static_cast<std::uint32_t>(rng.below(n));
-      auto drop = [&](const IndexPair& q) { return q.i == gone || q.j % 3 == std::uint32_t(round); };
+      auto drop = [&](const IndexPair& q) {
+        return q.i == gone || q.j % 3 == std::uint32_t(round);
+      };
       store.erase_if(drop);
       std::erase_if(model, drop);
       check();

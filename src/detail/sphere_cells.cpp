@@ -7,13 +7,11 @@
 
 namespace broadphase::detail {
 
-bool SphereCells::build(const Objects& o) {
-  return build(o, kMaxCellsPerObject);
-}
+bool SphereCells::build(const Objects& o) { return build(o, kMaxCellsPerObject); }
 
 bool SphereCells::build(const Objects& o, std::size_t cells_per_object) {
-  return build_over(o, o.count, [](std::size_t k) { return k; },
-                    std::max<std::size_t>(cells_per_object, 1));
+  return build_over(
+      o, o.count, [](std::size_t k) { return k; }, std::max<std::size_t>(cells_per_object, 1));
 }
 
 bool SphereCells::build(const Objects& o, std::span<const std::uint32_t> subset,
@@ -27,8 +25,7 @@ bool SphereCells::build(const Objects& o, std::span<const std::uint32_t> subset,
 
 // The k-th sphere of the set is object at(k) of `o`.
 template <class At>
-bool SphereCells::build_over(const Objects& o, std::size_t n, At at,
-                             std::size_t cells_per_object) {
+bool SphereCells::build_over(const Objects& o, std::size_t n, At at, std::size_t cells_per_object) {
   release();
   if (n < kMinObjects || n >= 0xFFFFFFFFu || o.radius.empty()) return false;
   if (o.kind != nullptr)

@@ -88,8 +88,7 @@ class SphereCells {
     const Placed* P = placed_.data();
     auto test = [&](std::uint32_t b, std::uint32_t e) {
       tests += e - b;
-      for (; b < e; b += 64)
-        test_block(P, x, y, z, r, b, std::min<std::uint32_t>(e - b, 64), hit);
+      for (; b < e; b += 64) test_block(P, x, y, z, r, b, std::min<std::uint32_t>(e - b, 64), hit);
     };
     for (const Level& g : levels_) {
       const double reach = (r + g.rmax) * (1 + 0x1p-20);
