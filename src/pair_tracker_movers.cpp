@@ -331,14 +331,17 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
             const auto slot = static_cast<std::uint32_t>(keyed[k]);
             const double x = xyzr[4 * k], y = xyzr[4 * k + 1], z = xyzr[4 * k + 2],
                          r = xyzr[4 * k + 3];
+            // A quiet sphere found overlapping (a probe tests it), and one
+            // from a list, tested here.
+            auto hit = [&](std::uint32_t q) {
+              const std::uint32_t j = quiet_cells.record_id(q);
+              if (!any_woken || is_quiet(j)) out.pairs.push_back(ordered(i, j));
+            };
             auto test = [&](std::uint32_t q) {
-              if (quiet_cells.overlaps_record(x, y, z, r, q)) {
-                const std::uint32_t j = quiet_cells.record_id(q);
-                if (!any_woken || is_quiet(j)) out.pairs.push_back(ordered(i, j));
-              }
+              if (quiet_cells.overlaps_record(x, y, z, r, q)) hit(q);
             };
             if (!lists) {
-              out.tests += quiet_cells.probe_records(x, y, z, r, test);
+              out.tests += quiet_cells.probe_records(x, y, z, r, hit);
               continue;
             }
             const MoverList& held = mover_lists[slot];
@@ -349,7 +352,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
             }
             const MoverList next = held.next(x, y, z, r, now);
             if (next.reach < 0) {  // no list: a probe
-              out.tests += quiet_cells.probe_records(x, y, z, r, test);
+              out.tests += quiet_cells.probe_records(x, y, z, r, hit);
               out.renewals.push_back({slot, next, out.records.size()});
               continue;
             }
