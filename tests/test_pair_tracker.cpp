@@ -1,0 +1,486 @@
+// The lean path's tracker (PairTracker, arrays.hpp) against a brute-force
+// oracle over overlaps(): random moves, teleports, resizes, kind changes,
+// appends and removals between calls, on 1, 2 and 3 threads; movers mode,
+// its lists, quiet objects, calls afresh and renewals.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <broadphase/arrays.hpp>
+#include <broadphase/lab/scene.hpp>
+#include <cmath>
+#include <set>
+
+#include "arrays_testing.hpp"
+#include "testing.hpp"
+
+namespace broadphase {
+namespace {
+
+using namespace arrays_testing;  // NOLINT(google-build-using-namespace)
+
+// One call of each of three trackers (on 1, 2 and 3 threads) on the same
+// objects: the oracle's pairs, the invariants after the call, one order on
+// every thread count; `stats` is the first tracker's.
+void call_on_each(PairTracker (&trackers)[3], const Objects& objects, const Changes& changes,
+                  const std::vector<IndexPair>& want, ArrayCallStats& stats) {
+  std::vector<IndexPair> first;
+  for (unsigned t = 0; t < 3; ++t) {
+    std::vector<IndexPair> got;
+    const ArrayCallStats s = trackers[t].find_pairs(objects, got, changes);
+    ASSERT_EQ(s.pairs, got.size());
+    ASSERT_NO_THROW(trackers[t].validate(objects)) << "threads " << t + 1;
+    ASSERT_EQ(sorted(got), want) << "threads " << t + 1;
+    if (t == 0) {
+      first = got;
+      stats = s;
+    } else {
+      ASSERT_EQ(got, first) << "order differs on " << t + 1 << " threads";
+    }
+  }
+}
+
+// The tracker over random frames: moves, teleports, resizes, kind changes,
+// appends and removals (swap with the last), told everything or only what
+// changed, on 1, 2 and 3 threads in lockstep.
+TEST(Arrays, TrackerMatchesOracleUnderRandomChanges) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(12)); ++seed) {
+    Rng rng(seed * 7919);
+    const World w = kWorlds[seed % std::size(kWorlds)];
+    const Layout layout = kLayouts[seed % std::size(kLayouts)];
+    std::vector<Shape> shapes = random_world(w, 50 + rng.below(700), rng);
+    const double world = 20.0 * std::cbrt(static_cast<double>(shapes.size()) / 10.0) + 1;
+    ArrayOptions opt;
+    opt.skin = seed % 3 == 0 ? 0 : rng.uniform(0.05, 2);
+    PairTracker trackers[3] = {PairTracker(opt), PairTracker(opt), PairTracker(opt)};
+    for (unsigned t = 0; t < 3; ++t) {
+      ArrayOptions o = opt;
+      o.threads = t + 1;
+      trackers[t] = PairTracker(o);
+    }
+    for (int frame = 0; frame < 30; ++frame) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << " world " << name(w) << " layout "
+                                        << name(layout) << " frame " << frame);
+      std::vector<std::uint32_t> changed;
+      const std::size_t count_before = shapes.size();
+      std::size_t lowest = shapes.size();  // the least count during the frame
+      const int ops = frame == 0 ? 0 : static_cast<int>(rng.below(40));
+      for (int k = 0; k < ops && !shapes.empty(); ++k) {
+        const auto i = static_cast<std::uint32_t>(rng.below(shapes.size()));
+        switch (rng.below(7)) {
+          case 0:  // teleport
+            shapes[i].center = random_shape(w, rng, world).center;
+            changed.push_back(i);
+            break;
+          case 1: {  // resize (same kind)
+            const Shape s = random_shape(w, rng, world);
+            shapes[i].half = shapes[i].is_sphere() ? Vec3{s.half.x, s.half.x, s.half.x} : s.half;
+            changed.push_back(i);
+            break;
+          }
+          case 2:  // a new shape, maybe of the other kind
+            shapes[i] = random_shape(w, rng, world);
+            changed.push_back(i);
+            break;
+          case 3:  // append
+            shapes.push_back(random_shape(w, rng, world));
+            break;
+          case 4:  // remove by moving the last into its place
+            shapes[i] = shapes.back();
+            shapes.pop_back();
+            lowest = std::min(lowest, shapes.size());
+            if (i < shapes.size()) changed.push_back(i);
+            break;
+          default: {  // a small move
+            const Vec3 d{rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)};
+            shapes[i].center = shapes[i].center + d * rng.uniform(0, 2);
+            changed.push_back(i);
+          }
+        }
+      }
+      // Removals may have shrunk the set below listed indices; an index
+      // removed and then appended again holds a new object, which the caller
+      // lists (the count alone cannot tell the tracker).
+      std::erase_if(changed, [&](std::uint32_t i) { return i >= shapes.size(); });
+      for (std::size_t i = lowest; i < std::min(shapes.size(), count_before); ++i)
+        changed.push_back(static_cast<std::uint32_t>(i));
+      Storage st(shapes, layout);
+      const auto want = oracle(st.objects);
+      // Odd seeds say "everything" rarely, so that objects become quiet
+      // and some are woken by a listed change or by "everything".
+      const bool tell_all = rng.below(seed % 2 ? 16 : 3) == 0;
+      ArrayCallStats stats;
+      ASSERT_NO_FATAL_FAILURE(
+          call_on_each(trackers, st.objects,
+                       tell_all ? Changes::everything() : Changes::only(changed), want, stats));
+    }
+  }
+}
+
+// Movers in movers mode running through rows of quiet spheres, head on, in
+// small steps (a fortieth of their skin and more): each sphere begins to
+// touch its mover at some step, at every distance from where the mover's
+// list of quiet candidates was made, so a list kept past its reach misses a
+// pair (a list kept to 0.97 of its reach's distance fails here).
+TEST(Arrays, MoverListsHoldToTheirReach) {
+  for (const double speed : {0.006, 0.03}) {
+    SCOPED_TRACE(::testing::Message() << "step " << speed);
+    Rng rng(11);
+    std::vector<Shape> shapes;
+    constexpr int kRows = 16;
+    for (int row = 0; row < kRows; ++row) {
+      double x = rng.uniform(0, 3);
+      for (int k = 0; k < 10; ++k, x += rng.uniform(2.5, 5))
+        shapes.push_back(Shape::sphere({x, 0, 10.0 * row}, 1));
+    }
+    std::vector<std::uint32_t> movers;
+    for (int row = 0; row < kRows; ++row) {
+      movers.push_back(static_cast<std::uint32_t>(shapes.size()));
+      shapes.push_back(Shape::sphere({-3, 0, 10.0 * row}, 1));
+    }
+    PairTracker tracker;
+    std::vector<IndexPair> got;
+    tracker.find_pairs(Storage(shapes, Layout::soa_double).objects, got);
+    std::uint64_t renewed = 0, calls = 0;
+    for (int step = 0; shapes[movers[0]].center.x < 20; ++step) {
+      for (const std::uint32_t i : movers) shapes[i].center.x += speed;
+      Storage st(shapes, Layout::soa_double);
+      got.clear();
+      const auto stats = tracker.find_pairs(st.objects, got, Changes::only(movers));
+      ASSERT_EQ(sorted(got), oracle(st.objects)) << "step " << step;
+      if (step % 16 == 0) {
+        ASSERT_NO_THROW(tracker.validate(st.objects)) << "step " << step;
+      }
+      if (stats.movers) {
+        ++calls;
+        renewed += stats.renewed;
+      }
+    }
+    EXPECT_GT(calls, 700u);
+    EXPECT_LT(renewed * 4, calls * kRows);  // most movers test their lists
+  }
+}
+
+// Movers mode: spheres of which about one in ten moves each frame (listed),
+// with quiet ones woken, movers stopping, teleports, resizes, a sphere
+// turned into a box and back, appends, removals and "everything" now and
+// then: the oracle's pairs on every frame, the same order on 1 to 3
+// threads, the invariants after every call, and the mode taken on most
+// frames (so that the checks above are of it).
+TEST(Arrays, TrackerMoversModeMatchesOracle) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(10)); ++seed) {
+    Rng rng(seed * 104729);
+    // (Not the lattice: its cells are too crowded for the mode.)
+    const World kinds[] = {World::spheres, World::similar, World::sizes};
+    const World w = kinds[seed % std::size(kinds)];
+    const Layout layout = kLayouts[seed % std::size(kLayouts)];
+    std::vector<Shape> shapes = random_world(w, 300 + rng.below(1500), rng);
+    const double world = 20.0 * std::cbrt(static_cast<double>(shapes.size()) / 10.0) + 1;
+    std::vector<std::uint32_t> movers;
+    for (std::uint32_t i = 0; i < shapes.size(); ++i)
+      if (rng.below(10) == 0) movers.push_back(i);
+    PairTracker trackers[3];
+    for (unsigned t = 0; t < 3; ++t) {
+      ArrayOptions o;
+      o.threads = t + 1;
+      trackers[t] = PairTracker(o);
+    }
+    int in_mode = 0;
+    const int frames = 40;
+    for (int frame = 0; frame < frames; ++frame) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << " world " << name(w) << " layout "
+                                        << name(layout) << " frame " << frame);
+      std::vector<std::uint32_t> changed;
+      bool tell_all = false;
+      for (std::uint32_t i : movers)
+        if (i < shapes.size()) {
+          const Vec3 d{rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)};
+          shapes[i].center = shapes[i].center + d * rng.uniform(0, 3);
+          changed.push_back(i);
+        }
+      const auto pick = [&] { return static_cast<std::uint32_t>(rng.below(shapes.size())); };
+      switch (frame == 0 ? 99 : rng.below(24)) {
+        case 0: {  // wake a few quiet ones
+          for (int k = 0; k < 5; ++k) {
+            const std::uint32_t i = pick();
+            shapes[i].center = shapes[i].center + Vec3{0.5, -0.25, 0.125};
+            changed.push_back(i);
+          }
+          break;
+        }
+        case 1: {  // teleports and a resize
+          const std::uint32_t i = pick(), j = pick();
+          shapes[i].center = random_shape(w, rng, world).center;
+          shapes[j].half = Vec3{1, 1, 1} * rng.uniform(0, 6);
+          changed.insert(changed.end(), {i, j});
+          break;
+        }
+        case 2: {  // a sphere turns into a box, and back a few frames later
+          const std::uint32_t i = pick();
+          shapes[i] = Shape::box(shapes[i].center, {1, 2, 0.5});
+          changed.push_back(i);
+          break;
+        }
+        case 3:  // append
+          shapes.push_back(random_shape(w, rng, world));
+          break;
+        case 4: {  // remove by moving the last into its place
+          const std::uint32_t i = pick();
+          shapes[i] = shapes.back();
+          shapes.pop_back();
+          if (i < shapes.size()) changed.push_back(i);
+          break;
+        }
+        case 5:  // half the movers stop
+          movers.resize(movers.size() / 2);
+          break;
+        case 6:
+          tell_all = rng.below(3) == 0;
+          break;
+        default:
+          break;
+      }
+      for (Shape& s : shapes)  // boxes turn back into spheres after a while
+        if (!s.is_sphere() && rng.below(4) == 0) {
+          s = Shape::sphere(s.center, 1);
+          changed.push_back(static_cast<std::uint32_t>(&s - shapes.data()));
+        }
+      std::erase_if(changed, [&](std::uint32_t i) { return i >= shapes.size(); });
+      Storage st(shapes, layout);
+      const auto want = oracle(st.objects);
+      ArrayCallStats stats;
+      ASSERT_NO_FATAL_FAILURE(
+          call_on_each(trackers, st.objects,
+                       tell_all ? Changes::everything() : Changes::only(changed), want, stats));
+      in_mode += stats.movers ? 1 : 0;
+    }
+    EXPECT_GE(in_mode, frames / 3)
+        << "seed " << seed << ": movers mode taken on " << in_mode << " of " << frames << " frames";
+  }
+}
+
+// Many frames of small motion: the skin is reused (not every call rebuilds).
+TEST(Arrays, TrackerReusesItsWorkUnderSmallMotion) {
+  Rng rng(8);
+  std::vector<Shape> shapes = random_world(World::spheres, 3000, rng);
+  PairTracker tracker;
+  int rebuilds = 0;
+  for (int frame = 0; frame < 20; ++frame) {
+    for (std::size_t i = 0; i < shapes.size(); i += 5)
+      shapes[i].center.x += 0.001;  // far inside any skin
+    Storage st(shapes, Layout::soa_double);
+    std::vector<IndexPair> got;
+    rebuilds += tracker.find_pairs(st.objects, got).rebuilt ? 1 : 0;
+    ASSERT_EQ(sorted(got), oracle(st.objects)) << "frame " << frame;
+  }
+  EXPECT_EQ(rebuilds, 1);
+  tracker.clear();
+  EXPECT_LT(tracker.memory_bytes(), 1000u);
+}
+
+// Objects that stay unchanged over calls that list the changes become
+// quiet: their pairs are handed over without a scan. A quiet object that
+// moves a little (inside its skin) into a new overlap with another quiet
+// one is woken, and the pair is found; so is a pair that stops touching.
+// Spheres alone take movers mode; one box among them keeps them on the
+// index, whose quiet objects are checked the same way.
+TEST(Arrays, QuietObjectsWakeWhenTheCallerChangesThem) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(6)); ++seed) {
+    Rng rng(seed * 613);
+    std::vector<Shape> shapes = random_world(World::spheres, 1500, rng);
+    for (Shape& s : shapes) s.half = {0.5, 0.5, 0.5};
+    const bool on_index = seed % 2 == 0;
+    if (on_index) shapes.back() = Shape::box(shapes.back().center, {0.5, 0.5, 0.5});
+    int in_mode = 0;
+    std::vector<std::uint32_t> movers;
+    for (std::uint32_t i = 0; i < shapes.size(); i += 10) movers.push_back(i);
+    ArrayOptions opt;
+    opt.skin = 1;  // 0.5: nudges of 0.01 stay inside
+    opt.threads = static_cast<unsigned>(seed + 1) / 2;
+    PairTracker tracker(opt);
+    std::uint64_t most_quiet = 0, woken = 0;
+    for (int frame = 0; frame < 40; ++frame) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << " frame " << frame);
+      std::vector<std::uint32_t> changed = movers;
+      for (std::uint32_t i : movers) shapes[i].center.x += 0.01;
+      if (frame >= 20)
+        for (int k = 0; k < 30; ++k) {  // nudge objects that were quiet
+          const auto i = static_cast<std::uint32_t>(rng.below(shapes.size()));
+          if (i % 10 == 0) continue;
+          const Vec3 d{rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)};
+          shapes[i].center = shapes[i].center + d * 0.05;
+          changed.push_back(i);
+        }
+      Storage st(shapes, seed % 2 ? Layout::soa_double : Layout::aos_float);
+      std::vector<IndexPair> got;
+      const auto stats = tracker.find_pairs(
+          st.objects, got, frame == 30 ? Changes::everything() : Changes::only(changed));
+      ASSERT_NO_THROW(tracker.validate(st.objects));
+      ASSERT_EQ(sorted(got), oracle(st.objects));
+      most_quiet = std::max(most_quiet, stats.quiet);
+      woken += stats.woken;
+      in_mode += stats.movers ? 1 : 0;
+    }
+    EXPECT_GE(most_quiet, shapes.size() / 2);
+    EXPECT_GT(woken, 0u);
+    if (on_index)
+      EXPECT_EQ(in_mode, 0);
+    else
+      EXPECT_GE(in_mode, 30);
+  }
+}
+
+// Motion that outruns the skin: instead of building its index again, the
+// tracker searches afresh for a few calls, holding nothing, then builds.
+TEST(Arrays, TrackerSearchesAfreshWhenMotionOutrunsTheSkin) {
+  for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    Rng rng(seed * 7919);
+    const World w = seed % 2 ? World::similar : World::spheres;
+    std::vector<Shape> shapes = random_world(w, 500 + rng.below(1500), rng);
+    const double world = 20.0 * std::cbrt(static_cast<double>(shapes.size()) / 10.0) + 1;
+    PairTracker tracker;
+    int afresh = 0, rebuilt = 0, holding_nothing = 0;
+    for (int frame = 0; frame < 30; ++frame) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << " frame " << frame);
+      std::vector<std::uint32_t> all;
+      if (frame > 0)
+        for (std::uint32_t i = 0; i < shapes.size(); ++i) {
+          shapes[i].center = random_shape(w, rng, world).center;  // every one jumps
+          all.push_back(i);
+        }
+      Storage st(shapes, Layout::soa_double);
+      std::vector<IndexPair> got;
+      const auto stats = tracker.find_pairs(st.objects, got,
+                                            seed > 2 ? Changes::only(all) : Changes::everything());
+      ASSERT_NO_THROW(tracker.validate(st.objects));
+      ASSERT_EQ(sorted(got), oracle(st.objects));
+      ASSERT_EQ(stats.pairs, got.size());
+      if (stats.afresh) {
+        ++afresh;
+        holding_nothing += tracker.memory_bytes() < 1000u ? 1 : 0;
+        EXPECT_FALSE(stats.rebuilt);
+      }
+      rebuilt += stats.rebuilt ? 1 : 0;
+    }
+    // Built after the first call and after each run of afresh calls. The
+    // calls afresh hold nothing, but for the first after each build (the
+    // first call, and the one after each run), which keeps its cells and
+    // pairs for a next call that would list few changes.
+    EXPECT_GE(afresh, 20);
+    EXPECT_GE(rebuilt, 2);
+    EXPECT_EQ(afresh + rebuilt, 30);
+    EXPECT_GE(holding_nothing, afresh - rebuilt);
+  }
+  // Crowded cells (about five spheres on each of the lattice's places, too few
+  // for the kernel to refuse them, too many for runs of calls afresh): the
+  // index is built again after each call afresh, which is only the one
+  // after a build (its pairs kept for movers mode, which takes sets this
+  // crowded), never two in a row.
+  Rng rng(3);
+  std::vector<Shape> shapes = random_world(World::lattice, 1000, rng);
+  PairTracker tracker;
+  bool last_afresh = false;
+  for (int frame = 0; frame < 6; ++frame) {
+    SCOPED_TRACE(::testing::Message() << "lattice frame " << frame);
+    for (Shape& s : shapes) s.center = random_shape(World::lattice, rng, 0).center;
+    Storage st(shapes, Layout::soa_double);
+    std::vector<IndexPair> got;
+    const auto stats = tracker.find_pairs(st.objects, got);
+    EXPECT_FALSE(stats.afresh && last_afresh);
+    EXPECT_TRUE(stats.afresh || stats.rebuilt);
+    last_afresh = stats.afresh;
+    ASSERT_EQ(sorted(got), oracle(st.objects));
+  }
+}
+
+// An object far larger than the median keeps a skin of a share of its own
+// size: a slow drift of a few skins of the median does not renew it (its
+// renewal would query every finer level), and the pairs stay exact.
+TEST(Arrays, LargeObjectsKeepASkinOfTheirOwnSize) {
+  Rng rng(31);
+  std::vector<Shape> shapes = random_world(World::spheres, 2000, rng);
+  for (Shape& s : shapes) s.half = {0.5, 0.5, 0.5};  // the median size
+  const auto big = static_cast<std::uint32_t>(shapes.size());
+  shapes.push_back(Shape::sphere({10, 10, 10}, 100));
+  shapes.push_back(Shape::box({-500, -500, -500}, {0.5, 0.5, 0.5}));  // the index, not movers mode
+  PairTracker tracker;  // skin 0.25 of the median half-extent: 0.125
+  std::vector<IndexPair> got;
+  tracker.find_pairs(Storage(shapes, Layout::soa_double).objects, got);
+  for (int frame = 1; frame <= 4; ++frame) {
+    shapes[big].center.x += 1;  // 8 median skins a frame, 1% of its own size
+    Storage st(shapes, Layout::soa_double);
+    got.clear();
+    const std::vector<std::uint32_t> moved{big};
+    const auto stats = tracker.find_pairs(st.objects, got, Changes::only(moved));
+    EXPECT_EQ(stats.renewed, 0u) << "frame " << frame;
+    EXPECT_FALSE(stats.movers);
+    ASSERT_EQ(sorted(got), oracle(st.objects)) << "frame " << frame;
+    ASSERT_NO_THROW(tracker.validate(st.objects));
+  }
+}
+
+// A few objects leave their skin on every call: they are renewed alone
+// (no rebuild), and the candidates stay complete and exact call after call
+// (validate checks the renewed objects' loose pairs and the kept grid).
+TEST(Arrays, TrackerRenewsObjectsThatLeaveTheirSkin) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(4)); ++seed) {
+    Rng rng(seed * 104729);
+    const World w =
+        seed % 3 == 0 ? World::mixed : (seed % 3 == 1 ? World::spheres : World::decades);
+    std::vector<Shape> shapes = random_world(w, 300 + rng.below(600), rng);
+    const double world = 20.0 * std::cbrt(static_cast<double>(shapes.size()) / 10.0) + 1;
+    // One box among the spheres keeps them on the index (movers mode, with
+    // nothing to renew, takes sets of spheres only).
+    if (w == World::spheres) shapes.push_back(Shape::box({1, 1, 1}, {0.5, 0.5, 0.5}));
+    ArrayOptions opt;
+    opt.skin = seed % 2 ? 0 : 0.5;
+    PairTracker one(opt);
+    opt.threads = 2;
+    PairTracker two(opt);
+    std::uint64_t renewed = 0;
+    int rebuilds = 0;
+    for (int frame = 0; frame < 60; ++frame) {
+      SCOPED_TRACE(::testing::Message()
+                   << "seed " << seed << " world " << name(w) << " frame " << frame);
+      std::vector<std::uint32_t> changed;
+      if (frame > 0) {
+        const int leaving = 1 + static_cast<int>(rng.below(6));
+        for (int k = 0; k < leaving; ++k) {  // far past any skin, or a jump
+          const auto i = static_cast<std::uint32_t>(rng.below(shapes.size()));
+          if (rng.below(4) == 0)
+            shapes[i].center = random_shape(w, rng, world).center;
+          else
+            shapes[i].center.x += rng.uniform(-1, 1) * 3 * shapes[i].max_half() + 1;
+          changed.push_back(i);
+        }
+        for (int k = 0; k < 20; ++k) {  // steady drift of a few, listed twice at times
+          const auto i =
+              static_cast<std::uint32_t>(rng.below(std::min<std::size_t>(shapes.size(), 64)));
+          shapes[i].center.y += 0.05;
+          changed.push_back(i);
+        }
+      }
+      Storage st(shapes, seed % 2 ? Layout::soa_double : Layout::aos_float);
+      const auto want = oracle(st.objects);
+      const bool tell_all = frame == 0 || rng.below(4) == 0;
+      const Changes ch = tell_all ? Changes::everything() : Changes::only(changed);
+      std::vector<IndexPair> got1, got2;
+      const auto s1 = one.find_pairs(st.objects, got1, ch);
+      const auto s2 = two.find_pairs(st.objects, got2, ch);
+      ASSERT_NO_THROW(one.validate(st.objects));
+      ASSERT_NO_THROW(two.validate(st.objects));
+      ASSERT_EQ(sorted(got1), want);
+      ASSERT_EQ(got2, got1) << "order differs on 2 threads";
+      ASSERT_EQ(s2.renewed, s1.renewed);
+      rebuilds += s1.rebuilt ? 1 : 0;
+      renewed += s1.renewed;
+    }
+    EXPECT_GT(renewed, 40u) << "seed " << seed;
+    // The first call, up to two from objects leaving, and up to three from
+    // "everything" calls that woke quiet objects (made quiet again only
+    // after 2, 8, then 32 listed calls in a row).
+    EXPECT_LE(rebuilds, 6) << "seed " << seed;
+  }
+}
+
+}  // namespace
+}  // namespace broadphase
