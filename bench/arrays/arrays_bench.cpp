@@ -6,11 +6,12 @@
 //                [--compare ALGO] [--seed S]
 //
 // Prints per frame: frame, pairs, hash, the call's ms (wall and CPU),
-// rebuilt or compacted, the objects renewed alone, own bytes per object; then the
-// medians, the tracker's own bytes per object, and the process's VmRSS and
-// VmHWM (kB, from /proc/self/status). `--compare ALGO` replays the same
-// scene through a handle structure (e.g. fast-grid) in the same process,
-// checks that every frame's count and hash agree, and prints its median.
+// rebuilt or compacted, the objects renewed alone, the quiet objects, the
+// exact tests made, own bytes per object; then the medians, the tracker's
+// own bytes per object, and the process's VmRSS and VmHWM (kB, from
+// /proc/self/status). `--compare ALGO` replays the same scene through a
+// handle structure (e.g. fast-grid) in the same process, checks that every
+// frame's count and hash agree, and prints its median.
 // `--all` tells the tracker that everything may have changed (it then
 // finds the movers itself) instead of passing the movers' indices.
 #include <algorithm>
@@ -133,13 +134,15 @@ int main(int argc, char** argv) {
     move_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
     call_ms.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
     if (!quiet)
-      std::printf("%d %llu %s %.2f ms (cpu %.2f)%s renewed %llu, quiet %llu, own %.1f B/object\n",
-                  f, static_cast<unsigned long long>(d.pairs), hex16(d.hash).c_str(),
-                  call_ms.back(), cpu_call_ms.back(),
-                  stats.rebuilt ? " rebuilt" : (stats.compacted ? " compacted" : ""),
-                  static_cast<unsigned long long>(stats.renewed),
-                  static_cast<unsigned long long>(stats.quiet),
-                  static_cast<double>(tracker.memory_bytes()) / static_cast<double>(n));
+      std::printf(
+          "%d %llu %s %.2f ms (cpu %.2f)%s renewed %llu, quiet %llu, tests %llu, own %.1f "
+          "B/object\n",
+          f, static_cast<unsigned long long>(d.pairs), hex16(d.hash).c_str(), call_ms.back(),
+          cpu_call_ms.back(), stats.rebuilt ? " rebuilt" : (stats.compacted ? " compacted" : ""),
+          static_cast<unsigned long long>(stats.renewed),
+          static_cast<unsigned long long>(stats.quiet),
+          static_cast<unsigned long long>(stats.tests),
+          static_cast<double>(tracker.memory_bytes()) / static_cast<double>(n));
   }
   // The first call builds; the frame figure is the median of the others.
   std::vector<double> later(call_ms.begin() + (frames > 1 ? 1 : 0), call_ms.end());
