@@ -337,8 +337,8 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
               const std::uint32_t j = quiet_cells.record_id(q);
               if (!any_woken || is_quiet(j)) out.pairs.push_back(ordered(i, j));
             };
-            auto test = [&](std::uint32_t q) {
-              if (quiet_cells.overlaps_record(x, y, z, r, q)) hit(q);
+            auto test = [&](std::span<const std::uint32_t> listed) {
+              quiet_cells.test_records(listed, x, y, z, r, hit);
             };
             if (!lists) {
               out.tests += quiet_cells.probe_records(x, y, z, r, hit);
@@ -347,7 +347,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
             const MoverList& held = mover_lists[slot];
             if (held.holds(x, y, z, r, quiet_rmax)) {
               out.tests += held.len;
-              for (std::uint32_t p = held.first; p < held.first + held.len; ++p) test(list_pool[p]);
+              test(std::span<const std::uint32_t>(list_pool).subspan(held.first, held.len));
               continue;
             }
             const MoverList next = held.next(x, y, z, r, now);
@@ -361,7 +361,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
                 quiet_cells.probe_records(next.cx, next.cy, next.cz, next.reach,
                                           [&](std::uint32_t q) { out.records.push_back(q); });
             out.tests += out.records.size() - at;
-            for (std::size_t p = at; p < out.records.size(); ++p) test(out.records[p]);
+            test(std::span<const std::uint32_t>(out.records).subspan(at));
             Renewal renewal{slot, next, at};
             if (out.records.size() - at > kMaxListLength) {
               renewal.list.reach = -1;

@@ -122,13 +122,28 @@ class SphereCells {
   }
   /// The index of the sphere of record k.
   std::uint32_t record_id(std::uint32_t k) const { return placed_[k].id; }
-  /// Whether the sphere (x, y, z, r) overlaps that of record k, by the
-  /// predicate of spheres_overlap (the arithmetic of test_block).
-  bool overlaps_record(double x, double y, double z, double r, std::uint32_t k) const {
-    const Placed& q = placed_[k];
-    const double dx = x - q.x, dy = y - q.y, dz = z - q.z;
-    const double sr = r + q.r;
-    return dx * dx + dy * dy + dz * dz <= sr * sr;
+  /// Calls `hit(k)` for each record k of `ks` whose sphere overlaps the
+  /// sphere (x, y, z, r), by the predicate of spheres_overlap (the
+  /// arithmetic of test_block), in the order of `ks`, without a branch per
+  /// record: a movers' list at scaled-even 1 024 000 holds about two
+  /// candidates a partner, a coin toss for a branch.
+  template <class Hit>
+  void test_records(std::span<const std::uint32_t> ks, double x, double y, double z, double r,
+                    Hit&& hit) const {
+    const Placed* P = placed_.data();
+    for (std::size_t b = 0; b < ks.size(); b += 64) {
+      const std::size_t len = std::min<std::size_t>(ks.size() - b, 64);
+      std::uint64_t hits = 0;
+      for (std::size_t t = 0; t < len; ++t) {
+        const Placed& q = P[ks[b + t]];
+        const double dx = x - q.x, dy = y - q.y, dz = z - q.z;
+        const double d2 = dx * dx + dy * dy + dz * dz;
+        const double sr = r + q.r;
+        hits |= static_cast<std::uint64_t>(d2 <= sr * sr) << t;
+      }
+      for (; hits != 0; hits &= hits - 1)
+        hit(ks[b + static_cast<std::size_t>(std::countr_zero(hits))]);
+    }
   }
 
   /// A key that orders points as the finest grid's cells do (clamped to
