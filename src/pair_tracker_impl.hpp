@@ -89,9 +89,18 @@ constexpr std::size_t kMoversShare = 4;
 constexpr double kMoversCrowd = detail::SphereCells::kMaxCrowd;
 constexpr std::size_t kWokenShare = 8;
 // A mover's list of quiet candidates reaches this many calls of its last
-// speed past it, and at least kListSkinShare of its radius (see MoverList).
-constexpr double kListSkinCalls = 3;
+// speed past it, at least kListSkinShare of its radius, at most four radii
+// plus kListSkinQuiet of the largest quiet radius (see MoverList). A
+// renewal (a probe of the quiet grids, 60 tests and most of a microsecond
+// at scaled-even 1 024 000) costs a hundred list tests: at 3 calls, 15 000
+// to 67 000 movers of 204 800 renewed a call over 40 calls there, the
+// median call 88-94 ms; at 12, 5 000-22 000 and 80-83 ms, for 2.3 bytes an
+// object more (at 20: 80 ms, 4.6 more). The cap was four radii: a small
+// fast mover renewed every call, though among quiet spheres far larger
+// than it a longer skin adds few candidates.
+constexpr double kListSkinCalls = 12;
 constexpr double kListSkinShare = 0.25;
+constexpr double kListSkinQuiet = 0.5;
 constexpr std::size_t kCoarseCellsPerObject = 1;
 constexpr double kCoarseCrowd = 8;
 constexpr double kCoarseSpread = 2;
@@ -201,6 +210,7 @@ struct PairTracker::Impl {
   // again (a renewal). The centre is the mover's, rounded to float (exact
   // as a double); the reach is its radius plus a skin of kListSkinCalls
   // calls at its speed since its last list, or kListSkinShare of its
+  // radius, at most four radii plus kListSkinQuiet of the largest quiet
   // radius, rounded up. 24 bytes a mover and 4 a candidate.
   struct MoverList {
     float cx = 0, cy = 0, cz = 0;
@@ -211,7 +221,8 @@ struct PairTracker::Impl {
     // Whether a mover at (x, y, z) of radius r is within its reach.
     bool holds(double x, double y, double z, double r, double quiet_rmax) const;
     // The next list of a mover at (x, y, z) of radius r on call `now`.
-    MoverList next(double x, double y, double z, double r, std::uint16_t now) const;
+    MoverList next(double x, double y, double z, double r, std::uint16_t now,
+                   double quiet_rmax) const;
   };
   std::vector<MoverList> mover_lists;
   std::vector<std::uint32_t> list_pool;  // the lists' quiet records

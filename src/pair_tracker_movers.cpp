@@ -73,11 +73,12 @@ float float_up(double v) {
 
 // Centred on the mover (rounded to float), reaching its radius plus a skin
 // of kListSkinCalls calls at the speed it left this list with, at least
-// kListSkinShare of its radius, at most four radii, and far above the
-// centre's rounding (2^-20 of its coordinates against 2^-24). reach < 0
-// where a float cannot hold it.
+// kListSkinShare of its radius, at most four radii plus kListSkinQuiet of
+// the largest quiet radius, and far above the centre's rounding (2^-20 of
+// its coordinates against 2^-24). reach < 0 where a float cannot hold it.
 PairTracker::Impl::MoverList PairTracker::Impl::MoverList::next(double x, double y, double z,
-                                                                double r, std::uint16_t now) const {
+                                                                double r, std::uint16_t now,
+                                                                double quiet_rmax) const {
   const MoverList& old = *this;
   MoverList l;
   double skin = kListSkinShare * r;
@@ -86,8 +87,9 @@ PairTracker::Impl::MoverList PairTracker::Impl::MoverList::next(double x, double
     const double dx = x - static_cast<double>(old.cx), dy = y - static_cast<double>(old.cy),
                  dz = z - static_cast<double>(old.cz);
     if (calls > 0)
-      skin = std::max(
-          skin, std::min(4 * r, kListSkinCalls * std::sqrt(dx * dx + dy * dy + dz * dz) / calls));
+      skin =
+          std::max(skin, std::min(4 * r + kListSkinQuiet * quiet_rmax,
+                                  kListSkinCalls * std::sqrt(dx * dx + dy * dy + dz * dz) / calls));
   }
   skin = std::max(skin, (std::abs(x) + std::abs(y) + std::abs(z)) * 0x1p-20);
   l.stamp = now;
@@ -350,7 +352,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
               test(std::span<const std::uint32_t>(list_pool).subspan(held.first, held.len));
               continue;
             }
-            const MoverList next = held.next(x, y, z, r, now);
+            const MoverList next = held.next(x, y, z, r, now, quiet_rmax);
             if (next.reach < 0) {  // no list: a probe
               out.tests += quiet_cells.probe_records(x, y, z, r, hit);
               out.renewals.push_back({slot, next, out.records.size()});
