@@ -3,6 +3,7 @@
 // boxes built per call; exact tests read from the caller's data. The tracker
 // is in pair_tracker.cpp.
 #include <algorithm>
+#include <bit>
 #include <broadphase/arrays.hpp>
 #include <broadphase/handle.hpp>
 #include <cmath>
@@ -105,7 +106,11 @@ ArrayCallStats one_shot(const Source& src, bool bipartite, const PairSink& sink,
 
 }  // namespace
 
-void check_objects(const Objects& o, const char* what) {
+namespace {
+
+// The checks of check_objects that do not read a value: the count and the
+// columns.
+void check_columns(const Objects& o, const char* what) {
   if (o.count > kMaxObjects)
     throw InvalidObjects(std::string(what) + ": " + std::to_string(o.count) +
                              " objects, more than 32-bit indices can name (" +
@@ -121,37 +126,57 @@ void check_objects(const Objects& o, const char* what) {
   const bool halves = !o.half_x.empty() && !o.half_y.empty() && !o.half_z.empty();
   if (o.kind == nullptr && o.radius.empty() && !halves)
     missing(o.half_x.empty() ? "half_x (or radius)" : (o.half_y.empty() ? "half_y" : "half_z"));
+}
+
+// The values of object i.
+void check_object(const Objects& o, std::size_t i, const char* what) {
   static const char* const kAxis[3] = {"x", "y", "z"};
   static const char* const kHalf[3] = {"half_x", "half_y", "half_z"};
   const Column* centre[3] = {&o.x, &o.y, &o.z};
   const Column* half[3] = {&o.half_x, &o.half_y, &o.half_z};
-  for (std::size_t i = 0; i < o.count; ++i) {
+  for (int a = 0; a < 3; ++a) {
+    const double v = centre[a]->at(i);
+    if (!std::isfinite(v)) bad(what, i, std::string(kAxis[a]) + " is " + fmt(v));
+  }
+  bool sphere = !o.radius.empty();
+  if (o.kind != nullptr) {
+    const std::uint8_t k = o.kind[static_cast<std::ptrdiff_t>(i) * o.kind_stride];
+    if (k > 1) bad(what, i, "kind is " + std::to_string(k) + " (0 sphere, 1 box)");
+    sphere = k == 0;
+  }
+  if (sphere) {
+    if (o.radius.empty()) bad(what, i, "is a sphere but the radius column is missing");
+    const double r = o.radius.at(i);
+    if (!std::isfinite(r)) bad(what, i, "radius is " + fmt(r));
+    if (r < 0) bad(what, i, "radius is negative (" + fmt(r) + ")");
+  } else {
     for (int a = 0; a < 3; ++a) {
-      const double v = centre[a]->at(i);
-      if (!std::isfinite(v)) bad(what, i, std::string(kAxis[a]) + " is " + fmt(v));
-    }
-    bool sphere = !o.radius.empty();
-    if (o.kind != nullptr) {
-      const std::uint8_t k = o.kind[static_cast<std::ptrdiff_t>(i) * o.kind_stride];
-      if (k > 1) bad(what, i, "kind is " + std::to_string(k) + " (0 sphere, 1 box)");
-      sphere = k == 0;
-    }
-    if (sphere) {
-      if (o.radius.empty()) bad(what, i, "is a sphere but the radius column is missing");
-      const double r = o.radius.at(i);
-      if (!std::isfinite(r)) bad(what, i, "radius is " + fmt(r));
-      if (r < 0) bad(what, i, "radius is negative (" + fmt(r) + ")");
-    } else {
-      for (int a = 0; a < 3; ++a) {
-        if (half[a]->empty())
-          bad(what, i, std::string("is a box but the ") + kHalf[a] + " column is missing");
-        const double h = half[a]->at(i);
-        if (!std::isfinite(h)) bad(what, i, std::string(kHalf[a]) + " is " + fmt(h));
-        if (h < 0) bad(what, i, std::string(kHalf[a]) + " is negative (" + fmt(h) + ")");
-      }
+      if (half[a]->empty())
+        bad(what, i, std::string("is a box but the ") + kHalf[a] + " column is missing");
+      const double h = half[a]->at(i);
+      if (!std::isfinite(h)) bad(what, i, std::string(kHalf[a]) + " is " + fmt(h));
+      if (h < 0) bad(what, i, std::string(kHalf[a]) + " is negative (" + fmt(h) + ")");
     }
   }
 }
+
+}  // namespace
+
+void check_objects(const Objects& o, const char* what) {
+  check_columns(o, what);
+  for (std::size_t i = 0; i < o.count; ++i) check_object(o, i, what);
+}
+
+namespace detail {
+
+void check_listed(const Objects& o, const std::vector<std::uint64_t>& listed) {
+  check_columns(o, "objects");
+  for (std::size_t w = 0; w < listed.size(); ++w)
+    for (std::uint64_t b = listed[w]; b != 0; b &= b - 1)
+      check_object(o, w * 64 + static_cast<unsigned>(std::countr_zero(b)), "objects");
+}
+
+}  // namespace detail
 
 ArrayCallStats find_pairs(const Objects& objects, const PairSink& sink,
                           const ArrayOptions& options) {

@@ -301,7 +301,17 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
                                        const Changes& changes) {
   Impl& im = *impl_;
   // Everything that can throw on bad input runs before the tracker changes.
-  check_objects(objects);
+  // A movers call reads only the objects listed (and movers whose values
+  // it checked when they were listed): it checks the listed ones alone.
+  // Any other call, and a movers call that partitions again or leaves the
+  // mode, checks every value first (check_all).
+  const bool listed_only = !changes.all && im.movers && !im.pending && objects.count == im.count;
+  bool checked = !listed_only;
+  auto check_all = [&] {
+    if (!checked) check_objects(objects);
+    checked = true;
+  };
+  if (!listed_only) check_objects(objects);
   if (objects.count > kMaxTracked)
     throw InvalidObjects("objects: " + std::to_string(objects.count) +
                              " objects, more than a tracker can name (" +
@@ -334,6 +344,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
         ++changed_count;
       }
   }
+  if (listed_only) detail::check_listed(objects, changed);
   // After a call afresh with no index (`pending`, below), a call that lists
   // its changes on as many objects enters movers mode if it can.
   if (im.pending && !changes.all && objects.count == im.count &&
@@ -349,6 +360,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
     bool take = im.movers_suit(objects, changes, changed);
     bool partitioned = false;
     if (take && im.movers_stale(changed, changed_count)) {
+      check_all();
       take = im.enter_movers(objects, changed);
       partitioned = take;
     }
@@ -357,6 +369,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
       stats.compacted = partitioned;
       return stats;
     }
+    check_all();
     rebuild = true;
   }
   // Renewed in this call: the objects that left their fat box, and the

@@ -258,6 +258,72 @@ TEST(Arrays, TrackerMoversModeMatchesOracle) {
   }
 }
 
+// A movers call checks the objects listed and no other (it reads no
+// other value): a bad value in a listed one throws, naming the lowest such
+// index, and leaves the tracker as it was; a call told that everything may
+// have changed, and a call that leaves movers mode, check every value.
+TEST(Arrays, MoversCallsCheckTheListedObjects) {
+  Rng rng(907);
+  const double nan = std::nan("");
+  std::vector<Shape> shapes = random_world(World::similar, 1200, rng);
+  std::vector<std::uint32_t> movers;
+  for (std::uint32_t i = 0; i < shapes.size(); i += 10) movers.push_back(i);
+  auto step = [&] {
+    for (std::uint32_t i : movers) shapes[i].center = shapes[i].center + Vec3{0.05, 0, 0};
+  };
+  PairTracker tracker;
+  std::vector<IndexPair> got;
+  ArrayCallStats stats;
+  tracker.find_pairs(Storage(shapes, Layout::soa_double).objects, got);
+  for (int call = 0; call < 6; ++call) {
+    step();
+    got.clear();
+    stats =
+        tracker.find_pairs(Storage(shapes, Layout::soa_double).objects, got, Changes::only(movers));
+  }
+  ASSERT_TRUE(stats.movers) << "the set did not take movers mode";
+  const std::size_t bytes = tracker.memory_bytes();
+  step();
+  const std::vector<Shape> good = shapes;
+  // Two bad listed objects: the lower index is named, whatever the order
+  // of the list.
+  shapes[movers[7]].half = Vec3{-1, -1, -1};  // a negative radius
+  shapes[movers[3]].center.y = nan;
+  {
+    Storage bad(shapes, Layout::aos_float);
+    std::vector<std::uint32_t> backwards(movers.rbegin(), movers.rend());
+    try {
+      tracker.find_pairs(bad.objects, got, Changes::only(backwards));
+      ADD_FAILURE() << "no throw";
+    } catch (const InvalidObjects& e) {
+      EXPECT_EQ(e.index(), movers[3]);
+      EXPECT_NE(std::string(e.what()).find("y is nan"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(tracker.memory_bytes(), bytes);
+  // A bad value in an object not listed: told everything, the call throws.
+  shapes = good;
+  shapes[5].center.z = HUGE_VAL;
+  EXPECT_THROW(
+      tracker.find_pairs(Storage(shapes, Layout::soa_double).objects, got, Changes::everything()),
+      InvalidObjects);
+  // Listing a box (which leaves movers mode) checks every value too.
+  std::vector<std::uint32_t> with_box = movers;
+  shapes[movers[1]] = Shape::box(shapes[movers[1]].center, {1, 1, 1});
+  EXPECT_THROW(
+      tracker.find_pairs(Storage(shapes, Layout::soa_double).objects, got, Changes::only(with_box)),
+      InvalidObjects);
+  EXPECT_EQ(tracker.memory_bytes(), bytes);
+  // The tracker is as it was: the good objects give the oracle's pairs,
+  // still in movers mode.
+  Storage st(good, Layout::soa_double);
+  got.clear();
+  stats = tracker.find_pairs(st.objects, got, Changes::only(movers));
+  EXPECT_TRUE(stats.movers);
+  EXPECT_EQ(sorted(got), oracle(st.objects));
+  ASSERT_NO_THROW(tracker.validate(st.objects));
+}
+
 // Many frames of small motion: the skin is reused (not every call rebuilds).
 TEST(Arrays, TrackerReusesItsWorkUnderSmallMotion) {
   Rng rng(8);

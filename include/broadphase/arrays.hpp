@@ -142,7 +142,9 @@ class InvalidObjects : public std::invalid_argument {
 /// Checks every value the calls will read; throws InvalidObjects naming
 /// the first bad object and what is wrong with it. Every call below runs it
 /// on its input before it reads anything else (measured at 0.3 ms CPU for
-/// 102 400 spheres in double columns, about 3 ns per object: docs/arrays.md).
+/// 102 400 spheres in double columns, about 3 ns per object: docs/arrays.md);
+/// a PairTracker call in movers mode, which reads only the objects listed
+/// as changed (and others unchanged since it checked them), checks those.
 void check_objects(const Objects& objects, const char* what = "objects");
 
 /// Two indices of the caller's objects: i < j within one set; for the
