@@ -150,7 +150,7 @@ int main(int argc, char** argv) {
   std::vector<double> later_cpu(cpu_call_ms.begin() + (frames > 1 ? 1 : 0), cpu_call_ms.end());
   const double own = static_cast<double>(tracker.memory_bytes()) / static_cast<double>(n);
   std::printf(
-      "arrays: first call %.1f ms, median call %.2f ms (cpu %.2f, mean cpu %.2f), median move "
+      "arrays: first call %.1f ms, median call %.3f ms (cpu %.3f, mean cpu %.3f), median move "
       "%.2f ms, frame %.2f ms, rebuilds %zu, own %.1f B/object, caller %.1f B/object, VmRSS %ld kB "
       "(before tracker "
       "%ld kB), VmHWM %ld kB\n",
