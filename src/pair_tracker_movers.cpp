@@ -402,7 +402,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
       held = next;
     }
     if (list_pool.size() > list_pool_live + list_pool_live / 4 + 4096) {
-      std::vector<std::uint32_t> pool;
+      detail::BigVector<std::uint32_t> pool;
       pool.reserve(list_pool_live);
       for (MoverList& l : mover_lists) {
         const std::uint32_t first = l.first;
