@@ -124,7 +124,7 @@ class SphereCells {
   std::uint32_t record_id(std::uint32_t k) const { return placed_[k].id; }
   /// Calls `hit(k)` for each record k of `ks` whose sphere overlaps the
   /// sphere (x, y, z, r), by the predicate of spheres_overlap (the
-  /// arithmetic of test_block), in the order of `ks`, without a branch per
+  /// arithmetic of `overlaps`), in the order of `ks`, without a branch per
   /// record: a movers' list at scaled-even 1 024 000 holds about two
   /// candidates a partner, a coin toss for a branch.
   template <class Hit>
@@ -134,13 +134,8 @@ class SphereCells {
     for (std::size_t b = 0; b < ks.size(); b += 64) {
       const std::size_t len = std::min<std::size_t>(ks.size() - b, 64);
       std::uint64_t hits = 0;
-      for (std::size_t t = 0; t < len; ++t) {
-        const Placed& q = P[ks[b + t]];
-        const double dx = x - q.x, dy = y - q.y, dz = z - q.z;
-        const double d2 = dx * dx + dy * dy + dz * dz;
-        const double sr = r + q.r;
-        hits |= static_cast<std::uint64_t>(d2 <= sr * sr) << t;
-      }
+      for (std::size_t t = 0; t < len; ++t)
+        hits |= static_cast<std::uint64_t>(overlaps(P[ks[b + t]], x, y, z, r)) << t;
       for (; hits != 0; hits &= hits - 1)
         hit(ks[b + static_cast<std::size_t>(std::countr_zero(hits))]);
     }
@@ -206,14 +201,23 @@ class SphereCells {
   // A sphere in cell order, with its index: one record, so that the
   // counting sort's scatter writes one line per sphere (five columns were
   // five cache misses a sphere). Packed, 36 bytes rather than 40 (half the
-  // records straddle two cache lines either way): 3.2 bytes an object less for the
-  // quiet spheres at scaled-even 1 024 000, and the one-shot call there
-  // 337 -> 298 ms on one core (less memory written and read).
+  // records straddle two cache lines either way): 3.2 bytes an object less
+  // for the quiet spheres at scaled-even 1 024 000, and the one-shot call
+  // there 337 -> 298 ms on one core (less memory written and read).
   struct __attribute__((packed, aligned(4))) Placed {
     double x, y, z, r;
     std::uint32_t id;
   };
   BigVector<Placed> placed_;
+
+  // The predicate of spheres_overlap between record q and the sphere
+  // (x, y, z, r): the one arithmetic of every test here.
+  [[gnu::always_inline]] static bool overlaps(const Placed& q, double x, double y, double z,
+                                              double r) {
+    const double dx = x - q.x, dy = y - q.y, dz = z - q.z;
+    const double sr = r + q.r;
+    return dx * dx + dy * dy + dz * dz <= sr * sr;
+  }
 
   // Calls `hit(k)` for every record k in [b, b + len) (len at most 64)
   // that overlaps the sphere (x, y, z, r) by the predicate of
@@ -236,13 +240,8 @@ void SphereCells::test_block(const Placed* __restrict P, double x, double y, dou
   std::uint64_t hits = 0;
   for (std::uint32_t t = 0; t < len; t += 4) {
     std::uint64_t four = 0;
-    for (std::uint32_t u = 0; u < 4; ++u) {
-      const Placed& q = P[b + t + u];
-      const double dx = x - q.x, dy = y - q.y, dz = z - q.z;
-      const double d2 = dx * dx + dy * dy + dz * dz;
-      const double sr = r + q.r;
-      four |= static_cast<std::uint64_t>(d2 <= sr * sr) << u;
-    }
+    for (std::uint32_t u = 0; u < 4; ++u)
+      four |= static_cast<std::uint64_t>(overlaps(P[b + t + u], x, y, z, r)) << u;
     hits |= four << t;
   }
   if (len < 64) hits &= (std::uint64_t{1} << len) - 1;

@@ -37,7 +37,7 @@ inline const char* name(Layout l) {
   }
   return "?";
 }
-bool is_float(Layout l) { return l == Layout::aos_float || l == Layout::soa_float; }
+inline bool is_float(Layout l) { return l == Layout::aos_float || l == Layout::soa_float; }
 
 // The caller's memory for a set of shapes in one layout, and its view.
 // `scalar_radius`: every object a sphere of one shared radius (stride 0).
@@ -102,7 +102,9 @@ struct Storage {
   Storage(const Storage&) = delete;
 };
 
-bool less(const IndexPair& a, const IndexPair& b) { return a.i != b.i ? a.i < b.i : a.j < b.j; }
+inline bool less(const IndexPair& a, const IndexPair& b) {
+  return a.i != b.i ? a.i < b.i : a.j < b.j;
+}
 
 inline std::vector<IndexPair> oracle(const Objects& o) {
   std::vector<IndexPair> out;
