@@ -247,6 +247,45 @@ TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
   EXPECT_FALSE(taken(std::vector<Shape>(100, Shape::sphere({1, 2, 3}, 0))));  // all points
 }
 
+TEST(Arrays, CellKernelScansTheSameWithAndWithoutAvx512) {
+  // The kernel's scan tests eight partners at a time with AVX-512 where
+  // the processor has it: the same pairs in the same order as one at a
+  // time, on worlds of one size, of many sizes (coarser grids' long runs),
+  // crowded lattices (runs past eight and past 64) and touching spheres.
+  if (!detail::SphereCells::avx512()) GTEST_SKIP() << "no AVX-512 here: one way only";
+  struct Restore {
+    ~Restore() { detail::SphereCells::allow_avx512(true); }
+  } restore;
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(24)); ++seed) {
+    Rng rng(seed * 7919);
+    const World kinds[] = {World::similar, World::lattice, World::sizes, World::spheres};
+    const World w = kinds[seed % 4];
+    const std::size_t n = w == World::lattice ? 100 + rng.below(300) : 100 + rng.below(4000);
+    std::vector<Shape> shapes = random_world(w, n, rng);
+    if (seed % 3 == 0)  // touching twins: a partner exactly a diameter away along an axis
+      for (std::size_t k = 0, m = shapes.size(); k < m; k += 7) {
+        Shape t = shapes[k];
+        t.center.x += 2 * t.half.x;
+        shapes.push_back(t);
+      }
+    SCOPED_TRACE(::testing::Message()
+                 << "seed " << seed << " world " << name(w) << " n " << shapes.size());
+    Storage st(shapes, seed % 2 ? Layout::soa_double : Layout::aos_float);
+    detail::SphereCells cells;
+    if (!cells.build(st.objects)) continue;  // crowded: the kernel is not used
+    std::vector<IndexPair> wide, one;
+    detail::SphereCells::allow_avx512(true);
+    ASSERT_TRUE(detail::SphereCells::avx512());
+    const std::uint64_t wide_tests = cells.pairs(0, cells.cell_count(), wide);
+    detail::SphereCells::allow_avx512(false);
+    ASSERT_FALSE(detail::SphereCells::avx512());
+    const std::uint64_t one_tests = cells.pairs(0, cells.cell_count(), one);
+    EXPECT_EQ(wide_tests, one_tests);
+    EXPECT_EQ(wide, one);
+    EXPECT_EQ(sorted(wide), oracle(st.objects));
+  }
+}
+
 TEST(Arrays, ObjectsFarApartInSize) {
   // Points and a few objects 10^6 times larger: the big ones on coarse
   // levels, the points on fine ones; and one object of infinite reach.

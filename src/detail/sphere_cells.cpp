@@ -1,9 +1,15 @@
 #include "sphere_cells.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 namespace broadphase::detail {
 
@@ -220,10 +226,113 @@ void SphereCells::release() {
   free_vector(placed_);
 }
 
+namespace {
+
+std::atomic<bool> avx512_allowed{true};
+
+bool avx512_present() {
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+  static const bool present = [] {
+    __builtin_cpu_init();
+    const char* off = std::getenv("BROADPHASE_NO_AVX512");
+    return __builtin_cpu_supports("avx512f") && (off == nullptr || *off == '\0');
+  }();
+  return present;
+#else
+  return false;
+#endif
+}
+
+}  // namespace
+
+bool SphereCells::avx512() {
+  return avx512_present() && avx512_allowed.load(std::memory_order_relaxed);
+}
+
+void SphereCells::allow_avx512(bool on) { avx512_allowed.store(on, std::memory_order_relaxed); }
+
+std::uint32_t SphereCells::pair_block(const Placed* __restrict P, const Placed& i, std::uint32_t b,
+                                      std::uint32_t len, IndexPair* out) {
+  std::uint32_t m = 0;
+  test_block(P, i.x, i.y, i.z, i.r, b, len, [&](std::uint32_t k) {
+    const std::uint32_t jb = P[k].id;
+    out[m++] = {std::min(i.id, jb), std::max(i.id, jb)};
+  });
+  return m;
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+// GCC 12's AVX-512 intrinsics start from an undefined vector, which its
+// -Wmaybe-uninitialized reports as ours (GCC bug 105593).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+// Measured on one core of the 2-core VM (AVX-512), 1 000 000 spheres of
+// radius 0.00565 in the unit cube, 19 000 000 tests: the scan 94-97 ms
+// one record at a time, 55-56 ms eight at a time. A run holds about four
+// records: one at a time, each run's loop and its hits cost a mispredicted
+// branch or two, about half the scan's time (a count of the hits alone,
+// no pairs written, took 67 ms), the rest the tests in scalar arithmetic.
+// Here a run up to eight long is one masked step, and its hits' pairs are
+// written without a branch. A sketch with the fields in columns (masked
+// loads instead of gathers) took 42 ms; the records stay, for the
+// counting sort's scatter and the tracker's probes, which read a record
+// per candidate.
+__attribute__((target("avx512f"))) std::uint32_t SphereCells::pair_block_avx512(
+    const Placed* __restrict P, const Placed& i, std::uint32_t b, std::uint32_t len,
+    IndexPair* out) {
+  static_assert(sizeof(Placed) == 36 && sizeof(IndexPair) == 8);
+  const __m512d x = _mm512_set1_pd(i.x), y = _mm512_set1_pd(i.y), z = _mm512_set1_pd(i.z),
+                r = _mm512_set1_pd(i.r);
+  const __m512i id = _mm512_set1_epi64(i.id);
+  const __m512i at = _mm512_setr_epi64(0, 36, 72, 108, 144, 180, 216, 252);
+  const __m512d zero = _mm512_setzero_pd();
+  std::uint32_t m = 0;
+  for (std::uint32_t t = 0; t < len; t += 8) {
+    const std::uint32_t left = len - t;
+    const __mmask8 lanes = left >= 8 ? __mmask8(0xFF) : __mmask8((1u << left) - 1);
+    const char* base = reinterpret_cast<const char*>(P + b + t);
+    const __m512d dx = _mm512_sub_pd(x, _mm512_mask_i64gather_pd(zero, lanes, at, base, 1));
+    const __m512d dy = _mm512_sub_pd(y, _mm512_mask_i64gather_pd(zero, lanes, at, base + 8, 1));
+    const __m512d dz = _mm512_sub_pd(z, _mm512_mask_i64gather_pd(zero, lanes, at, base + 16, 1));
+    const __m512d sr = _mm512_add_pd(r, _mm512_mask_i64gather_pd(zero, lanes, at, base + 24, 1));
+    const __m512d d2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)),
+                                     _mm512_mul_pd(dz, dz));
+    const __mmask8 hit = _mm512_mask_cmp_pd_mask(lanes, d2, _mm512_mul_pd(sr, sr), _CMP_LE_OQ);
+    const __m512i ids = _mm512_cvtepu32_epi64(
+        _mm512_mask_i64gather_epi32(_mm256_setzero_si256(), lanes, at, base + 32, 1));
+    // (min, max) as one 64-bit lane each: i in the low half, j in the high.
+    const __m512i pair = _mm512_or_si512(_mm512_min_epu64(id, ids),
+                                         _mm512_slli_epi64(_mm512_max_epu64(id, ids), 32));
+    _mm512_storeu_si512(static_cast<void*>(out + m), _mm512_maskz_compress_epi64(hit, pair));
+    m += static_cast<std::uint32_t>(std::popcount(static_cast<unsigned>(hit)));
+  }
+  return m;
+}
+#pragma GCC diagnostic pop
+#else
+std::uint32_t SphereCells::pair_block_avx512(const Placed* __restrict P, const Placed& i,
+                                             std::uint32_t b, std::uint32_t len, IndexPair* out) {
+  return pair_block(P, i, b, len, out);
+}
+#endif
+
 std::uint64_t SphereCells::pairs(std::size_t c0, std::size_t c1,
                                  std::vector<IndexPair>& out) const {
+  return avx512() ? pairs_avx512(c0, c1, out) : scan<false>(c0, c1, out);
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+__attribute__((target("avx512f")))
+#endif
+std::uint64_t
+SphereCells::pairs_avx512(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const {
+  return scan<true>(c0, c1, out);
+}
+
+template <bool kWide>
+std::uint64_t SphereCells::scan(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const {
   constexpr std::uint32_t kBuffer = 256;
-  IndexPair buf[kBuffer + 64];
+  IndexPair buf[kBuffer + 64 + 8];
   std::uint32_t m = 0;
   std::uint64_t tests = 0;
   const std::uint32_t* st = start_.data();
@@ -234,17 +343,16 @@ std::uint64_t SphereCells::pairs(std::size_t c0, std::size_t c1,
     while (c >= levels_[lv].first + levels_[lv].cells) ++lv;
     const std::size_t nx = levels_[lv].nx, nxy = levels_[lv].nxy;
     for (std::uint32_t a = st[c]; a < st[c + 1]; ++a) {
-      const double xi = P[a].x, yi = P[a].y, zi = P[a].z, ri = P[a].r;
-      const std::uint32_t ia = P[a].id;
+      const Placed& i = P[a];
       // Partners after it: a pair per hit, handed on in batches.
       auto run = [&](std::uint32_t b, std::uint32_t e) {
         tests += e - b;
         for (; b < e; b += 64) {
-          test_block(P, xi, yi, zi, ri, b, std::min<std::uint32_t>(e - b, 64),
-                     [&](std::uint32_t k) {
-                       const std::uint32_t jb = P[k].id;
-                       buf[m++] = {std::min(ia, jb), std::max(ia, jb)};
-                     });
+          const std::uint32_t len = std::min<std::uint32_t>(e - b, 64);
+          if constexpr (kWide)
+            m += pair_block_avx512(P, i, b, len, buf + m);
+          else
+            m += pair_block(P, i, b, len, buf + m);
           if (m >= kBuffer) {
             out.insert(out.end(), buf, buf + m);
             m = 0;
@@ -265,11 +373,11 @@ std::uint64_t SphereCells::pairs(std::size_t c0, std::size_t c1,
       // The reach is widened past the rounding of the predicate (relative
       // to the radii) and of xi - reach (relative to xi): a partner's
       // centre is then inside it, and the cells, monotone in x, hold it.
+      const double centre[3] = {i.x, i.y, i.z};
       for (std::size_t k = lv + 1; k < levels_.size(); ++k) {
         const Level& g = levels_[k];
-        const double reach = (ri + g.rmax) * (1 + 0x1p-20);
+        const double reach = (i.r + g.rmax) * (1 + 0x1p-20);
         std::size_t from[3], to[3];
-        const double centre[3] = {xi, yi, zi};
         for (int ax = 0; ax < 3; ++ax) {
           const double pad = reach + std::abs(centre[ax]) * 0x1p-48;
           from[ax] = g.index(ax, lo_[ax], centre[ax] - pad);

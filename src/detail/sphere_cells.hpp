@@ -69,6 +69,16 @@ class SphereCells {
   /// exactly once over all cells; returns the number of exact tests.
   std::uint64_t pairs(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
 
+  /// Whether `pairs` tests eight partners at a time with AVX-512 (the
+  /// processor has AVX-512F, BROADPHASE_NO_AVX512 is not set in the
+  /// environment, and allow_avx512(false) was not called). The pairs and
+  /// their order are the same either way: the same arithmetic in the same
+  /// order, lane by lane.
+  static bool avx512();
+  /// Lets `pairs` use AVX-512 where it can (true, the default) or not (for
+  /// the tests that compare both ways). Not to be called while a call runs.
+  static void allow_avx512(bool on);
+
   /// Calls `hit(i)` for every sphere i of the set that overlaps the sphere
   /// (x, y, z, r) by the contract's predicate, any size, on every grid (in
   /// the grids' order); returns the number of exact tests. A probe reads
@@ -187,6 +197,9 @@ class SphereCells {
              static_cast<std::size_t>((x - lo[0]) * inv) + 1;
     }
   };
+  template <bool kWide>
+  std::uint64_t scan(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
+  std::uint64_t pairs_avx512(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
   template <class At>
   bool build_over(const Objects& o, std::size_t n, At at, std::size_t cells_per_object);
 
@@ -232,6 +245,16 @@ class SphereCells {
   template <class Hit>
   static void test_block(const Placed* __restrict P, double x, double y, double z, double r,
                          std::uint32_t b, std::uint32_t len, Hit&& hit);
+  // The pairs (i, records [b, b + len)) that overlap, written to `out`
+  // from its start; returns how many. len at most 64; `out` has room for
+  // len + 8.
+  static std::uint32_t pair_block(const Placed* __restrict P, const Placed& i, std::uint32_t b,
+                                  std::uint32_t len, IndexPair* out);
+  // The same eight records at a time with AVX-512F: the records' fields
+  // gathered, the predicate's arithmetic in the same order (no fused
+  // multiply-add), the hits' pairs compressed into `out` without a branch.
+  static std::uint32_t pair_block_avx512(const Placed* __restrict P, const Placed& i,
+                                         std::uint32_t b, std::uint32_t len, IndexPair* out);
 };
 
 template <class Hit>
