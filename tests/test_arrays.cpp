@@ -253,8 +253,9 @@ TEST(Arrays, CellKernelScansTheSameWithAndWithoutAvx512) {
   // time, on worlds of one size, of many sizes (coarser grids' long runs),
   // crowded lattices (runs past eight and past 64) and touching spheres.
   if (!detail::SphereCells::avx512()) GTEST_SKIP() << "no AVX-512 here: one way only";
+  using Way = detail::SphereCells::Avx512;
   struct Restore {
-    ~Restore() { detail::SphereCells::allow_avx512(true); }
+    ~Restore() { detail::SphereCells::use_avx512(Way::where_crowded); }
   } restore;
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(24)); ++seed) {
     Rng rng(seed * 7919);
@@ -274,10 +275,10 @@ TEST(Arrays, CellKernelScansTheSameWithAndWithoutAvx512) {
     detail::SphereCells cells;
     if (!cells.build(st.objects)) continue;  // crowded: the kernel is not used
     std::vector<IndexPair> wide, one;
-    detail::SphereCells::allow_avx512(true);
+    detail::SphereCells::use_avx512(Way::always);
     ASSERT_TRUE(detail::SphereCells::avx512());
     const std::uint64_t wide_tests = cells.pairs(0, cells.cell_count(), wide);
-    detail::SphereCells::allow_avx512(false);
+    detail::SphereCells::use_avx512(Way::never);
     ASSERT_FALSE(detail::SphereCells::avx512());
     const std::uint64_t one_tests = cells.pairs(0, cells.cell_count(), one);
     EXPECT_EQ(wide_tests, one_tests);

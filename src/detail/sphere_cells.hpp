@@ -56,6 +56,9 @@ class SphereCells {
   static constexpr std::size_t kMaxCellsPerObject = 4;
   static constexpr std::size_t kMaxCrowd = 16;
   static constexpr std::size_t kMaxLevels = 8;
+  /// The crowd (see crowd()) from which `pairs` tests eight at a time:
+  /// where spheres share their cells, runs are long enough to fill a step.
+  static constexpr double kWideCrowd = 2.0;
 
   /// Cells of all grids, each with one empty layer around the centres' box.
   std::size_t cell_count() const { return cells_; }
@@ -69,15 +72,17 @@ class SphereCells {
   /// exactly once over all cells; returns the number of exact tests.
   std::uint64_t pairs(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
 
-  /// Whether `pairs` tests eight partners at a time with AVX-512 (the
+  /// Whether `pairs` may test eight partners at a time with AVX-512: the
   /// processor has AVX-512F, BROADPHASE_NO_AVX512 is not set in the
-  /// environment, and allow_avx512(false) was not called). The pairs and
-  /// their order are the same either way: the same arithmetic in the same
-  /// order, lane by lane.
+  /// environment, and use_avx512(Avx512::never) was not called. The pairs
+  /// and their order are the same either way: the same arithmetic in the
+  /// same order, lane by lane.
   static bool avx512();
-  /// Lets `pairs` use AVX-512 where it can (true, the default) or not (for
-  /// the tests that compare both ways). Not to be called while a call runs.
-  static void allow_avx512(bool on);
+  /// When `pairs` tests eight at a time where it may: on grids whose crowd
+  /// (see crowd()) is at least kWideCrowd (the default), always (for the
+  /// tests that compare both ways), or never. Not while a call runs.
+  enum class Avx512 { where_crowded, always, never };
+  static void use_avx512(Avx512 when);
 
   /// Calls `hit(i)` for every sphere i of the set that overlaps the sphere
   /// (x, y, z, r) by the contract's predicate, any size, on every grid (in
