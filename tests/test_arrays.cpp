@@ -14,6 +14,7 @@
 
 #include "arrays_testing.hpp"
 #include "detail/array_grid.hpp"
+#include "detail/big_vector.hpp"
 #include "detail/pairs_by_first.hpp"
 #include "detail/sphere_cells.hpp"
 #include "testing.hpp"
@@ -567,6 +568,37 @@ TEST(Arrays, GeneratedScenesMatchBruteForce) {
 // cells by a quarter octave at every compaction, and 300 frames of a
 // moving workload (20% of 100 000 spheres moving) went from 17 to 900 ms a
 // call as the cells filled.
+TEST(BigVector, FreedBlocksAreKeptAndTakenBackBySize) {
+  // Large per-call arrays keep their freed blocks for the next call
+  // (detail/big_blocks.cpp): a block is taken back by a request of its size
+  // or down to half of it, not by a larger or much smaller one; the cache
+  // holds at most 512 MiB. (Under AddressSanitizer nothing is kept.)
+  if (!detail::keeps_big_blocks()) GTEST_SKIP() << "no blocks are kept under AddressSanitizer";
+  constexpr std::size_t kMiB = std::size_t{1} << 20;
+  for (std::size_t b = 2 * kMiB; b <= (std::size_t{1} << 30); b *= 2)  // what earlier tests left
+    while (void* p = detail::take_big_block(b)) std::free(p);
+  void* a = std::aligned_alloc(2 * kMiB, 8 * kMiB);
+  ASSERT_NE(a, nullptr);
+  ASSERT_TRUE(detail::keep_big_block(a, 8 * kMiB));
+  EXPECT_EQ(detail::take_big_block(10 * kMiB), nullptr);  // larger
+  EXPECT_EQ(detail::take_big_block(2 * kMiB), nullptr);   // under half
+  EXPECT_EQ(detail::take_big_block(6 * kMiB), a);
+  EXPECT_EQ(detail::take_big_block(6 * kMiB), nullptr);  // taken once
+  void* big = std::aligned_alloc(2 * kMiB, 2 * kMiB);
+  ASSERT_NE(big, nullptr);
+  EXPECT_FALSE(detail::keep_big_block(big, std::size_t{600} * kMiB));  // over the cap
+  std::free(big);
+  // A vector's blocks go round: freed, then taken by the next of its size.
+  const void* first = nullptr;
+  {
+    detail::BigVector<double> v(kMiB);
+    first = v.data();
+  }
+  detail::BigVector<double> w(kMiB);
+  EXPECT_EQ(static_cast<const void*>(w.data()), first);
+  std::free(a);
+}
+
 TEST(ArrayGrid, KeepsTheFinestCellItIsGiven) {
   for (std::uint64_t seed = 1; seed <= 20; ++seed) {
     Rng rng(seed);

@@ -18,6 +18,14 @@
 
 namespace broadphase::detail {
 
+// Whether freed blocks are kept (not under AddressSanitizer).
+bool keeps_big_blocks() noexcept;
+// A freed block of `bytes` (a multiple of 2 MiB) kept for reuse, or null.
+void* take_big_block(std::size_t bytes) noexcept;
+// Keeps a freed block for reuse; false when the cache is full (the caller
+// frees it).
+bool keep_big_block(void* p, std::size_t bytes) noexcept;
+
 template <class T>
 struct BigAllocator {
   using value_type = T;
@@ -32,6 +40,7 @@ struct BigAllocator {
     const std::size_t bytes = n * sizeof(T);
     if (bytes < kHuge) return static_cast<T*>(::operator new(bytes));
     const std::size_t rounded = (bytes + kHuge - 1) / kHuge * kHuge;
+    if (void* kept = take_big_block(rounded)) return static_cast<T*>(kept);
     void* p = std::aligned_alloc(kHuge, rounded);
     if (p == nullptr) throw std::bad_alloc();
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
@@ -40,9 +49,10 @@ struct BigAllocator {
     return static_cast<T*>(p);
   }
   void deallocate(T* p, std::size_t n) noexcept {
-    if (n * sizeof(T) < kHuge)
+    const std::size_t bytes = n * sizeof(T);
+    if (bytes < kHuge)
       ::operator delete(p);
-    else
+    else if (!keep_big_block(p, (bytes + kHuge - 1) / kHuge * kHuge))
       std::free(p);
   }
   // Default-initialises (no zeroing) where a std::vector would value-initialise.

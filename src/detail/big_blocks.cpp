@@ -1,0 +1,104 @@
+#include <chrono>
+#include <cstdlib>
+#include <mutex>
+
+#include "big_vector.hpp"
+
+// Under AddressSanitizer no block is kept: a use after free of a kept
+// block would go unseen.
+#if defined(__SANITIZE_ADDRESS__)
+#define BROADPHASE_KEEP_BLOCKS 0
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define BROADPHASE_KEEP_BLOCKS 0
+#endif
+#endif
+#ifndef BROADPHASE_KEEP_BLOCKS
+#define BROADPHASE_KEEP_BLOCKS 1
+#endif
+
+namespace broadphase::detail {
+
+namespace {
+
+// Freed blocks kept for the next call, at most kSlots of them and kMaxKept
+// bytes in all, each for at most kKeepFor: a block not taken again by then
+// is returned to the system at the next take or keep. A kept block's pages
+// are already there; a fresh block's are cleared by the kernel on first
+// touch, and on every call the per-call arrays were fresh. Measured on one
+// core of the 2-core VM, alternated: the tracker's calls at scaled-even
+// 1 024 000 (40 calls) 93.3-93.7 -> 77.6-78.6 ms median; 102 400 and
+// scaled-uneven 1 024 000 unchanged within 1%; sphere_pairs at 10^6
+// spheres from Python about 3 ms faster.
+constexpr std::size_t kSlots = 8;
+constexpr std::size_t kMaxKept = std::size_t{512} << 20;
+constexpr auto kKeepFor = std::chrono::seconds(2);
+
+struct Kept {
+  void* p = nullptr;
+  std::size_t bytes = 0;
+  std::chrono::steady_clock::time_point since;
+};
+
+struct Blocks {
+  std::mutex mutex;
+  Kept slot[kSlots];
+  std::size_t kept = 0;  // bytes
+
+  // Frees the blocks kept too long (under the mutex).
+  void expire(std::chrono::steady_clock::time_point now) {
+    for (Kept& k : slot)
+      if (k.p != nullptr && now - k.since > kKeepFor) {
+        std::free(k.p);
+        kept -= k.bytes;
+        k = Kept{};
+      }
+  }
+};
+
+// Never destroyed: a vector freed during the program's exit, after the
+// statics' destructors, may still keep a block here.
+Blocks& blocks() {
+  static Blocks* b = new Blocks;
+  return *b;
+}
+
+}  // namespace
+
+bool keeps_big_blocks() noexcept { return BROADPHASE_KEEP_BLOCKS != 0; }
+
+void* take_big_block(std::size_t bytes) noexcept {
+  if (!BROADPHASE_KEEP_BLOCKS) return nullptr;
+  Blocks& b = blocks();
+  const auto now = std::chrono::steady_clock::now();
+  std::lock_guard<std::mutex> lock(b.mutex);
+  b.expire(now);
+  Kept* best = nullptr;
+  for (Kept& k : b.slot)
+    if (k.p != nullptr && k.bytes >= bytes && k.bytes / 2 <= bytes &&
+        (best == nullptr || k.bytes < best->bytes))
+      best = &k;
+  if (best == nullptr) return nullptr;
+  void* p = best->p;
+  b.kept -= best->bytes;
+  *best = Kept{};
+  return p;
+}
+
+bool keep_big_block(void* p, std::size_t bytes) noexcept {
+  if (!BROADPHASE_KEEP_BLOCKS) return false;
+  Blocks& b = blocks();
+  const auto now = std::chrono::steady_clock::now();
+  std::lock_guard<std::mutex> lock(b.mutex);
+  b.expire(now);
+  if (b.kept + bytes > kMaxKept) return false;
+  for (Kept& k : b.slot)
+    if (k.p == nullptr) {
+      k = Kept{p, bytes, now};
+      b.kept += bytes;
+      return true;
+    }
+  return false;
+}
+
+}  // namespace broadphase::detail
