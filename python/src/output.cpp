@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
 #include <new>
 #include <numeric>
 
@@ -19,6 +20,23 @@ constexpr std::size_t kMapFrom = std::size_t{4} << 20;  // bytes
 // Address space reserved for one growing array: nothing is committed
 // until written. Outputs past it fall back to a copy into a larger range.
 constexpr std::size_t kReserve = std::size_t{1} << 40;
+
+// The range of the last output array freed, kept for the next call's
+// output (at most one, of at most kKeepAtMost bytes): its pages are
+// already there, where a fresh range's are cleared by the kernel on first
+// touch. Measured at 3 000 000 pairs (48 MB) on the 2-core VM: the
+// clearing took an eighth of sphere_pairs.
+constexpr std::size_t kKeepAtMost = std::size_t{512} << 20;
+struct KeptRange {
+  std::mutex mutex;
+  void* p = nullptr;
+  std::size_t bytes = 0;
+};
+// Never destroyed: arrays may be freed during the interpreter's exit.
+KeptRange& kept_range() {
+  static KeptRange* k = new KeptRange;
+  return *k;
+}
 }  // namespace
 
 void I64Buffer::grow(std::size_t need) {
@@ -32,6 +50,37 @@ void I64Buffer::grow(std::size_t need) {
     return;
   }
   const std::size_t writable = (bytes + kHuge - 1) / kHuge * kHuge;
+  if (reserved_ == 0) {
+    KeptRange& k = kept_range();
+    std::unique_lock<std::mutex> lock(k.mutex);
+    if (k.p != nullptr && k.bytes >= writable) {
+      auto* q = static_cast<std::int64_t*>(k.p);
+      const std::size_t held = k.bytes;
+      k.p = nullptr;
+      k.bytes = 0;
+      lock.unlock();
+      if (size_ > 0) std::memcpy(q, p_, size_ * sizeof(std::int64_t));
+      std::free(p_);
+      p_ = q;
+      reserved_ = mapped_ = held;
+      cap_ = held / sizeof(std::int64_t);
+      return;
+    }
+  }
+  if (reserved_ > 0 && mapped_ == reserved_ && writable > reserved_) {
+    // A kept range, all writable, grown where it is or moved (its pages
+    // move with it, not copied).
+    void* q = ::mremap(p_, reserved_, writable, MREMAP_MAYMOVE);
+    if (q != MAP_FAILED) {
+#ifdef MADV_HUGEPAGE
+      ::madvise(q, writable, MADV_HUGEPAGE);  // advice only
+#endif
+      p_ = static_cast<std::int64_t*>(q);
+      reserved_ = mapped_ = writable;
+      cap_ = writable / sizeof(std::int64_t);
+      return;
+    }
+  }
   if (reserved_ == 0 || writable > reserved_) {
     // A new range, aligned to 2 MiB (huge pages), the contents copied once.
     const std::size_t span = std::max(kReserve, writable) + kHuge;
@@ -72,9 +121,21 @@ void I64Buffer::trim() {
 }
 
 void I64Buffer::release() {
-  if (reserved_ > 0)
-    ::munmap(p_, reserved_);
-  else
+  if (reserved_ > 0) {
+    // A whole writable range (trimmed) is kept for the next output in
+    // place of a smaller one; the other is returned.
+    if (mapped_ == reserved_ && reserved_ <= kKeepAtMost) {
+      KeptRange& k = kept_range();
+      std::lock_guard<std::mutex> lock(k.mutex);
+      if (k.p == nullptr || k.bytes < reserved_) {
+        void* old = k.p;
+        k.p = p_;
+        p_ = static_cast<std::int64_t*>(old);
+        std::swap(k.bytes, reserved_);
+      }
+    }
+    if (p_ != nullptr) ::munmap(p_, reserved_);
+  } else
     std::free(p_);
   p_ = nullptr;
   size_ = cap_ = reserved_ = mapped_ = 0;
