@@ -151,7 +151,8 @@ int main(int argc, char** argv) {
   const double own = static_cast<double>(tracker.memory_bytes()) / static_cast<double>(n);
   std::printf(
       "arrays: first call %.1f ms, median call %.3f ms (cpu %.3f, mean cpu %.3f), median move "
-      "%.2f ms, frame %.2f ms, rebuilds %zu, own %.1f B/object, caller %.1f B/object, VmRSS %ld kB "
+      "%.2f ms, frame %.2f ms, rebuilds %zu, own %.1f B/object, scratch kept %.1f B/object, caller "
+      "%.1f B/object, VmRSS %ld kB "
       "(before tracker "
       "%ld kB), VmHWM %ld kB\n",
       call_ms[0], median(later), median(later_cpu),
@@ -159,6 +160,7 @@ int main(int argc, char** argv) {
                         : std::accumulate(later_cpu.begin(), later_cpu.end(), 0.0) /
                               static_cast<double>(later_cpu.size()),
       median(later_move), median(later) + median(later_move), rebuilds, own,
+      static_cast<double>(scratch_bytes()) / static_cast<double>(n),
       static_cast<double>(caller.bytes()) / static_cast<double>(n), status_kb("VmRSS:"), rss_before,
       status_kb("VmHWM:"));
 

@@ -298,4 +298,18 @@ class PairTracker {
   std::unique_ptr<Impl> impl_;
 };
 
+/// Scratch memory. A call's own arrays of 2 MiB and more are, once the
+/// call is done with them, kept for the next call (at most the limit in
+/// all, each for at most 2 seconds, returned at a later call): their pages
+/// are then in place, where fresh ones are cleared by the kernel on first
+/// touch. Not counted in PairTracker::memory_bytes; reported here.
+/// Thread-safe.
+///
+/// Bytes kept now.
+std::size_t scratch_bytes();
+/// The most bytes kept (512 MiB unless set); 0 keeps nothing. Setting it
+/// returns at once what is kept beyond it.
+void set_scratch_limit(std::size_t bytes);
+std::size_t scratch_limit();
+
 }  // namespace broadphase
