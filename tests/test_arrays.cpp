@@ -594,9 +594,22 @@ TEST(BigVector, FreedBlocksAreKeptAndTakenBackBySize) {
     detail::BigVector<double> v(kMiB);
     first = v.data();
   }
-  detail::BigVector<double> w(kMiB);
-  EXPECT_EQ(static_cast<const void*>(w.data()), first);
+  {
+    detail::BigVector<double> w(kMiB);
+    EXPECT_EQ(static_cast<const void*>(w.data()), first);
+  }
   std::free(a);
+  // The limit: what is kept is reported; a limit of 0 returns it and keeps
+  // nothing more.
+  EXPECT_GE(scratch_bytes(), 8 * kMiB);
+  const std::size_t limit = scratch_limit();
+  set_scratch_limit(0);
+  EXPECT_EQ(scratch_bytes(), 0u);
+  { detail::BigVector<double> v(kMiB); }
+  EXPECT_EQ(scratch_bytes(), 0u);
+  set_scratch_limit(limit);
+  { detail::BigVector<double> v(kMiB); }
+  EXPECT_GE(scratch_bytes(), 8 * kMiB);
 }
 
 TEST(ArrayGrid, KeepsTheFinestCellItIsGiven) {
