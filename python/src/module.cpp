@@ -88,6 +88,18 @@ PYBIND11_MODULE(_broadphase, m) {
         py::arg("other_half_extents"), py::arg("other_kinds"), py::arg("threads"),
         "Overlapping pairs (i in the first set, j in the second), sorted.");
   m.def(
+      "scratch_bytes", [] { return bp::scratch_bytes() + broadphase_python::kept_output_bytes(); },
+      "Bytes of freed working and output memory kept for the next call.");
+  m.def(
+      "set_scratch_limit",
+      [](std::size_t bytes) {
+        bp::set_scratch_limit(bytes);
+        broadphase_python::set_output_keep_limit(bytes);
+      },
+      py::arg("bytes"), "The most bytes kept of each kind (0: keep none).");
+  m.def(
+      "scratch_limit", [] { return bp::scratch_limit(); }, "The most bytes kept of each kind.");
+  m.def(
       "structures",
       [] {
         std::vector<std::pair<std::string, std::string>> out;

@@ -26,11 +26,11 @@ constexpr std::size_t kReserve = std::size_t{1} << 40;
 // already there, where a fresh range's are cleared by the kernel on first
 // touch. Measured at 3 000 000 pairs (48 MB) on the 2-core VM: the
 // clearing took an eighth of sphere_pairs.
-constexpr std::size_t kKeepAtMost = std::size_t{512} << 20;
 struct KeptRange {
   std::mutex mutex;
   void* p = nullptr;
   std::size_t bytes = 0;
+  std::size_t limit = std::size_t{512} << 20;  // the most kept
 };
 // Never destroyed: arrays may be freed during the interpreter's exit.
 KeptRange& kept_range() {
@@ -124,10 +124,10 @@ void I64Buffer::release() {
   if (reserved_ > 0) {
     // A whole writable range (trimmed) is kept for the next output in
     // place of a smaller one; the other is returned.
-    if (mapped_ == reserved_ && reserved_ <= kKeepAtMost) {
+    if (mapped_ == reserved_) {
       KeptRange& k = kept_range();
       std::lock_guard<std::mutex> lock(k.mutex);
-      if (k.p == nullptr || k.bytes < reserved_) {
+      if (reserved_ <= k.limit && (k.p == nullptr || k.bytes < reserved_)) {
         void* old = k.p;
         k.p = p_;
         p_ = static_cast<std::int64_t*>(old);
@@ -139,6 +139,23 @@ void I64Buffer::release() {
     std::free(p_);
   p_ = nullptr;
   size_ = cap_ = reserved_ = mapped_ = 0;
+}
+
+std::size_t kept_output_bytes() {
+  KeptRange& k = kept_range();
+  std::lock_guard<std::mutex> lock(k.mutex);
+  return k.bytes;
+}
+
+void set_output_keep_limit(std::size_t bytes) {
+  KeptRange& k = kept_range();
+  std::lock_guard<std::mutex> lock(k.mutex);
+  k.limit = bytes;
+  if (k.p != nullptr && k.bytes > bytes) {
+    ::munmap(k.p, k.bytes);
+    k.p = nullptr;
+    k.bytes = 0;
+  }
 }
 
 void append_pairs(I64Vec& out, std::span<const bp::IndexPair> chunk) {

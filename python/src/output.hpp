@@ -81,6 +81,12 @@ struct IntArray {
   std::size_t cols = 0;  ///< 0: one-dimensional
 };
 
+/// Bytes of the freed output range kept for the next output (see
+/// output.cpp), and the most kept (512 MiB by default; 0 keeps none and
+/// returns what is kept).
+std::size_t kept_output_bytes();
+void set_output_keep_limit(std::size_t bytes);
+
 /// Appends a chunk of pairs to an int64 (M, 2) buffer.
 void append_pairs(I64Vec& out, std::span<const bp::IndexPair> chunk);
 

@@ -200,3 +200,47 @@ def test_large_outputs_are_whole_and_outlive_the_call():
         _ = [np.ones(100000) for _ in range(20)]
         p[-1, 1] = 7  # writable to its last row
         assert p[-1, 1] == 7
+
+
+def test_kept_memory_is_reused_whole_and_can_be_returned():
+    # A freed output of 4 MiB or more is kept for the next output (its
+    # pages in place): the next outputs, grown into it from the heap and
+    # past it, are whole, and two live outputs never share memory.
+    def spheres(q, k):  # k apart (no pairs), then q places of 50 spheres each
+        c = np.zeros((k + 50 * q, 3))
+        c[:k, 0] = 10.0 * (np.arange(k) + 1)
+        c[k:, 1] = 10.0 * (np.arange(50 * q) // 50 + 1)
+        return c
+
+    def whole(p, q, k):
+        assert p.shape == (1225 * q, 2)
+        i, j = p[:, 0], p[:, 1]
+        assert (i < j).all() and i.min() >= k and j.max() < k + 50 * q
+        assert ((i - k) // 50 == (j - k) // 50).all()
+        assert len(np.unique(i * (k + 50 * q) + j)) == len(p)
+
+    limit = broadphase._broadphase.scratch_limit()
+    try:
+        p = broadphase.sphere_pairs(spheres(800, 3000), 1.0)  # 16 MB
+        del p
+        gc.collect()
+        assert broadphase.scratch_bytes() >= 16 << 20
+        a = broadphase.sphere_pairs(spheres(300, 0), 1.0)  # 6 MB: from the heap into p's range
+        b = broadphase.sphere_pairs(spheres(1300, 1000), 1.0)  # 25 MB, fresh
+        whole(a, 300, 0)
+        whole(b, 1300, 1000)
+        assert not np.shares_memory(a, b)
+        del a
+        gc.collect()
+        c = broadphase.sphere_pairs(spheres(1300, 1000), 1.0)  # p's range again, grown past it
+        whole(c, 1300, 1000)
+        assert np.array_equal(b, c) and not np.shares_memory(b, c)
+        broadphase.set_scratch_limit(0)
+        assert broadphase.scratch_bytes() == 0
+        del b, c
+        gc.collect()
+        assert broadphase.scratch_bytes() == 0  # nothing kept at 0
+        with pytest.raises(ValueError, match="limit"):
+            broadphase.set_scratch_limit(-1)
+    finally:
+        broadphase.set_scratch_limit(limit)
