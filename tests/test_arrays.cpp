@@ -584,6 +584,11 @@ TEST(BigVector, FreedBlocksAreKeptAndTakenBackBySize) {
   EXPECT_EQ(detail::take_big_block(2 * kMiB), nullptr);   // under half
   EXPECT_EQ(detail::take_big_block(6 * kMiB), a);
   EXPECT_EQ(detail::take_big_block(6 * kMiB), nullptr);  // taken once
+  // Given back by a user of 6 MiB, it counts as the 8 MiB it is.
+  const std::size_t before = scratch_bytes();
+  ASSERT_TRUE(detail::keep_big_block(a, 6 * kMiB));
+  EXPECT_EQ(scratch_bytes(), before + 8 * kMiB);
+  EXPECT_EQ(detail::take_big_block(8 * kMiB), a);
   void* big = std::aligned_alloc(2 * kMiB, 2 * kMiB);
   ASSERT_NE(big, nullptr);
   EXPECT_FALSE(detail::keep_big_block(big, std::size_t{600} * kMiB));  // over the cap

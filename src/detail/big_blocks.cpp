@@ -28,7 +28,7 @@ namespace {
 // are already there; a fresh block's are cleared by the kernel on first
 // touch, and on every call the per-call arrays were fresh. Measured on one
 // core of the 2-core VM, alternated: the tracker's calls at scaled-even
-// 1 024 000 (40 calls) 93.3-93.7 -> 77.6-78.6 ms median; 102 400 and
+// 1 024 000 (40 calls) 93.0-93.7 -> 77.2-78.6 ms median; 102 400 and
 // scaled-uneven 1 024 000 unchanged within 1%; sphere_pairs at 10^6
 // spheres from Python about 3 ms faster. And the process smaller: at
 // 1 024 000 after 40 calls VmHWM 427 -> 205 MB (freed to the C heap, the
@@ -47,6 +47,9 @@ struct Kept {
 struct Blocks {
   std::mutex mutex;
   Kept slot[kSlots];
+  // Blocks handed out again, with their sizes: a vector may take a block
+  // up to twice its need, and gives back only its own size.
+  Kept lent[kSlots];
   std::size_t kept = 0;  // bytes
   std::size_t limit = kDefaultLimit;
 
@@ -86,6 +89,11 @@ void* take_big_block(std::size_t bytes) noexcept {
   if (best == nullptr) return nullptr;
   void* p = best->p;
   b.kept -= best->bytes;
+  for (Kept& l : b.lent)
+    if (l.p == nullptr) {
+      l = *best;
+      break;
+    }
   *best = Kept{};
   return p;
 }
@@ -96,6 +104,12 @@ bool keep_big_block(void* p, std::size_t bytes) noexcept {
   const auto now = std::chrono::steady_clock::now();
   std::lock_guard<std::mutex> lock(b.mutex);
   b.expire(now);
+  for (Kept& l : b.lent)
+    if (l.p == p) {
+      bytes = l.bytes;
+      l = Kept{};
+      break;
+    }
   if (b.kept + bytes > b.limit) return false;
   for (Kept& k : b.slot)
     if (k.p == nullptr) {
