@@ -323,17 +323,11 @@ std::uint64_t SphereCells::pairs(std::size_t c0, std::size_t c1,
   // On sparse grids (radii over one or three decades, 100 000 spheres:
   // a crowd of 1.3-1.4, five tests a sphere, runs of one or two) the
   // scan took 8.3 and 6.6 ms one at a time, 9.7 and 8.0 ms eight at a time.
-  const bool wide = avx512() && (crowd_ >= kWideCrowd ||
-                                 avx512_when.load(std::memory_order_relaxed) == Avx512::always);
-  return wide ? pairs_avx512(c0, c1, out) : scan<false>(c0, c1, out);
-}
-
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-__attribute__((target("avx512f")))
-#endif
-std::uint64_t
-SphereCells::pairs_avx512(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const {
-  return scan<true>(c0, c1, out);
+  const Avx512 when = avx512_when.load(std::memory_order_relaxed);
+  const bool wide = avx512_present() && (when == Avx512::always ||
+                                         (when == Avx512::where_crowded && crowd_ >= kWideCrowd));
+  // scan<true> calls pair_block_avx512 (compiled for AVX-512F) once a run.
+  return wide ? scan<true>(c0, c1, out) : scan<false>(c0, c1, out);
 }
 
 template <bool kWide>

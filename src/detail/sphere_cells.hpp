@@ -206,7 +206,6 @@ class SphereCells {
   };
   template <bool kWide>
   std::uint64_t scan(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
-  std::uint64_t pairs_avx512(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
   template <class At>
   bool build_over(const Objects& o, std::size_t n, At at, std::size_t cells_per_object);
 
