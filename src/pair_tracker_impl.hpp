@@ -214,7 +214,7 @@ struct PairTracker::Impl {
   // radius, rounded up. 24 bytes a mover and 4 a candidate.
   struct MoverList {
     float cx = 0, cy = 0, cz = 0;
-    float reach = -1;  // < 0: no list (a new slot, or too long a list)
+    float reach = -1;  // < 0: no list (a new slot; -2: too long, or no room)
     std::uint32_t first = 0;
     std::uint16_t len = 0;
     std::uint16_t stamp = 0;  // movers_calls (mod 2^16) when it was made

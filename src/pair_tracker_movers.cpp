@@ -13,6 +13,16 @@ constexpr std::size_t kMaxListLength = 0xFFFF;
 // How many movers ahead a list's header is asked for (its entries half as
 // far ahead).
 constexpr std::size_t kListPrefetch = 16;
+// A mover whose list was too long, or did not fit the lists' memory, has
+// reach kNoRoom; it probes with its own radius for kNoRoomCalls calls
+// before it tries to make a list again (else every call would probe with
+// the list's reach, gather, and throw the list away).
+constexpr float kNoRoom = -2;
+constexpr std::uint16_t kNoRoomCalls = 16;
+// In sets where the quiet pairs are many, all the lists together take at
+// most this many bytes unless ArrayOptions::list_bytes says otherwise (see
+// movers_call).
+constexpr std::size_t kDenseListBytes = std::size_t{8} << 20;
 constexpr std::size_t kFarRecords = std::size_t{16} << 20;  // bytes
 // How many movers ahead the gather in the quiet cells' order asks for a
 // mover's values.
@@ -294,12 +304,22 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
   // The movers with the quiet: each tests its list of quiet candidates
   // while it holds, else probes the quiet grids for a new one.
   if (go_on && !emit.stopped()) {
-    // Lists where the quiet pairs are few (kept as IndexPairs, fewer than
-    // two an object): in denser sets a list holds tens of candidates, and
-    // at scaled-uneven 1 024 000 they took the own memory from 88 to 152
-    // B/object for a call 3% faster (a probe there finds many pairs for its
-    // runs of cells).
-    const bool lists = quiet_hits.plain();
+    // Lists for every mover where the quiet pairs are few (kept as
+    // IndexPairs, fewer than two an object). In denser sets a list holds
+    // tens of candidates: there the lists together take at most
+    // `list_bytes` (their headers at most a quarter of it, else there are
+    // none), and a mover whose list finds no room probes. At scaled-uneven
+    // 1 024 000, lists for all took the own memory from 84 to 163 B/object
+    // (the lean path promises 100) for a call 264 -> 182 ms; at study
+    // uneven 6 400 they take 200 KB, and the call went from 0.96 to 0.58
+    // ms; at scaled-uneven 102 400, 7 MB: 26-27 -> 15 ms.
+    const bool dense = !quiet_hits.plain();
+    const std::size_t list_bytes = options.list_bytes > 0 ? options.list_bytes : kDenseListBytes;
+    const bool lists = !dense || m * sizeof(MoverList) <= list_bytes / 4;
+    // (Half the rest for the pool's entries: its capacity may double.)
+    const std::size_t pool_room =
+        !dense || !lists ? std::numeric_limits<std::size_t>::max()
+                         : (list_bytes - m * sizeof(MoverList)) / 2 / sizeof(std::uint32_t);
     if (lists && mover_lists.size() < m) mover_lists.resize(m);
     const auto now = static_cast<std::uint16_t>(movers_calls);
     const double quiet_rmax = quiet_cells.max_radius();
@@ -377,6 +397,11 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
               test(std::span<const std::uint32_t>(list_pool).subspan(held.first, held.len));
               continue;
             }
+            if (held.reach == kNoRoom &&
+                static_cast<std::uint16_t>(now - held.stamp) < kNoRoomCalls) {
+              out.tests += quiet_cells.probe_records(x, y, z, r, hit);
+              continue;
+            }
             const MoverList next = held.next(x, y, z, r, now, quiet_rmax);
             if (next.reach < 0) {  // no list: a probe
               out.tests += quiet_cells.probe_records(x, y, z, r, hit);
@@ -391,7 +416,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
             test(std::span<const std::uint32_t>(out.records).subspan(at));
             Renewal renewal{slot, next, at};
             if (out.records.size() - at > kMaxListLength) {
-              renewal.list.reach = -1;
+              renewal.list.reach = kNoRoom;
               out.records.resize(at);
             }
             renewal.list.len = static_cast<std::uint16_t>(out.records.size() - at);
@@ -414,6 +439,10 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
       MoverList& held = mover_lists[rn.slot];
       MoverList next = rn.list;
       list_pool_live -= held.len;
+      if (next.len > held.len && list_pool.size() + next.len > pool_room) {
+        next.reach = kNoRoom;
+        next.len = 0;
+      }
       if (next.len > held.len) {
         next.first = static_cast<std::uint32_t>(list_pool.size());
         list_pool.insert(list_pool.end(), records.begin() + static_cast<std::ptrdiff_t>(rn.at),

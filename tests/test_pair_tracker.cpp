@@ -160,6 +160,60 @@ TEST(Arrays, MoverListsHoldToTheirReach) {
   }
 }
 
+// Movers mode in a crowded set (the quiet spheres overlap several others
+// each), where ArrayOptions::list_bytes bounds the movers' lists: with no
+// room for any, with room for some (the others probe), and with the
+// default: the oracle's pairs on every frame, the same order on 1 to 3
+// threads, the invariants after every call; the own memory shows which
+// bound held.
+TEST(Arrays, MoverListsKeepToTheirRoom) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(3)); ++seed) {
+    std::size_t memory[3] = {};
+    const std::size_t rooms[3] = {1, 48 << 10, 0};
+    for (int b = 0; b < 3; ++b) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << " list_bytes " << rooms[b]);
+      Rng rng(seed * 7727);
+      std::vector<Shape> shapes;
+      for (int k = 0; k < 1200; ++k)
+        shapes.push_back(Shape::sphere({rng.uniform(0, 15), rng.uniform(0, 15), rng.uniform(0, 15)},
+                                       rng.uniform(0.5, 1.5)));
+      std::vector<std::uint32_t> movers;
+      for (std::uint32_t i = 0; i < shapes.size(); ++i)
+        if (rng.below(7) == 0) movers.push_back(i);
+      PairTracker trackers[3];
+      for (unsigned t = 0; t < 3; ++t) {
+        ArrayOptions o;
+        o.threads = t + 1;
+        o.list_bytes = rooms[b];
+        trackers[t] = PairTracker(o);
+      }
+      int in_mode = 0;
+      for (int frame = 0; frame < 16; ++frame) {
+        SCOPED_TRACE(::testing::Message() << "frame " << frame);
+        for (const std::uint32_t i : movers) {
+          const Vec3 d{rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)};
+          if (rng.below(40) == 0)  // a teleport
+            shapes[i].center = {rng.uniform(0, 15), rng.uniform(0, 15), rng.uniform(0, 15)};
+          else
+            shapes[i].center = shapes[i].center + d * 0.05;
+        }
+        Storage st(shapes, Layout::soa_double);
+        ArrayCallStats stats;
+        ASSERT_NO_FATAL_FAILURE(
+            call_on_each(trackers, st.objects, Changes::only(movers), oracle(st.objects), stats));
+        ASSERT_GT(stats.pairs, 2 * shapes.size()) << "not a crowded set";
+        in_mode += stats.movers ? 1 : 0;
+      }
+      EXPECT_GE(in_mode, 12);
+      memory[b] = trackers[0].memory_bytes();
+    }
+    // Some lists, within their room; more with the default.
+    EXPECT_LT(memory[0] + 24 * 256, memory[1]) << "seed " << seed;
+    EXPECT_LE(memory[1], memory[0] + (48 << 10)) << "seed " << seed;
+    EXPECT_LT(memory[1] + (16 << 10), memory[2]) << "seed " << seed;
+  }
+}
+
 // Movers mode: spheres of which about one in ten moves each frame (listed),
 // with quiet ones woken, movers stopping, teleports, resizes, a sphere
 // turned into a box and back, appends, removals and "everything" now and

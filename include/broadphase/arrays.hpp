@@ -174,6 +174,15 @@ struct ArrayOptions {
   double skin = 0;
   /// Sort the pairs (by i, then j) before handing them over.
   bool sorted = false;
+  /// Tracker, movers mode (ArrayCallStats::movers) in sets where the quiet
+  /// objects overlap often: the most bytes the movers' lists of quiet
+  /// candidates take together; a mover whose list finds no room probes the
+  /// grids instead. 0 picks the default, 8 MiB. Where the quiet pairs are
+  /// few, every mover keeps its list (a few bytes an object). Measured on
+  /// one core at scaled-uneven 1 024 000 (docs/arrays.md): the default
+  /// keeps no lists there, 265 ms a call and 84 B/object; room for all
+  /// took 182 ms and 163 B/object.
+  std::size_t list_bytes = 0;
 };
 
 /// What one call did, for the lab and the tests.
