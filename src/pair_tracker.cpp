@@ -261,7 +261,7 @@ void PairTracker::Impl::compact(const Objects& o, const std::vector<std::uint64_
         take(static_cast<std::uint32_t>(k), q, partner[p] & kOverlapBit);
   }
   for (const LoosePair& lp : loose) take(lp.a, lp.b & kIndexMask, lp.b & kOverlapBit);
-  quiet_hits.assign(hits, count);
+  quiet_hits.assign(hits, count, spare_half());
   free_vector(hits);
   grid = std::move(next);
   adopt(by_object);
@@ -457,7 +457,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
       im.pending = true;
       im.count = objects.count;
       if (!stats.stopped) {  // (a sink that stopped early saw only some)
-        im.quiet_hits.assign(all, objects.count);
+        im.quiet_hits.assign(all, objects.count, im.spare_half());
         im.quiet_cells = std::move(cells);
       }
       stats.afresh = true;

@@ -87,6 +87,8 @@ constexpr std::size_t kMoversShare = 4;
 // uneven 6 400 1.41 -> 1.03, scaled-uneven 1 024 000 580 -> 306 ms and
 // 257 -> 125 B/object; the others do not change.
 constexpr double kMoversCrowd = detail::SphereCells::kMaxCrowd;
+// ArrayOptions::spare_bytes by default.
+constexpr std::size_t kSpareBytes = std::size_t{16} << 20;
 constexpr std::size_t kWokenShare = 8;
 // A mover's list of quiet candidates reaches this many calls of its last
 // speed past it, at least kListSkinShare of its radius, at most four radii
@@ -116,6 +118,11 @@ inline void set_bit(std::vector<std::uint64_t>& bits, std::uint32_t k) {
 
 struct PairTracker::Impl {
   ArrayOptions options;
+  // Half of ArrayOptions::spare_bytes: for the quiet pairs as IndexPairs,
+  // and for the movers' lists in sets where the quiet pairs are many.
+  std::size_t spare_half() const {
+    return (options.spare_bytes > 0 ? options.spare_bytes : kSpareBytes) / 2;
+  }
   bool built = false;
   std::uint32_t afresh_left = 0;  // calls still to search afresh (see find_pairs)
   bool fresh = false;             // rebuilt and not yet tested: every candidate is tested

@@ -19,10 +19,6 @@ constexpr std::size_t kListPrefetch = 16;
 // the list's reach, gather, and throw the list away).
 constexpr float kNoRoom = -2;
 constexpr std::uint16_t kNoRoomCalls = 16;
-// In sets where the quiet pairs are many, all the lists together take at
-// most this many bytes unless ArrayOptions::list_bytes says otherwise (see
-// movers_call).
-constexpr std::size_t kDenseListBytes = std::size_t{8} << 20;
 constexpr std::size_t kFarRecords = std::size_t{16} << 20;  // bytes
 // How many movers ahead the gather in the quiet cells' order asks for a
 // mover's values.
@@ -155,7 +151,7 @@ bool PairTracker::Impl::enter_movers(const Objects& o, const std::vector<std::ui
   next.built = true;
   next.movers = true;
   next.quiet_cells = std::move(cells);
-  next.quiet_hits.assign(hits, n);
+  next.quiet_hits.assign(hits, n, next.spare_half());
   free_vector(hits);
   next.active = std::move(moving);
   next.set_quiet(changed);
@@ -304,17 +300,17 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
   // The movers with the quiet: each tests its list of quiet candidates
   // while it holds, else probes the quiet grids for a new one.
   if (go_on && !emit.stopped()) {
-    // Lists for every mover where the quiet pairs are few (kept as
-    // IndexPairs, fewer than two an object). In denser sets a list holds
-    // tens of candidates: there the lists together take at most
-    // `list_bytes` (their headers at most a quarter of it, else there are
-    // none), and a mover whose list finds no room probes. At scaled-uneven
-    // 1 024 000, lists for all took the own memory from 84 to 163 B/object
-    // (the lean path promises 100) for a call 264 -> 182 ms; at study
-    // uneven 6 400 they take 200 KB, and the call went from 0.96 to 0.58
-    // ms; at scaled-uneven 102 400, 7 MB: 26-27 -> 15 ms.
-    const bool dense = !quiet_hits.plain();
-    const std::size_t list_bytes = options.list_bytes > 0 ? options.list_bytes : kDenseListBytes;
+    // Lists for every mover where the quiet pairs are few (fewer than two
+    // an object). In denser sets a list holds tens of candidates: there
+    // the lists together take at most half of ArrayOptions::spare_bytes
+    // (their headers at most a quarter of that, else there are none), and
+    // a mover whose list finds no room probes. At scaled-uneven 1 024 000,
+    // lists for all took the own memory from 84 to 163 B/object (the lean
+    // path promises 100) for a call 264 -> 182 ms; at study uneven 6 400
+    // they take 200 KB, and the call went from 0.96 to 0.58 ms; at
+    // scaled-uneven 102 400, 7 MB: 24 -> 16-17 ms.
+    const bool dense = quiet_hits.many();
+    const std::size_t list_bytes = spare_half();
     const bool lists = !dense || m * sizeof(MoverList) <= list_bytes / 4;
     // (Half the rest for the pool's entries: its capacity may double.)
     const std::size_t pool_room =

@@ -74,11 +74,12 @@ TEST(Arrays, ScalarRadiusAndSortedOutput) {
 }
 
 // The tracker's store of quiet pairs against a model: the pairs in the order
-// given, stably sorted by i where kept by it; random erasures; every range
-// of positions.
+// given, stably sorted by i where kept by it (many, and more bytes as
+// IndexPairs than spared, by one byte or none); random erasures; every
+// range of positions.
 TEST(Arrays, PairsByFirstMatchesItsModel) {
-  int plain_sets = 0, by_first_sets = 0;
-  for (std::uint64_t seed = 1; seed <= 30; ++seed) {
+  int plain_sets = 0, by_first_sets = 0, spared_sets = 0;
+  for (std::uint64_t seed = 1; seed <= 40; ++seed) {
     SCOPED_TRACE(::testing::Message() << "seed " << seed);
     Rng rng(seed * 104729);
     const std::size_t n = 1 + rng.below(seed % 3 == 0 ? 5 : 300);
@@ -92,16 +93,21 @@ TEST(Arrays, PairsByFirstMatchesItsModel) {
       if (a == b || !taken.insert({std::min(a, b), std::max(a, b)}).second) continue;
       given.push_back({std::min(a, b), std::max(a, b)});
     }
-    // Fewer than kByFirstShare pairs an object stay as given.
-    bool plain = given.size() < detail::PairsByFirst::kByFirstShare * n;
+    // Fewer than kByFirstShare pairs an object stay as given, and more
+    // where they fit the bytes spared.
+    const std::size_t bytes = given.size() * sizeof(IndexPair);
+    const std::size_t spare = seed % 6 == 2 ? bytes : seed % 6 == 4 && bytes > 0 ? bytes - 1 : 0;
+    bool plain = given.size() < detail::PairsByFirst::kByFirstShare * n || bytes <= spare;
     std::vector<IndexPair> model = given;
     if (!plain)
       std::stable_sort(model.begin(), model.end(),
                        [](const IndexPair& p, const IndexPair& q) { return p.i < q.i; });
     detail::PairsByFirst store;
-    store.assign(given, n);
+    store.assign(given, n, spare);
     EXPECT_EQ(store.plain(), plain || given.empty());
+    EXPECT_EQ(store.many(), given.size() >= detail::PairsByFirst::kByFirstShare * n);
     (plain ? plain_sets : by_first_sets) += given.empty() ? 0 : 1;
+    spared_sets += plain && store.many() ? 1 : 0;
     auto check = [&] {
       ASSERT_EQ(store.size(), model.size());
       std::vector<IndexPair> all;
@@ -131,10 +137,12 @@ TEST(Arrays, PairsByFirstMatchesItsModel) {
       // Kept by i while still many (else as IndexPairs from then on).
       plain = plain || model.size() < detail::PairsByFirst::kByFirstShare * n;
       EXPECT_EQ(store.plain(), plain);
+      EXPECT_EQ(store.many(), model.size() >= detail::PairsByFirst::kByFirstShare * n);
     }
   }
   EXPECT_GE(plain_sets, 5);
   EXPECT_GE(by_first_sets, 5);
+  EXPECT_GE(spared_sets, 2);
 }
 
 TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {

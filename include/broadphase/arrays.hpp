@@ -174,15 +174,18 @@ struct ArrayOptions {
   double skin = 0;
   /// Sort the pairs (by i, then j) before handing them over.
   bool sorted = false;
-  /// Tracker, movers mode (ArrayCallStats::movers) in sets where the quiet
-  /// objects overlap often: the most bytes the movers' lists of quiet
-  /// candidates take together; a mover whose list finds no room probes the
-  /// grids instead. 0 picks the default, 8 MiB. Where the quiet pairs are
-  /// few, every mover keeps its list (a few bytes an object). Measured on
-  /// one core at scaled-uneven 1 024 000 (docs/arrays.md): the default
-  /// keeps no lists there, 265 ms a call and 84 B/object; room for all
-  /// took 182 ms and 163 B/object.
-  std::size_t list_bytes = 0;
+  /// Tracker: the most bytes it keeps beyond its leanest form where they buy
+  /// speed, in sets where the quiet objects overlap often (two pairs an
+  /// object or more); 0 picks the default, 16 MiB. Half of it may keep the
+  /// quiet pairs as they are handed over (8 bytes a pair, against 4 by
+  /// their lower index), half the movers' lists of quiet candidates (a
+  /// mover whose list finds no room probes the grids instead). Where the
+  /// quiet pairs are few, both are kept whatever this says (a few bytes an
+  /// object). Measured on one core (docs/arrays.md): study uneven 6 400
+  /// takes 0.6 MB of it, and a call 0.97 -> 0.52 ms; scaled-uneven
+  /// 1 024 000 has no room by default, 265 ms a call and 84 B/object;
+  /// room for all took 182 ms and 163 B/object.
+  std::size_t spare_bytes = 0;
 };
 
 /// What one call did, for the lab and the tests.

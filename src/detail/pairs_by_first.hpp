@@ -1,5 +1,6 @@
 // Pairs i < j of a set of n objects (the tracker's quiet pairs). Where they
-// are at least kByFirstShare a object, they are kept by their lower index:
+// are at least kByFirstShare a object (many), and as IndexPairs would take
+// more than the bytes the caller spares, they are kept by their lower index:
 // the start of each object's partners (n + 1 counts), then the partners, in
 // increasing i: 4 bytes a pair and 4 an object, against 8 a pair as
 // IndexPair (at scaled-uneven 1 024 000, 10.7 million quiet pairs were 83
@@ -26,11 +27,14 @@ class PairsByFirst {
   static constexpr std::size_t kByFirstShare = 2;
 
   /// Takes pairs i < j < n, each once, in any order (kept in the order given,
-  /// within each i where they are kept by it).
-  void assign(std::span<const IndexPair> pairs, std::size_t n) {
+  /// within each i where they are kept by it); as IndexPairs where they are
+  /// few or take at most `spare_bytes`.
+  void assign(std::span<const IndexPair> pairs, std::size_t n, std::size_t spare_bytes = 0) {
     clear();
+    n_ = n;
+    many_ = pairs.size() >= kByFirstShare * n;
     if (pairs.empty()) return;
-    if (pairs.size() < kByFirstShare * n) {
+    if (!many_ || pairs.size() * sizeof(IndexPair) <= spare_bytes) {
       plain_.assign(pairs.begin(), pairs.end());
       return;
     }
@@ -46,6 +50,8 @@ class PairsByFirst {
     start_[0] = 0;
   }
   void clear() {
+    n_ = 0;
+    many_ = false;
     free_vector(plain_);
     free_vector(start_);
     free_vector(partner_);
@@ -57,6 +63,8 @@ class PairsByFirst {
   }
   /// Kept as IndexPairs (then `pairs()` holds them all), not by lower index.
   bool plain() const { return start_.empty(); }
+  /// At least kByFirstShare pairs an object when assigned.
+  bool many() const { return many_; }
   std::span<const IndexPair> pairs() const { return plain_; }
   /// Appends to `out` the pairs at positions [begin, end) of the list (in
   /// increasing i) for which keep(pair) holds.
@@ -98,6 +106,7 @@ class PairsByFirst {
     if (plain()) {
       std::erase_if(plain_, drop);
       plain_.shrink_to_fit();
+      many_ = plain_.size() >= kByFirstShare * n_;
       return;
     }
     std::uint32_t w = 0;
@@ -118,7 +127,9 @@ class PairsByFirst {
       std::vector<IndexPair> few;
       few.reserve(w);
       expand(0, w, few, [](const IndexPair&) { return true; });
+      const std::size_t n = n_;
       clear();
+      n_ = n;
       plain_ = std::move(few);
       return;
     }
@@ -126,7 +137,9 @@ class PairsByFirst {
   }
 
  private:
-  std::vector<IndexPair> plain_;        // fewer than kByFirstShare an object
+  std::size_t n_ = 0;                   // the objects' count when assigned
+  bool many_ = false;                   // kByFirstShare pairs an object or more
+  std::vector<IndexPair> plain_;        // few, or within the bytes spared
   std::vector<std::uint32_t> start_;    // n + 1, or none
   std::vector<std::uint32_t> partner_;  // the j of each pair, by i
 };
