@@ -309,6 +309,7 @@ class Index:
         structure: Optional[str] = None,
         threads: int = 1,
         skin: float = 0.0,
+        spare_bytes: int = 0,
     ):
         """Builds the index and finds its pairs.
 
@@ -322,13 +323,24 @@ class Index:
             threads: threads of the lean path (1: calling thread; 0: all).
             skin: Verlet skin of the lean tracker relative to the typical
                 object size (0: the library's default).
+            spare_bytes: the most bytes the lean tracker keeps beyond its
+                leanest form where they buy speed, in worlds whose still
+                objects overlap often (0: the library's default, 16 MiB;
+                ``ArrayOptions::spare_bytes``, docs/arrays.md). More is
+                faster on large crowded worlds if the memory is there.
+
+        Raises:
+            ValueError: bad arrays (see :func:`find_pairs`), or a negative
+                ``spare_bytes``.
         """
+        if int(spare_bytes) < 0:
+            raise ValueError(f"spare_bytes: must be 0 or more, got {spare_bytes}")
         # The compiled index holds buffer views of the arrays it borrows,
         # which keep them alive (and numpy from resizing them).
         self._core = _IndexCore(
             _centers(centers), _radii(radii),
             None if half_extents is None else _real(half_extents, "half_extents"), _kinds(kinds),
-            structure or "", int(threads), float(skin))
+            structure or "", int(threads), float(skin), int(spare_bytes))
 
     # -- what it is -------------------------------------------------------
 

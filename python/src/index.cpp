@@ -28,7 +28,7 @@ IntArray PairChunks::next() {
 
 IndexCore::IndexCore(const py::buffer& centers, const py::object& radii, const py::object& half,
                      const py::object& kinds, const std::string& structure, unsigned threads,
-                     double skin)
+                     double skin, std::size_t spare_bytes)
     : spec_(structure), threads_(threads) {
   ObjectArrays o = object_arrays(centers, radii, half, kinds);
   const std::size_t n = o.objects.count;
@@ -38,7 +38,9 @@ IndexCore::IndexCore(const py::buffer& centers, const py::object& radii, const p
   next_id_ = static_cast<std::uint32_t>(n);
   live_ = n;
   if (spec_.empty()) {
-    tracker_ = std::make_unique<bp::PairTracker>(array_options(threads, false, skin));
+    bp::ArrayOptions options = array_options(threads, false, skin);
+    options.spare_bytes = spare_bytes;
+    tracker_ = std::make_unique<bp::PairTracker>(options);
     borrowed_ = std::move(o);
     borrowed_py_ = {radii, half, kinds};
     refresh_lean(bp::Changes::everything());

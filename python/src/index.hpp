@@ -98,7 +98,8 @@ struct PairChunks {
 class IndexCore {
  public:
   IndexCore(const py::buffer& centers, const py::object& radii, const py::object& half,
-            const py::object& kinds, const std::string& structure, unsigned threads, double skin);
+            const py::object& kinds, const std::string& structure, unsigned threads, double skin,
+            std::size_t spare_bytes);
 
   std::size_t size() const { return live_; }
   bool borrowing() const { return structure_ == nullptr && borrowed_.has_value(); }

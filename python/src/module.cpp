@@ -113,12 +113,12 @@ PYBIND11_MODULE(_broadphase, m) {
   py::class_<IndexCore>(m, "IndexCore", "The compiled index behind broadphase.Index.")
       .def(py::init([](const py::buffer& centers, const py::object& radii, const py::object& half,
                        const py::object& kinds, const std::string& structure, unsigned threads,
-                       double skin) {
+                       double skin, std::size_t spare_bytes) {
              return std::make_unique<IndexCore>(centers, radii, half, kinds, structure, threads,
-                                                skin);
+                                                skin, spare_bytes);
            }),
            py::arg("centers"), py::arg("radii"), py::arg("half_extents"), py::arg("kinds"),
-           py::arg("structure"), py::arg("threads"), py::arg("skin"))
+           py::arg("structure"), py::arg("threads"), py::arg("skin"), py::arg("spare_bytes"))
       .def("size", &IndexCore::size)
       .def("borrowing", &IndexCore::borrowing)
       .def("structure", &IndexCore::structure)
