@@ -39,6 +39,22 @@ void call_on_each(PairTracker (&trackers)[3], const Objects& objects, const Chan
   }
 }
 
+// Trackers on 1, 2 and 3 threads, otherwise with `options`.
+void on_threads(PairTracker (&trackers)[3], ArrayOptions options = {}) {
+  for (unsigned t = 0; t < 3; ++t) {
+    options.threads = t + 1;
+    trackers[t] = PairTracker(options);
+  }
+}
+
+// About one of every k of n objects, drawn at random, increasing.
+std::vector<std::uint32_t> pick_movers(Rng& rng, std::size_t n, std::uint64_t k) {
+  std::vector<std::uint32_t> movers;
+  for (std::uint32_t i = 0; i < n; ++i)
+    if (rng.below(k) == 0) movers.push_back(i);
+  return movers;
+}
+
 // The tracker over random frames: moves, teleports, resizes, kind changes,
 // appends and removals (swap with the last), told everything or only what
 // changed, on 1, 2 and 3 threads in lockstep.
@@ -178,16 +194,11 @@ TEST(Arrays, MoverListsKeepToTheirRoom) {
       for (int k = 0; k < 1200; ++k)
         shapes.push_back(Shape::sphere({rng.uniform(0, 15), rng.uniform(0, 15), rng.uniform(0, 15)},
                                        rng.uniform(0.5, 1.5)));
-      std::vector<std::uint32_t> movers;
-      for (std::uint32_t i = 0; i < shapes.size(); ++i)
-        if (rng.below(7) == 0) movers.push_back(i);
+      std::vector<std::uint32_t> movers = pick_movers(rng, shapes.size(), 7);
       PairTracker trackers[3];
-      for (unsigned t = 0; t < 3; ++t) {
-        ArrayOptions o;
-        o.threads = t + 1;
-        o.spare_bytes = rooms[b];
-        trackers[t] = PairTracker(o);
-      }
+      ArrayOptions options;
+      options.spare_bytes = rooms[b];
+      on_threads(trackers, options);
       int in_mode = 0;
       for (int frame = 0; frame < 16; ++frame) {
         SCOPED_TRACE(::testing::Message() << "frame " << frame);
@@ -230,15 +241,9 @@ TEST(Arrays, TrackerMoversModeMatchesOracle) {
     const Layout layout = kLayouts[seed % std::size(kLayouts)];
     std::vector<Shape> shapes = random_world(w, 300 + rng.below(1500), rng);
     const double world = 20.0 * std::cbrt(static_cast<double>(shapes.size()) / 10.0) + 1;
-    std::vector<std::uint32_t> movers;
-    for (std::uint32_t i = 0; i < shapes.size(); ++i)
-      if (rng.below(10) == 0) movers.push_back(i);
+    std::vector<std::uint32_t> movers = pick_movers(rng, shapes.size(), 10);
     PairTracker trackers[3];
-    for (unsigned t = 0; t < 3; ++t) {
-      ArrayOptions o;
-      o.threads = t + 1;
-      trackers[t] = PairTracker(o);
-    }
+    on_threads(trackers);
     int in_mode = 0;
     const int frames = 40;
     for (int frame = 0; frame < frames; ++frame) {
