@@ -309,7 +309,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
     // path promises 100) for a call 264 -> 182 ms; at study uneven 6 400
     // they take 200 KB, and the call went from 0.96 to 0.58 ms; at
     // scaled-uneven 102 400, 7 MB: 24 -> 16-17 ms.
-    const bool dense = quiet_hits.many();
+    const bool dense = quiet_hits.many(count);
     const std::size_t list_bytes = spare_half();
     const bool lists = !dense || m * sizeof(MoverList) <= list_bytes / 4;
     // (Half the rest for the pool's entries: its capacity may double.)

@@ -105,9 +105,9 @@ TEST(Arrays, PairsByFirstMatchesItsModel) {
     detail::PairsByFirst store;
     store.assign(given, n, spare);
     EXPECT_EQ(store.plain(), plain || given.empty());
-    EXPECT_EQ(store.many(), given.size() >= detail::PairsByFirst::kByFirstShare * n);
+    EXPECT_EQ(store.many(n), given.size() >= detail::PairsByFirst::kByFirstShare * n);
     (plain ? plain_sets : by_first_sets) += given.empty() ? 0 : 1;
-    spared_sets += plain && store.many() ? 1 : 0;
+    spared_sets += plain && store.many(n) ? 1 : 0;
     auto check = [&] {
       ASSERT_EQ(store.size(), model.size());
       std::vector<IndexPair> all;
@@ -137,7 +137,7 @@ TEST(Arrays, PairsByFirstMatchesItsModel) {
       // Kept by i while still many (else as IndexPairs from then on).
       plain = plain || model.size() < detail::PairsByFirst::kByFirstShare * n;
       EXPECT_EQ(store.plain(), plain);
-      EXPECT_EQ(store.many(), model.size() >= detail::PairsByFirst::kByFirstShare * n);
+      EXPECT_EQ(store.many(n), model.size() >= detail::PairsByFirst::kByFirstShare * n);
     }
   }
   EXPECT_GE(plain_sets, 5);

@@ -67,12 +67,8 @@ TEST(Arrays, TrackerMatchesOracleUnderRandomChanges) {
     const double world = 20.0 * std::cbrt(static_cast<double>(shapes.size()) / 10.0) + 1;
     ArrayOptions opt;
     opt.skin = seed % 3 == 0 ? 0 : rng.uniform(0.05, 2);
-    PairTracker trackers[3] = {PairTracker(opt), PairTracker(opt), PairTracker(opt)};
-    for (unsigned t = 0; t < 3; ++t) {
-      ArrayOptions o = opt;
-      o.threads = t + 1;
-      trackers[t] = PairTracker(o);
-    }
+    PairTracker trackers[3];
+    on_threads(trackers, opt);
     for (int frame = 0; frame < 30; ++frame) {
       SCOPED_TRACE(::testing::Message() << "seed " << seed << " world " << name(w) << " layout "
                                         << name(layout) << " frame " << frame);

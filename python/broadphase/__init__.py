@@ -255,13 +255,18 @@ def set_scratch_limit(limit: int) -> None:
     ``set_scratch_limit(0)`` keeps nothing and returns what is kept now.
     Raises ValueError for a negative limit.
     """
+    _broadphase.set_scratch_limit(_byte_count(limit, "limit"))
+
+
+def _byte_count(value, name: str) -> int:
+    """`value` as an int of 0 or more, else ValueError naming `name`."""
     try:
-        limit = int(limit)
+        value = int(value)
     except (TypeError, ValueError) as e:
-        raise ValueError(f"limit: not an integer ({e})") from None
-    if limit < 0:
-        raise ValueError(f"limit: negative ({limit})")
-    _broadphase.set_scratch_limit(limit)
+        raise ValueError(f"{name}: not an integer ({e})") from None
+    if value < 0:
+        raise ValueError(f"{name}: negative ({value})")
+    return value
 
 
 class Index:
@@ -333,14 +338,12 @@ class Index:
             ValueError: bad arrays (see :func:`find_pairs`), or a negative
                 ``spare_bytes``.
         """
-        if int(spare_bytes) < 0:
-            raise ValueError(f"spare_bytes: must be 0 or more, got {spare_bytes}")
         # The compiled index holds buffer views of the arrays it borrows,
         # which keep them alive (and numpy from resizing them).
         self._core = _IndexCore(
             _centers(centers), _radii(radii),
             None if half_extents is None else _real(half_extents, "half_extents"), _kinds(kinds),
-            structure or "", int(threads), float(skin), int(spare_bytes))
+            structure or "", int(threads), float(skin), _byte_count(spare_bytes, "spare_bytes"))
 
     # -- what it is -------------------------------------------------------
 

@@ -31,10 +31,8 @@ class PairsByFirst {
   /// few or take at most `spare_bytes`.
   void assign(std::span<const IndexPair> pairs, std::size_t n, std::size_t spare_bytes = 0) {
     clear();
-    n_ = n;
-    many_ = pairs.size() >= kByFirstShare * n;
     if (pairs.empty()) return;
-    if (!many_ || pairs.size() * sizeof(IndexPair) <= spare_bytes) {
+    if (pairs.size() < kByFirstShare * n || pairs.size() * sizeof(IndexPair) <= spare_bytes) {
       plain_.assign(pairs.begin(), pairs.end());
       return;
     }
@@ -50,8 +48,6 @@ class PairsByFirst {
     start_[0] = 0;
   }
   void clear() {
-    n_ = 0;
-    many_ = false;
     free_vector(plain_);
     free_vector(start_);
     free_vector(partner_);
@@ -63,8 +59,8 @@ class PairsByFirst {
   }
   /// Kept as IndexPairs (then `pairs()` holds them all), not by lower index.
   bool plain() const { return start_.empty(); }
-  /// At least kByFirstShare pairs an object when assigned.
-  bool many() const { return many_; }
+  /// At least kByFirstShare pairs an object of n, whatever their form.
+  bool many(std::size_t n) const { return size() >= kByFirstShare * n; }
   std::span<const IndexPair> pairs() const { return plain_; }
   /// Appends to `out` the pairs at positions [begin, end) of the list (in
   /// increasing i) for which keep(pair) holds.
@@ -106,7 +102,6 @@ class PairsByFirst {
     if (plain()) {
       std::erase_if(plain_, drop);
       plain_.shrink_to_fit();
-      many_ = plain_.size() >= kByFirstShare * n_;
       return;
     }
     std::uint32_t w = 0;
@@ -127,9 +122,7 @@ class PairsByFirst {
       std::vector<IndexPair> few;
       few.reserve(w);
       expand(0, w, few, [](const IndexPair&) { return true; });
-      const std::size_t n = n_;
       clear();
-      n_ = n;
       plain_ = std::move(few);
       return;
     }
@@ -137,8 +130,6 @@ class PairsByFirst {
   }
 
  private:
-  std::size_t n_ = 0;                   // the objects' count when assigned
-  bool many_ = false;                   // kByFirstShare pairs an object or more
   std::vector<IndexPair> plain_;        // few, or within the bytes spared
   std::vector<std::uint32_t> start_;    // n + 1, or none
   std::vector<std::uint32_t> partner_;  // the j of each pair, by i
