@@ -86,37 +86,65 @@ float float_up(double v) {
 
 }  // namespace
 
-// Centred on the mover (rounded to float), reaching its radius plus a skin
-// of kListSkinCalls calls at the speed it left this list with, at least
-// kListSkinShare of its radius, at most four radii plus kListSkinQuiet of
-// the largest quiet radius, and far above the centre's rounding (2^-20 of
-// its coordinates against 2^-24). reach < 0 where a float cannot hold it.
+// Reaching the mover's radius plus a skin of kListSkinCalls calls at the
+// speed it went with since the last list, at least kListSkinShare of its
+// radius, at most four radii plus kListSkinQuiet of the largest quiet
+// radius, and far above the centre's rounding (2^-20 of its coordinates
+// against 2^-24). The centre (rounded to float) is put ahead of the mover
+// along the way it went, by kListAhead times the skin beyond
+// kListSkinShare of its radius, at most the skin less 2^-10 of it: a mover
+// in steady motion then crosses the whole list before it renews it, not
+// half of it (see kListAhead). The speed counts how far the last centre
+// was put ahead (the same rule, from its reach). Where the list would not
+// hold the mover by MoverList::holds (a margin of 2^-40 of magnitudes far
+// larger than the skin), it is centred on the mover, which it then holds.
+// reach < 0 where a float cannot hold it.
 PairTracker::Impl::MoverList PairTracker::Impl::MoverList::next(double x, double y, double z,
                                                                 double r, std::uint16_t now,
                                                                 double quiet_rmax) const {
   const MoverList& old = *this;
   MoverList l;
-  double skin = kListSkinShare * r;
+  const double least = kListSkinShare * r;
+  auto ahead_of = [&](double skin) {
+    return std::min(kListAhead * std::max(0.0, skin - least), skin * (1 - 0x1p-10));
+  };
+  double skin = least;
+  double way[3] = {0, 0, 0};  // from the last centre to the mover
+  double went = 0;
   if (old.reach >= 0) {
     const auto calls = static_cast<std::uint16_t>(now - old.stamp);
-    const double dx = x - static_cast<double>(old.cx), dy = y - static_cast<double>(old.cy),
-                 dz = z - static_cast<double>(old.cz);
+    way[0] = x - static_cast<double>(old.cx);
+    way[1] = y - static_cast<double>(old.cy);
+    way[2] = z - static_cast<double>(old.cz);
+    went = std::sqrt(way[0] * way[0] + way[1] * way[1] + way[2] * way[2]);
     if (calls > 0)
-      skin =
-          std::max(skin, std::min(4 * r + kListSkinQuiet * quiet_rmax,
-                                  kListSkinCalls * std::sqrt(dx * dx + dy * dy + dz * dz) / calls));
+      skin = std::max(
+          skin,
+          std::min(4 * r + kListSkinQuiet * quiet_rmax,
+                   kListSkinCalls * (went + ahead_of(static_cast<double>(old.reach) - r)) / calls));
   }
-  skin = std::max(skin, (std::abs(x) + std::abs(y) + std::abs(z)) * 0x1p-20);
+  double c[3] = {x, y, z};
+  if (went > 0 && std::isfinite(went)) {
+    const double step = ahead_of(skin) / went;
+    for (int a = 0; a < 3; ++a) c[a] += way[a] * step;
+  }
+  skin += (std::abs(c[0]) + std::abs(c[1]) + std::abs(c[2])) * 0x1p-20;
   l.stamp = now;
   // (A double past the floats' range does not convert: no list then.)
   constexpr double kFloatMax = 0x1p127;
   if (!(std::abs(x) < kFloatMax && std::abs(y) < kFloatMax && std::abs(z) < kFloatMax &&
+        std::abs(c[0]) < kFloatMax && std::abs(c[1]) < kFloatMax && std::abs(c[2]) < kFloatMax &&
         r + skin < kFloatMax))
     return l;  // reach < 0
-  l.cx = static_cast<float>(x);
-  l.cy = static_cast<float>(y);
-  l.cz = static_cast<float>(z);
+  l.cx = static_cast<float>(c[0]);
+  l.cy = static_cast<float>(c[1]);
+  l.cz = static_cast<float>(c[2]);
   l.reach = float_up(r + skin);
+  if (!l.holds(x, y, z, r, quiet_rmax)) {
+    l.cx = static_cast<float>(x);
+    l.cy = static_cast<float>(y);
+    l.cz = static_cast<float>(z);
+  }
   return l;
 }
 

@@ -172,6 +172,63 @@ TEST(Arrays, MoverListsHoldToTheirReach) {
   }
 }
 
+// Movers in steady motion along rows of quiet spheres, on 1 to 3 threads:
+// a list is put ahead of its mover (kListAhead), so that the mover crosses
+// it whole before renewing it, about every 24 calls at this speed rather
+// than every 12 of a centred list; then the movers turn back (their lists
+// lie the wrong way) and go on at a random speed and direction each call.
+// The oracle's pairs on every call throughout, the invariants after every
+// call, one order on every thread count.
+TEST(Arrays, MoverListsLieAheadOfSteadyMovers) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(2)); ++seed) {
+    SCOPED_TRACE(::testing::Message() << "seed " << seed);
+    Rng rng(seed * 6007);
+    std::vector<Shape> shapes;
+    constexpr int kRows = 12;
+    for (int row = 0; row < kRows; ++row) {
+      double x = rng.uniform(0, 3);
+      for (int k = 0; k < 12; ++k, x += rng.uniform(2.5, 5))
+        shapes.push_back(Shape::sphere({x, rng.uniform(-1, 1), 10.0 * row}, rng.uniform(0.8, 1.2)));
+    }
+    std::vector<std::uint32_t> movers;
+    for (int row = 0; row < kRows; ++row) {
+      movers.push_back(static_cast<std::uint32_t>(shapes.size()));
+      shapes.push_back(Shape::sphere({-3, 0, 10.0 * row}, 1));
+    }
+    PairTracker trackers[3];
+    on_threads(trackers);
+    ArrayCallStats stats;
+    {
+      Storage st(shapes, Layout::soa_double);
+      call_on_each(trackers, st.objects, Changes::everything(), oracle(st.objects), stats);
+    }
+    std::uint64_t renewed = 0, calls = 0;
+    for (int step = 0; step < 700; ++step) {
+      for (const std::uint32_t i : movers) {
+        Vec3& c = shapes[i].center;
+        if (step < 400) {
+          c.x += 0.05;
+        } else if (step < 500) {
+          c.x -= 0.05;
+        } else {
+          c.x += rng.uniform(-0.1, 0.1);
+          c.y += rng.uniform(-0.1, 0.1);
+        }
+      }
+      Storage st(shapes, Layout::soa_double);
+      SCOPED_TRACE(::testing::Message() << "step " << step);
+      call_on_each(trackers, st.objects, Changes::only(movers), oracle(st.objects), stats);
+      if (step >= 40 && step < 400 && stats.movers) {
+        ++calls;
+        renewed += stats.renewed;
+      }
+    }
+    ASSERT_GT(calls, 300u);
+    // About one renewal a mover every 24 calls; centred lists take 12.
+    EXPECT_LT(renewed * 18, calls * kRows) << renewed << " renewals in " << calls << " calls";
+  }
+}
+
 // Movers mode in a crowded set (the quiet spheres overlap several others
 // each), where ArrayOptions::spare_bytes bounds the movers' lists and the
 // quiet pairs kept as IndexPairs: with no
