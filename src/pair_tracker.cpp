@@ -302,7 +302,8 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   Impl& im = *impl_;
   // Everything that can throw on bad input runs before the tracker changes.
   // A movers call reads only the objects listed (and movers whose values
-  // it checked when they were listed): it checks the listed ones alone.
+  // it checked when they were listed): it checks the listed ones alone,
+  // as it reads them (Impl::movers_call).
   // Any other call, and a movers call that partitions again or leaves the
   // mode, checks every value first (check_all).
   const bool listed_only = !changes.all && im.movers && !im.pending && objects.count == im.count;
@@ -344,13 +345,12 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
         ++changed_count;
       }
   }
-  if (listed_only) detail::check_listed(objects, changed);
   // After a call afresh with no index (`pending`, below), a call that lists
   // its changes on as many objects enters movers mode if it can.
   if (im.pending && !changes.all && objects.count == im.count &&
       (im.quiet_cells.size() == objects.count ? im.enter_from_pending(objects, changed)
                                               : im.enter_movers(objects, changed))) {
-    stats = im.movers_call(objects, changed, sink);
+    stats = im.movers_call(objects, changed, sink, false);
     stats.compacted = true;
     return stats;
   }
@@ -365,7 +365,9 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
       partitioned = take;
     }
     if (take) {
-      stats = im.movers_call(objects, changed, sink);
+      // (The values listed are checked as the call reads them, unless
+      // check_all did.)
+      stats = im.movers_call(objects, changed, sink, !checked);
       stats.compacted = partitioned;
       return stats;
     }
@@ -485,7 +487,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
     // the set suits it (a box among the spheres may have gone).
     if ((partition_now || (bits_hold && im.quiet_count > 0 && !im.movers_refused)) &&
         im.enter_movers(objects, changed)) {
-      stats = im.movers_call(objects, changed, sink);
+      stats = im.movers_call(objects, changed, sink, false);
       stats.compacted = true;
       return stats;
     }

@@ -275,8 +275,10 @@ struct PairTracker::Impl {
   // Whether a new partition is due: many quiet objects woke (counting those
   // `changed` wakes), or, a while after it, many movers stopped.
   bool movers_stale(const std::vector<std::uint64_t>& changed, std::size_t changed_count) const;
+  // A call in movers mode; with `check_listed`, it checks the values of the
+  // objects `changed` lists first (throwing InvalidObjects, nothing changed).
   ArrayCallStats movers_call(const Objects& o, const std::vector<std::uint64_t>& changed,
-                             const PairSink& sink);
+                             const PairSink& sink, bool check_listed);
   void check_movers(const Objects& o) const;  // validate() in movers mode
 
   AabbF& fat_of(std::uint32_t i) { return fat[place[i]]; }

@@ -250,24 +250,18 @@ bool PairTracker::Impl::movers_stale(const std::vector<std::uint64_t>& changed,
 
 ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
                                               const std::vector<std::uint64_t>& changed,
-                                              const PairSink& sink) {
+                                              const PairSink& sink, bool check_listed) {
   ArrayCallStats stats;
   stats.movers = true;
-  ++movers_calls;
-  // Wake the quiet objects listed: their records in `quiet_cells` are stale
-  // from now on (a probe skips them), and so are their quiet pairs.
-  const std::size_t woken_before = woken.size();
+  // The quiet objects listed wake: their records in `quiet_cells` are stale
+  // from then on (a probe skips them), and so are their quiet pairs. They
+  // are found first, and woken once the values are read and checked.
+  std::vector<std::uint32_t> waking;
   for (std::size_t w = 0; w < changed.size(); ++w)
-    for (std::uint64_t b = changed[w] & quiet[w]; b != 0; b &= b - 1) {
-      const auto i =
-          static_cast<std::uint32_t>(w * 64 + static_cast<unsigned>(std::countr_zero(b)));
-      quiet[w] &= ~(std::uint64_t{1} << (i & 63));
-      --quiet_count;
-      woken.push_back(i);
-    }
-  stats.woken = woken.size() - woken_before;
-  stats.quiet = quiet_count;
-  const std::size_t m = active.size() + woken.size();
+    for (std::uint64_t b = changed[w] & quiet[w]; b != 0; b &= b - 1)
+      waking.push_back(
+          static_cast<std::uint32_t>(w * 64 + static_cast<unsigned>(std::countr_zero(b))));
+  const std::size_t m = active.size() + woken.size() + waking.size();
   // The movers' shapes, read from the caller's columns in increasing index
   // (the active ones are: a stream rather than a miss per value) and
   // widened exactly to double, then put in the order of the quiet cells'
@@ -282,16 +276,40 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
   // 913-928 -> 845-864 ms median; the million 1-2% faster.
   detail::BigVector<Read> read(m);
   detail::BigVector<std::uint64_t> keyed(m);
+  // With `check_listed`, the values of the objects listed are checked as
+  // they are read (every one of them is a mover by now), rather than in a
+  // pass of their own over the caller's columns before: at scaled-even
+  // 1 024 000 that pass read 32 MB for 2-3 ms of a 65 ms call. A bad one
+  // throws from detail::check_listed, which names the first, before
+  // anything changes.
+  bool bad = check_listed && (o.x.empty() || o.y.empty() || o.z.empty() || o.radius.empty());
+  if (!bad) {
+    auto take = [&](std::size_t k, std::uint32_t i) {
+      const double x = o.x.at(i), y = o.y.at(i), z = o.z.at(i), r = o.radius.at(i);
+      read[k] = {x, y, z, r};
+      if (check_listed)
+        bad |= !(std::isfinite(x) && std::isfinite(y) && std::isfinite(z) && std::isfinite(r) &&
+                 r >= 0) &&
+               test_bit(changed, i);
+      keyed[k] = (static_cast<std::uint64_t>(quiet_cells.cell_key(x, y, z)) << 32) | k;
+    };
+    std::size_t k = 0;
+    for (const std::uint32_t i : active) take(k++, i);
+    for (const std::uint32_t i : woken) take(k++, i);
+    for (const std::uint32_t i : waking) take(k++, i);
+  }
+  if (bad) detail::check_listed(o, changed);
+  ++movers_calls;
+  for (const std::uint32_t i : waking) {
+    quiet[i >> 6] &= ~(std::uint64_t{1} << (i & 63));
+    --quiet_count;
+    woken.push_back(i);
+  }
+  stats.woken = waking.size();
+  stats.quiet = quiet_count;
   auto mover = [&](std::size_t k) {
     return k < active.size() ? active[k] : woken[k - active.size()];
   };
-  for (std::size_t k = 0; k < m; ++k) {
-    const std::uint32_t i = mover(k);
-    read[k] = {o.x.at(i), o.y.at(i), o.z.at(i), o.radius.at(i)};
-    keyed[k] =
-        (static_cast<std::uint64_t>(quiet_cells.cell_key(read[k].x, read[k].y, read[k].z)) << 32) |
-        k;
-  }
   sort_by_high_word(keyed);
   detail::BigVector<std::uint32_t> ids(m);
   detail::BigVector<double> xyzr(4 * m);

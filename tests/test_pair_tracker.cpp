@@ -396,6 +396,7 @@ TEST(Arrays, MoversCallsCheckTheListedObjects) {
   }
   ASSERT_TRUE(stats.movers) << "the set did not take movers mode";
   const std::size_t bytes = tracker.memory_bytes();
+  const std::size_t quiet = stats.quiet;
   step();
   const std::vector<Shape> good = shapes;
   // Two bad listed objects: the lower index is named, whatever the order
@@ -411,6 +412,21 @@ TEST(Arrays, MoversCallsCheckTheListedObjects) {
     } catch (const InvalidObjects& e) {
       EXPECT_EQ(e.index(), movers[3]);
       EXPECT_NE(std::string(e.what()).find("y is nan"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(tracker.memory_bytes(), bytes);
+  // A quiet object listed (it would wake) with a bad value below them: it
+  // is named, and it does not wake.
+  {
+    shapes[1].center.x = -HUGE_VAL;
+    Storage bad(shapes, Layout::soa_double);
+    std::vector<std::uint32_t> listed = movers;
+    listed.push_back(1);
+    try {
+      tracker.find_pairs(bad.objects, got, Changes::only(listed));
+      ADD_FAILURE() << "no throw";
+    } catch (const InvalidObjects& e) {
+      EXPECT_EQ(e.index(), 1u) << e.what();
     }
   }
   EXPECT_EQ(tracker.memory_bytes(), bytes);
@@ -433,6 +449,7 @@ TEST(Arrays, MoversCallsCheckTheListedObjects) {
   got.clear();
   stats = tracker.find_pairs(st.objects, got, Changes::only(movers));
   EXPECT_TRUE(stats.movers);
+  EXPECT_EQ(stats.quiet, quiet);
   EXPECT_EQ(sorted(got), oracle(st.objects));
   ASSERT_NO_THROW(tracker.validate(st.objects));
 }
