@@ -426,9 +426,10 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
                          r = xyzr[4 * k + 3];
             // A quiet sphere found overlapping (a probe tests it), and one
             // from a list, tested here.
+            auto keeps = [&](std::uint32_t j) { return !any_woken || is_quiet(j); };
             auto hit = [&](std::uint32_t q) {
               const std::uint32_t j = quiet_cells.record_id(q);
-              if (!any_woken || is_quiet(j)) out.pairs.push_back(ordered(i, j));
+              if (keeps(j)) out.pairs.push_back(ordered(i, j));
             };
             // A list's pairs are written in place, at most one a candidate,
             // without a check of the vector's room for each.
@@ -439,7 +440,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
               quiet_cells.test_records(listed, x, y, z, r, [&](std::uint32_t q) {
                 const std::uint32_t j = quiet_cells.record_id(q);
                 *w = ordered(i, j);
-                w += !any_woken || is_quiet(j);
+                w += keeps(j);
               });
               out.pairs.resize(static_cast<std::size_t>(w - out.pairs.data()));
             };

@@ -55,6 +55,29 @@ std::vector<std::uint32_t> pick_movers(Rng& rng, std::size_t n, std::uint64_t k)
   return movers;
 }
 
+// `rows` rows of `per_row` quiet spheres along x, 2.5 to 5 apart, 10 apart
+// in z, then one mover a row at x = -3 (their indices in `movers`); with
+// `jitter`, the quiet ones off the row's line by up to 1 in y and of radius
+// 0.8 to 1.2, else on it and of radius 1.
+std::vector<Shape> rows_with_movers(Rng& rng, int rows, int per_row, bool jitter,
+                                    std::vector<std::uint32_t>& movers) {
+  std::vector<Shape> shapes;
+  for (int row = 0; row < rows; ++row) {
+    double x = rng.uniform(0, 3);
+    for (int k = 0; k < per_row; ++k, x += rng.uniform(2.5, 5)) {
+      const double y = jitter ? rng.uniform(-1, 1) : 0;
+      const double r = jitter ? rng.uniform(0.8, 1.2) : 1;
+      shapes.push_back(Shape::sphere({x, y, 10.0 * row}, r));
+    }
+  }
+  movers.clear();
+  for (int row = 0; row < rows; ++row) {
+    movers.push_back(static_cast<std::uint32_t>(shapes.size()));
+    shapes.push_back(Shape::sphere({-3, 0, 10.0 * row}, 1));
+  }
+  return shapes;
+}
+
 // The tracker over random frames: moves, teleports, resizes, kind changes,
 // appends and removals (swap with the last), told everything or only what
 // changed, on 1, 2 and 3 threads in lockstep.
@@ -137,18 +160,9 @@ TEST(Arrays, MoverListsHoldToTheirReach) {
   for (const double speed : {0.006, 0.03}) {
     SCOPED_TRACE(::testing::Message() << "step " << speed);
     Rng rng(11);
-    std::vector<Shape> shapes;
     constexpr int kRows = 16;
-    for (int row = 0; row < kRows; ++row) {
-      double x = rng.uniform(0, 3);
-      for (int k = 0; k < 10; ++k, x += rng.uniform(2.5, 5))
-        shapes.push_back(Shape::sphere({x, 0, 10.0 * row}, 1));
-    }
     std::vector<std::uint32_t> movers;
-    for (int row = 0; row < kRows; ++row) {
-      movers.push_back(static_cast<std::uint32_t>(shapes.size()));
-      shapes.push_back(Shape::sphere({-3, 0, 10.0 * row}, 1));
-    }
+    std::vector<Shape> shapes = rows_with_movers(rng, kRows, 10, false, movers);
     PairTracker tracker;
     std::vector<IndexPair> got;
     tracker.find_pairs(Storage(shapes, Layout::soa_double).objects, got);
@@ -183,18 +197,9 @@ TEST(Arrays, MoverListsLieAheadOfSteadyMovers) {
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(2)); ++seed) {
     SCOPED_TRACE(::testing::Message() << "seed " << seed);
     Rng rng(seed * 6007);
-    std::vector<Shape> shapes;
     constexpr int kRows = 12;
-    for (int row = 0; row < kRows; ++row) {
-      double x = rng.uniform(0, 3);
-      for (int k = 0; k < 12; ++k, x += rng.uniform(2.5, 5))
-        shapes.push_back(Shape::sphere({x, rng.uniform(-1, 1), 10.0 * row}, rng.uniform(0.8, 1.2)));
-    }
     std::vector<std::uint32_t> movers;
-    for (int row = 0; row < kRows; ++row) {
-      movers.push_back(static_cast<std::uint32_t>(shapes.size()));
-      shapes.push_back(Shape::sphere({-3, 0, 10.0 * row}, 1));
-    }
+    std::vector<Shape> shapes = rows_with_movers(rng, kRows, 12, true, movers);
     PairTracker trackers[3];
     on_threads(trackers);
     ArrayCallStats stats;
@@ -231,11 +236,10 @@ TEST(Arrays, MoverListsLieAheadOfSteadyMovers) {
 
 // Movers mode in a crowded set (the quiet spheres overlap several others
 // each), where ArrayOptions::spare_bytes bounds the movers' lists and the
-// quiet pairs kept as IndexPairs: with no
-// room for any, with room for some (the others probe), and with the
-// default: the oracle's pairs on every frame, the same order on 1 to 3
-// threads, the invariants after every call; the own memory shows which
-// bound held.
+// quiet pairs kept as IndexPairs: with no room for any, with room for some
+// (the others probe), and with the default: the oracle's pairs on every
+// frame, the same order on 1 to 3 threads, the invariants after every
+// call; the own memory shows which bound held.
 TEST(Arrays, MoverListsKeepToTheirRoom) {
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(3)); ++seed) {
     std::size_t memory[3] = {};
