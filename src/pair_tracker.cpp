@@ -617,7 +617,8 @@ std::size_t PairTracker::memory_bytes() const {
              sizeof(std::uint32_t) +
          im.renewed.capacity() * sizeof(std::uint64_t) + im.loose.capacity() * sizeof(LoosePair) +
          im.quiet_cells.memory_bytes() +
-         (im.active.capacity() + im.woken.capacity() + im.list_pool.capacity()) *
+         (im.active.capacity() + im.woken.capacity() + im.list_pool.capacity() +
+          im.list_of.capacity()) *
              sizeof(std::uint32_t) +
          im.mover_lists.capacity() * sizeof(Impl::MoverList);
 }

@@ -311,13 +311,39 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
     return k < active.size() ? active[k] : woken[k - active.size()];
   };
   sort_by_high_word(keyed);
+  // Lists for every mover where the quiet pairs are few (fewer than two
+  // an object). In denser sets a list holds tens of candidates: there
+  // the lists together take at most half of ArrayOptions::spare_bytes
+  // (their headers at most a quarter of that, else there are none), and
+  // a mover whose list finds no room probes. At scaled-uneven 1 024 000,
+  // lists for all took the own memory from 84 to 163 B/object (the lean
+  // path promises 100) for a call 264 -> 182 ms; at study uneven 6 400
+  // they take 200 KB, and the call went from 0.96 to 0.58 ms; at
+  // scaled-uneven 102 400, 7 MB: 24 -> 16-17 ms.
+  const bool dense = quiet_hits.many(count);
+  const std::size_t list_bytes = spare_half();
+  constexpr std::size_t kHeader = sizeof(MoverList) + sizeof(std::uint32_t);  // and list_of
+  const bool lists = !dense || m * kHeader <= list_bytes / 4;
+  // (Half the rest for the pool's entries: its capacity may double.)
+  const std::size_t pool_room = !dense || !lists
+                                    ? std::numeric_limits<std::size_t>::max()
+                                    : (list_bytes - m * kHeader) / 2 / sizeof(std::uint32_t);
+  // (New slots get new lists at the end: list_of stays a permutation.)
+  if (lists && list_of.size() < m) {
+    const std::size_t had = list_of.size();
+    list_of.resize(m);
+    mover_lists.resize(m);
+    for (std::size_t k = had; k < m; ++k) list_of[k] = static_cast<std::uint32_t>(k);
+  }
   detail::BigVector<std::uint32_t> ids(m);
   detail::BigVector<double> xyzr(4 * m);
+  detail::BigVector<std::uint32_t> lst(lists ? m : 0);  // the k-th mover's list
   for (std::size_t k = 0; k < m; ++k) {
     if (k + kReadPrefetch < m)
       __builtin_prefetch(&read[static_cast<std::uint32_t>(keyed[k + kReadPrefetch])]);
     const auto from = static_cast<std::uint32_t>(keyed[k]);
     ids[k] = mover(from);
+    if (lists) lst[k] = list_of[from];
     xyzr[4 * k] = read[from].x;
     xyzr[4 * k + 1] = read[from].y;
     xyzr[4 * k + 2] = read[from].z;
@@ -350,29 +376,12 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
   // The movers with the quiet: each tests its list of quiet candidates
   // while it holds, else probes the quiet grids for a new one.
   if (go_on && !emit.stopped()) {
-    // Lists for every mover where the quiet pairs are few (fewer than two
-    // an object). In denser sets a list holds tens of candidates: there
-    // the lists together take at most half of ArrayOptions::spare_bytes
-    // (their headers at most a quarter of that, else there are none), and
-    // a mover whose list finds no room probes. At scaled-uneven 1 024 000,
-    // lists for all took the own memory from 84 to 163 B/object (the lean
-    // path promises 100) for a call 264 -> 182 ms; at study uneven 6 400
-    // they take 200 KB, and the call went from 0.96 to 0.58 ms; at
-    // scaled-uneven 102 400, 7 MB: 24 -> 16-17 ms.
-    const bool dense = quiet_hits.many(count);
-    const std::size_t list_bytes = spare_half();
-    const bool lists = !dense || m * sizeof(MoverList) <= list_bytes / 4;
-    // (Half the rest for the pool's entries: its capacity may double.)
-    const std::size_t pool_room =
-        !dense || !lists ? std::numeric_limits<std::size_t>::max()
-                         : (list_bytes - m * sizeof(MoverList)) / 2 / sizeof(std::uint32_t);
-    if (lists && mover_lists.size() < m) mover_lists.resize(m);
     const auto now = static_cast<std::uint16_t>(movers_calls);
     const double quiet_rmax = quiet_cells.max_radius();
     // (Woken objects' records are stale: skipped, when there are any.)
     const bool any_woken = quiet_cells.size() != quiet_count;
     struct Renewal {
-      std::uint32_t slot;
+      std::uint32_t index;  // of its mover's list in mover_lists
       MoverList list;
       std::size_t at;  // its records in the chunk's `records`
     };
@@ -405,23 +414,19 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
             // scaled-even 1 024 000 without), and the list's entries once
             // its header is in.
             if (lists) {
-              if (k + kListPrefetch < end)
-                __builtin_prefetch(
-                    &mover_lists[static_cast<std::uint32_t>(keyed[k + kListPrefetch])]);
+              if (k + kListPrefetch < end) __builtin_prefetch(&mover_lists[lst[k + kListPrefetch]]);
               if (k + kListPrefetch / 2 < end) {
-                const MoverList& ahead =
-                    mover_lists[static_cast<std::uint32_t>(keyed[k + kListPrefetch / 2])];
+                const MoverList& ahead = mover_lists[lst[k + kListPrefetch / 2]];
                 if (ahead.len > 0) __builtin_prefetch(&list_pool[ahead.first]);
               }
               if (far_records && k + kListPrefetch / 4 < end) {
-                const MoverList& ahead =
-                    mover_lists[static_cast<std::uint32_t>(keyed[k + kListPrefetch / 4])];
+                const MoverList& ahead = mover_lists[lst[k + kListPrefetch / 4]];
                 for (std::uint32_t e = 0; e < ahead.len; ++e)
                   quiet_cells.prefetch_record(list_pool[ahead.first + e]);
               }
             }
             const std::uint32_t i = ids[k];
-            const auto slot = static_cast<std::uint32_t>(keyed[k]);
+            const std::uint32_t held_at = lists ? lst[k] : 0;
             const double x = xyzr[4 * k], y = xyzr[4 * k + 1], z = xyzr[4 * k + 2],
                          r = xyzr[4 * k + 3];
             // A quiet sphere found overlapping (a probe tests it), and one
@@ -448,7 +453,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
               out.tests += quiet_cells.probe_records(x, y, z, r, hit);
               continue;
             }
-            const MoverList& held = mover_lists[slot];
+            const MoverList& held = mover_lists[held_at];
             if (held.holds(x, y, z, r, quiet_rmax)) {
               out.tests += held.len;
               test(std::span<const std::uint32_t>(list_pool).subspan(held.first, held.len));
@@ -462,7 +467,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
             const MoverList next = held.next(x, y, z, r, now, quiet_rmax);
             if (next.reach < 0) {  // no list: a probe
               out.tests += quiet_cells.probe_records(x, y, z, r, hit);
-              out.renewals.push_back({slot, next, out.records.size()});
+              out.renewals.push_back({held_at, next, out.records.size()});
               continue;
             }
             const std::size_t at = out.records.size();
@@ -471,7 +476,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
                                           [&](std::uint32_t q) { out.records.push_back(q); });
             out.tests += out.records.size() - at;
             test(std::span<const std::uint32_t>(out.records).subspan(at));
-            Renewal renewal{slot, next, at};
+            Renewal renewal{held_at, next, at};
             if (out.records.size() - at > kMaxListLength) {
               renewal.list.reach = kNoRoom;
               out.records.resize(at);
@@ -493,7 +498,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
     // end of the pool, which is compacted once a fifth of it is dead.
     stats.renewed = renewals.size();
     for (const Renewal& rn : renewals) {
-      MoverList& held = mover_lists[rn.slot];
+      MoverList& held = mover_lists[rn.index];
       MoverList next = rn.list;
       list_pool_live -= held.len;
       if (next.len > held.len && list_pool.size() + next.len > pool_room) {
@@ -511,6 +516,15 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
       }
       list_pool_live += next.len;
       held = next;
+    }
+    // The lists in this call's order, for the next call.
+    if (lists) {
+      detail::BigVector<MoverList> placed(m);
+      for (std::size_t k = 0; k < m; ++k) {
+        placed[k] = mover_lists[lst[k]];
+        list_of[static_cast<std::uint32_t>(keyed[k])] = static_cast<std::uint32_t>(k);
+      }
+      mover_lists = std::move(placed);
     }
     if (list_pool.size() > list_pool_live + list_pool_live / 4 + 4096) {
       detail::BigVector<std::uint32_t> pool;
@@ -597,6 +611,18 @@ void PairTracker::Impl::check_movers(const Objects& objects) const {
   // enough to probe once a list).
   if (im.mover_lists.size() > im.active.size() + im.woken.size())
     fail("more movers' lists than movers");
+  if (im.list_of.size() != im.mover_lists.size())
+    fail("list_of has " + std::to_string(im.list_of.size()) + " entries for " +
+         std::to_string(im.mover_lists.size()) + " lists");
+  {
+    std::vector<char> taken(im.list_of.size(), 0);
+    for (std::size_t k = 0; k < im.list_of.size(); ++k) {
+      const std::uint32_t l = im.list_of[k];
+      if (l >= taken.size() || taken[l]++ != 0)
+        fail("slot " + std::to_string(k) + "'s list " + std::to_string(l) +
+             " is out of range or another slot's");
+    }
+  }
   std::size_t live = 0;
   for (std::size_t k = 0; k < im.mover_lists.size(); ++k) {
     const MoverList& l = im.mover_lists[k];

@@ -234,6 +234,45 @@ TEST(Arrays, MoverListsLieAheadOfSteadyMovers) {
   }
 }
 
+// Slow movers whose indices lie in another order than their places (the
+// order in which a call goes through them, and lays their lists out for the
+// next): each still finds its own list, so that lists hold for about 25
+// calls at this speed; a list found by another mover's slot would not hold
+// it and be renewed on nearly every call. The oracle's pairs on every call,
+// the invariants after every call, one order on 1 to 3 threads.
+TEST(Arrays, MoverListsFollowTheirMoversInAnyOrder) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(2)); ++seed) {
+    SCOPED_TRACE(::testing::Message() << "seed " << seed);
+    Rng rng(seed * 8011);
+    constexpr int kRows = 12;
+    std::vector<std::uint32_t> movers;
+    std::vector<Shape> shapes = rows_with_movers(rng, kRows, 12, true, movers);
+    // The movers' places shuffled among their indices.
+    for (std::size_t k = movers.size() - 1; k > 0; --k)
+      std::swap(shapes[movers[k]], shapes[movers[rng.below(k + 1)]]);
+    PairTracker trackers[3];
+    on_threads(trackers);
+    ArrayCallStats stats;
+    {
+      Storage st(shapes, Layout::soa_double);
+      call_on_each(trackers, st.objects, Changes::everything(), oracle(st.objects), stats);
+    }
+    std::uint64_t renewed = 0, calls = 0;
+    for (int step = 0; step < 160; ++step) {
+      for (const std::uint32_t i : movers) shapes[i].center.x += 0.01;
+      Storage st(shapes, Layout::soa_double);
+      SCOPED_TRACE(::testing::Message() << "step " << step);
+      call_on_each(trackers, st.objects, Changes::only(movers), oracle(st.objects), stats);
+      if (step >= 40 && stats.movers) {
+        ++calls;
+        renewed += stats.renewed;
+      }
+    }
+    ASSERT_GT(calls, 100u);
+    EXPECT_LT(renewed * 8, calls * kRows) << renewed << " renewals in " << calls << " calls";
+  }
+}
+
 // Movers mode in a crowded set (the quiet spheres overlap several others
 // each), where ArrayOptions::spare_bytes bounds the movers' lists and the
 // quiet pairs kept as IndexPairs: with no room for any, with room for some
