@@ -366,9 +366,10 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
     one.sorted = false;
     std::vector<IndexPair> among;
     detail::SphereCells cells;
-    if (build_coarse_cells(cells, view, {}))
+    if (build_coarse_cells(cells, view, {})) {
+      cells.add_columns();  // scanned once: from columns (see scan_columns)
       stats.tests += cell_pairs(cells, append_to(among), one).tests;
-    else
+    } else
       stats.tests += broadphase::find_pairs(view, among, one).tests;
     for (IndexPair& p : among) p = ordered(ids[p.i], ids[p.j]);
     go_on = emit.deliver_slices(among);

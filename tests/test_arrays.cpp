@@ -260,12 +260,16 @@ TEST(Arrays, CellKernelScansTheSameWithAndWithoutAvx512) {
   // The kernel's scan tests eight partners at a time with AVX-512 where
   // the processor has it: the same pairs in the same order as one at a
   // time, on worlds of one size, of many sizes (coarser grids' long runs),
-  // crowded lattices (runs past eight and past 64) and touching spheres.
+  // crowded lattices (runs past eight and past 64) and touching spheres;
+  // the same again from columns (add_columns, read on one grid), on the
+  // kernel's grids and on coarse ones of one cell a sphere (one grid for
+  // spheres of many sizes, as the tracker's movers have).
   if (!detail::SphereCells::avx512()) GTEST_SKIP() << "no AVX-512 here: one way only";
   using Way = detail::SphereCells::Avx512;
   struct Restore {
     ~Restore() { detail::SphereCells::use_avx512(Way::where_crowded); }
   } restore;
+  int one_grid = 0;
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(24)); ++seed) {
     Rng rng(seed * 7919);
     const World kinds[] = {World::similar, World::lattice, World::sizes, World::spheres};
@@ -281,19 +285,28 @@ TEST(Arrays, CellKernelScansTheSameWithAndWithoutAvx512) {
     SCOPED_TRACE(::testing::Message()
                  << "seed " << seed << " world " << name(w) << " n " << shapes.size());
     Storage st(shapes, seed % 2 ? Layout::soa_double : Layout::aos_float);
-    detail::SphereCells cells;
-    if (!cells.build(st.objects)) continue;  // crowded: the kernel is not used
-    std::vector<IndexPair> wide, one;
-    detail::SphereCells::use_avx512(Way::always);
-    ASSERT_TRUE(detail::SphereCells::avx512());
-    const std::uint64_t wide_tests = cells.pairs(0, cells.cell_count(), wide);
-    detail::SphereCells::use_avx512(Way::never);
-    ASSERT_FALSE(detail::SphereCells::avx512());
-    const std::uint64_t one_tests = cells.pairs(0, cells.cell_count(), one);
-    EXPECT_EQ(wide_tests, one_tests);
-    EXPECT_EQ(wide, one);
-    EXPECT_EQ(sorted(wide), oracle(st.objects));
+    for (const std::size_t per_object : {detail::SphereCells::kMaxCellsPerObject, std::size_t{1}}) {
+      SCOPED_TRACE(::testing::Message() << "cells per object " << per_object);
+      detail::SphereCells cells;
+      if (!cells.build(st.objects, per_object)) continue;  // crowded: the kernel is not used
+      std::vector<IndexPair> wide, one, columns;
+      detail::SphereCells::use_avx512(Way::always);
+      ASSERT_TRUE(detail::SphereCells::avx512());
+      const std::uint64_t wide_tests = cells.pairs(0, cells.cell_count(), wide);
+      detail::SphereCells::use_avx512(Way::never);
+      ASSERT_FALSE(detail::SphereCells::avx512());
+      const std::uint64_t one_tests = cells.pairs(0, cells.cell_count(), one);
+      EXPECT_EQ(wide_tests, one_tests);
+      EXPECT_EQ(wide, one);
+      EXPECT_EQ(sorted(wide), oracle(st.objects));
+      cells.add_columns();
+      detail::SphereCells::use_avx512(Way::always);
+      EXPECT_EQ(cells.pairs(0, cells.cell_count(), columns), one_tests);
+      EXPECT_EQ(columns, one);
+      one_grid += cells.level_count() == 1 ? 1 : 0;
+    }
   }
+  EXPECT_GT(one_grid, 12) << "grids of one level, read from columns";
 }
 
 TEST(Arrays, ObjectsFarApartInSize) {

@@ -72,6 +72,14 @@ class SphereCells {
   /// exactly once over all cells; returns the number of exact tests.
   std::uint64_t pairs(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
 
+  /// Copies the records into columns (x, y, z, r, index; 36 bytes a
+  /// sphere more, dropped by the next build), from which `pairs` reads
+  /// eight partners with masked loads rather than gathers where it tests
+  /// eight at a time on one grid; the pairs and their order are the same.
+  /// For a set that is scanned once, right after its build (the tracker's
+  /// movers among themselves); probes read the records.
+  void add_columns();
+
   /// Whether `pairs` may test eight partners at a time with AVX-512: the
   /// processor has AVX-512F, BROADPHASE_NO_AVX512 is not set in the
   /// environment, and use_avx512(Avx512::never) was not called. The pairs
@@ -176,7 +184,9 @@ class SphereCells {
   std::size_t size() const { return placed_.size() < 3 ? 0 : placed_.size() - 3; }
   /// Bytes held (the cells' starts and the records).
   std::size_t memory_bytes() const {
-    return start_.capacity() * sizeof(std::uint32_t) + placed_.capacity() * sizeof(Placed);
+    return (start_.capacity() + cid_.capacity()) * sizeof(std::uint32_t) +
+           placed_.capacity() * sizeof(Placed) +
+           (cx_.capacity() + cy_.capacity() + cz_.capacity() + cr_.capacity()) * sizeof(double);
   }
 
  private:
@@ -206,6 +216,8 @@ class SphereCells {
   };
   template <bool kWide>
   std::uint64_t scan(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
+  // scan<true> on one grid from the columns (see add_columns).
+  std::uint64_t scan_columns(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
   template <class At>
   bool build_over(const Objects& o, std::size_t n, At at, std::size_t cells_per_object);
 
@@ -228,6 +240,9 @@ class SphereCells {
     std::uint32_t id;
   };
   BigVector<Placed> placed_;
+  // The records' fields in columns, when add_columns made them.
+  BigVector<double> cx_, cy_, cz_, cr_;
+  BigVector<std::uint32_t> cid_;
 
   // The predicate of spheres_overlap between record q and the sphere
   // (x, y, z, r): the one arithmetic of every test here.
