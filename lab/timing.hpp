@@ -215,4 +215,57 @@ inline int first_disagreement(const StructureTiming& a, const StructureTiming& b
   return -1;
 }
 
+/// What `advise` measured on a scene: every candidate's timing, which of
+/// them agree on the pairs with the reference (the one that ran the most
+/// frames; none when no candidate ran), and the fastest of those (`best`;
+/// results.size() when none agrees).
+struct Advice {
+  std::vector<StructureTiming> results;
+  std::vector<bool> agrees;
+  std::size_t ref = 0, best = 0;
+  std::size_t agreeing() const {
+    return static_cast<std::size_t>(std::count(agrees.begin(), agrees.end(), true));
+  }
+};
+
+/// The limits `advise` gives each of `count` candidates within about
+/// `seconds` in all: at most `frames` frames, two warm-up frames and then
+/// at least six, and about half the time for the frames (building and the
+/// micro-timings take the rest).
+inline TimingLimits advise_limits(int frames, double seconds, std::size_t count) {
+  TimingLimits limits;
+  limits.max_frames = frames;
+  limits.min_frames = std::min(8, frames);
+  limits.budget_seconds = 0.5 * seconds / static_cast<double>(std::max<std::size_t>(count, 1));
+  return limits;
+}
+
+/// Times `specs` on `scene` within `limits`, one after another, calling
+/// `report(k, timing)` after each, and chooses as `advise` does.
+template <class Report>
+Advice advise_on(const Registry& registry, const std::vector<std::string>& specs,
+                 const Scene& scene, const TimingLimits& limits, Report&& report) {
+  Advice a;
+  for (std::size_t k = 0; k < specs.size(); ++k) {
+    a.results.push_back(time_structure(registry, specs[k], scene, limits));
+    report(k, a.results.back());
+  }
+  const std::size_t none = a.results.size();
+  a.ref = none;
+  for (std::size_t k = 0; k < none; ++k)
+    if (a.results[k].error.empty() &&
+        (a.ref == none || a.results[k].digests.size() > a.results[a.ref].digests.size()))
+      a.ref = k;
+  a.agrees.assign(none, false);
+  for (std::size_t k = 0; k < none; ++k)
+    a.agrees[k] = a.ref < none && a.results[k].error.empty() &&
+                  first_disagreement(a.results[k], a.results[a.ref]) < 0;
+  a.best = none;
+  for (std::size_t k = 0; k < none; ++k)
+    if (a.agrees[k] &&
+        (a.best == none || a.results[k].median_frame_ms() < a.results[a.best].median_frame_ms()))
+      a.best = k;
+  return a;
+}
+
 }  // namespace broadphase::app

@@ -72,47 +72,24 @@ void advise(const AdviseOptions& o) {
       }
     }
   }
-  TimingLimits limits;
-  limits.max_frames = o.frames;
-  limits.min_frames = std::min(8, o.frames);  // two warm-up frames, then at least six
-  // Building and the micro-timings take time too: frames get about half.
-  limits.budget_seconds = 0.5 * o.seconds / static_cast<double>(specs.size());
-
-  std::vector<StructureTiming> results;
-  for (std::size_t k = 0; k < specs.size(); ++k) {
-    std::fprintf(stderr, "advise: [%zu/%zu] %s ...\n", k + 1, specs.size(), specs[k].c_str());
-    results.push_back(time_structure(reg, specs[k], scene, limits));
-    const StructureTiming& t = results.back();
-    if (!t.error.empty())
-      std::fprintf(stderr, "advise: %s failed: %s\n", specs[k].c_str(), t.error.c_str());
-    else
-      std::fprintf(stderr, "advise: %s: %zu frames, median %.3f ms, mean %.3f ms\n",
-                   specs[k].c_str(), t.frame_ms.size(), t.median_frame_ms(), t.mean_frame_ms());
-  }
-
-  // The reference is the structure that ran the most frames; every other
-  // one must agree with it on the frames both ran.
-  std::size_t ref = results.size();
-  for (std::size_t k = 0; k < results.size(); ++k)
-    if (results[k].error.empty() &&
-        (ref == results.size() || results[k].digests.size() > results[ref].digests.size()))
-      ref = k;
-  std::vector<bool> agrees(results.size(), false);
-  std::size_t majority = 0;
-  for (std::size_t k = 0; k < results.size(); ++k) {
-    agrees[k] = ref < results.size() && results[k].error.empty() &&
-                first_disagreement(results[k], results[ref]) < 0;
-    majority += agrees[k];
-  }
-  if (ref < results.size() && 2 * majority <= results.size() && results.size() > 2)
+  const TimingLimits limits = advise_limits(o.frames, o.seconds, specs.size());
+  const Advice a =
+      advise_on(reg, specs, scene, limits, [&](std::size_t k, const StructureTiming& t) {
+        if (!t.error.empty())
+          std::fprintf(stderr, "advise: [%zu/%zu] %s failed: %s\n", k + 1, specs.size(),
+                       specs[k].c_str(), t.error.c_str());
+        else
+          std::fprintf(stderr, "advise: [%zu/%zu] %s: %zu frames, median %.3f ms, mean %.3f ms\n",
+                       k + 1, specs.size(), specs[k].c_str(), t.frame_ms.size(),
+                       t.median_frame_ms(), t.mean_frame_ms());
+      });
+  const std::vector<StructureTiming>& results = a.results;
+  const std::vector<bool>& agrees = a.agrees;
+  const std::size_t ref = a.ref, best = a.best;
+  if (ref < results.size() && 2 * a.agreeing() <= results.size() && results.size() > 2)
     std::fprintf(stderr,
                  "advise: warning: fewer than half the structures agree with %s on the pairs\n",
                  results[ref].spec.c_str());
-  std::size_t best = results.size();
-  for (std::size_t k = 0; k < results.size(); ++k)
-    if (agrees[k] &&
-        (best == results.size() || results[k].median_frame_ms() < results[best].median_frame_ms()))
-      best = k;
 
   const double n = static_cast<double>(scene.size());
   if (o.json) {
