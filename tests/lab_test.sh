@@ -81,6 +81,18 @@ for needle in ("## The study's findings, checked", "(a) the hgrid", "(e) the oct
                "## Exactness", "| commit |", "| machine |", "| compiler |", "| command |", "paper --quick"):
     if needle not in report:
         errors.append("REPORT.md lacks %r" % needle)
+# The structure `advise` recommends on each kind of lab/goals.json marked so,
+# against the fastest peer, all pairs agreeing.
+if "**Where the lead is thin**" in report:
+    thin = report.split("**Where the lead is thin**")[1].split("\n\n**")[0]
+    for kind in ("clusters", "decades", "all-moving", "explosion", "flat", "coincident", "outside",
+                 "boxes", "half-boxes", "box-decades", "city"):
+        if ("| %s 2000 |" % kind) not in thin:
+            errors.append("advise's pick is missing on %s" % kind)
+elif "this build has no peer adapter" not in report:
+    errors.append("REPORT.md lacks advise's picks against the peers")
+if "**pairs differ**" in report:
+    errors.append("the performance tables report pairs that differ")
 # Medians of the study's tests are positive where they are times.
 for r in rows:
     if r["test"] in ("query_time", "frame_time") and float(r["median"]) <= 0:

@@ -24,6 +24,8 @@ namespace {
 // Our structure's frames may take this long per run (at least 50 frames;
 // a million objects take about 70 ms per frame here).
 constexpr double kOursSeconds = 8;
+// `advise`'s default budget (seconds for all its candidates on a scene).
+constexpr double kAdviseSeconds = 10;
 
 /// One workload of the targets table.
 struct Workload {
@@ -38,6 +40,7 @@ struct Workload {
   double arrays_max_frame_ms;
   double arrays_max_bytes_per_object;
   bool arrays_no_slower;  // no slower than our handle structure
+  bool advise;            // also time the structure `advise` recommends on it
 };
 
 std::string fmt(double v, int digits = 3) {
@@ -50,8 +53,9 @@ std::string fmt(double v, int digits = 3) {
 struct Row {
   std::string workload;
   StructureTiming ours;
-  StructureTiming ours2;   // on two threads (empty spec: not run)
-  StructureTiming arrays;  // the lean path (arrays.hpp) on the same frames
+  StructureTiming ours2;    // on two threads (empty spec: not run)
+  StructureTiming arrays;   // the lean path (arrays.hpp) on the same frames
+  StructureTiming advised;  // the structure `advise` recommends (empty spec: not run)
   std::vector<StructureTiming> peers;
   bool agree = true;
 };
@@ -76,7 +80,7 @@ std::string lab_performance(const LabContext& ctx) {
                          w.value("reference_peer_ms", nan), w.value("max_frame_ms", nan),
                          w.value("max_bytes_per_object", nan), w.value("arrays_max_frame_ms", nan),
                          w.value("arrays_max_bytes_per_object", nan),
-                         w.value("arrays_no_slower", false)});
+                         w.value("arrays_no_slower", false), w.value("advise", false)});
   std::erase_if(workloads, [&](const Workload& w) { return ctx.quick && w.n_quick == 0; });
   // Peers are slow to build at 100 000 objects and more (Bullet's sweep
   // takes minutes): they run there only with a generous budget.
@@ -151,6 +155,22 @@ std::string lab_performance(const LabContext& ctx) {
         ++done;
       }
     }
+    // What a user of these kinds would run: the structure `advise`
+    // recommends among ours (its default budget), timed as the peers are.
+    if (w.advise && !row.peers.empty()) {
+      progress(w.label + " advise");
+      std::vector<std::string> candidates;
+      for (const StructureInfo& e : reg.entries())
+        if (!e.peer && !(e.name == "naive" && n > 3000)) candidates.push_back(e.name);
+      const Advice advice =
+          advise_on(reg, candidates, scene,
+                    advise_limits(100, ctx.quick ? 1 : kAdviseSeconds, candidates.size()),
+                    [](std::size_t, const StructureTiming&) {});
+      if (advice.best < advice.results.size())
+        row.advised = candidates[advice.best] == ours
+                          ? row.ours
+                          : time_structure(reg, candidates[advice.best], scene, lim);
+    }
     row.agree = row.ours.error.empty();
     if (!row.ours2.spec.empty() && row.ours2.error.empty() &&
         first_disagreement(row.ours2, row.ours) >= 0)
@@ -163,6 +183,9 @@ std::string lab_performance(const LabContext& ctx) {
     if (!row.ours2.spec.empty()) write_csv(row.workload, n, row.ours2, row.agree);
     for (const StructureTiming& p : row.peers)
       write_csv(row.workload, n, p, p.error.empty() && first_disagreement(p, row.ours) < 0);
+    if (!row.advised.spec.empty() && row.advised.spec != ours)
+      write_csv(row.workload, n, row.advised,
+                row.advised.error.empty() && first_disagreement(row.advised, row.ours) < 0);
     if (lim.micro) n_micro = rows.size();
     rows.push_back(std::move(row));
   }
@@ -331,6 +354,48 @@ std::string lab_performance(const LabContext& ctx) {
            : met        ? "✓"
                         : "✗")
        << " |\n";
+  }
+
+  // The structure `advise` recommends, against the fastest peer.
+  const nlohmann::json& ga = g.at("advised");
+  const double advised_goal = ga.at("speedup_over_fastest_peer");
+  const double advised_quiet = ga.at("quiet_speedup_over_fastest_peer");
+  bool any_advised = false;
+  for (const Row& row : rows) any_advised = any_advised || !row.advised.spec.empty();
+  if (any_advised) {
+    md << "\n**Where the lead is thin**: on each kind, the structure that `broadphase advise` "
+          "recommends among ours (its default budget of "
+       << fmt(ctx.quick ? 1 : kAdviseSeconds, 0)
+       << " s, on this scene), timed again as the peers are, against the fastest peer; one "
+          "thread. Goal: ≥ "
+       << fmt(advised_goal, 0) << "× in every run, ≥ " << fmt(advised_quiet, 1)
+       << "× on a quiet machine.\n\n";
+    md << "| workload | advise's pick | ms | " << ours
+       << " ms | fastest peer | peer ms | speed-up | goal | met |\n";
+    md << "|---|---|---:|---:|---|---:|---:|---|:-:|\n";
+    for (const Row& row : rows) {
+      if (row.advised.spec.empty()) continue;
+      const StructureTiming& a = row.advised;
+      const StructureTiming* best = nullptr;
+      for (const StructureTiming& p : row.peers)
+        if (p.error.empty() && !p.frame_ms.empty() &&
+            (best == nullptr || p.median_frame_ms() < best->median_frame_ms()))
+          best = &p;
+      const bool agree = a.error.empty() && first_disagreement(a, row.ours) < 0;
+      const double ms = a.error.empty() ? a.median_frame_ms() : nan;
+      const double peer_ms = best != nullptr ? best->median_frame_ms() : nan;
+      const double ratio = peer_ms / ms;
+      md << "| " << row.workload << (agree ? "" : " **pairs differ**") << " | " << a.spec << " | "
+         << (a.error.empty() ? fmt(ms) : "failed: " + a.error) << " | "
+         << fmt(row.ours.median_frame_ms()) << " | " << (best ? best->spec : "–") << " | "
+         << fmt(peer_ms) << " | " << (std::isfinite(ratio) ? fmt(ratio, 2) + "×" : "–") << " | ≥ "
+         << fmt(advised_goal, 0) << "× (" << fmt(advised_quiet, 1) << "× quiet) | "
+         << (!std::isfinite(ratio)            ? "–"
+             : !agree || ratio < advised_goal ? "✗"
+             : ratio < advised_quiet          ? "✓ (not the quiet goal)"
+                                              : "✓")
+         << " |\n";
+    }
   }
 
   const double speedup = one.median_frame_ms() / two.median_frame_ms();
