@@ -410,10 +410,11 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
           const bool far_records = quiet_cells.memory_bytes() >= kFarRecords;
           for (std::size_t k = begin; k < end; ++k) {
             // The movers come in the quiet cells' order, their lists in
-            // the movers' order: a cache miss each, asked for ahead (the
-            // test of whether a list holds took 10% of a call at
-            // scaled-even 1 024 000 without), and the list's entries once
-            // its header is in.
+            // that of the last call (see list_of): mostly in sequence, but
+            // asked for ahead all the same, and the list's entries once
+            // its header is in (in slot order, without, the test of
+            // whether a list holds took 10% of a call at scaled-even
+            // 1 024 000).
             if (lists) {
               if (k + kListPrefetch < end) __builtin_prefetch(&mover_lists[lst[k + kListPrefetch]]);
               if (k + kListPrefetch / 2 < end) {
