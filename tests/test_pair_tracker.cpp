@@ -9,6 +9,7 @@
 #include <broadphase/lab/scene.hpp>
 #include <cmath>
 #include <set>
+#include <utility>
 
 #include "arrays_testing.hpp"
 #include "testing.hpp"
@@ -76,6 +77,35 @@ std::vector<Shape> rows_with_movers(Rng& rng, int rows, int per_row, bool jitter
     shapes.push_back(Shape::sphere({-3, 0, 10.0 * row}, 1));
   }
   return shapes;
+}
+
+// Trackers on 1 to 3 threads told everything once, then `steps` calls
+// listing `movers`, each after `move(step)`: the oracle's pairs on every
+// call, one order on every thread count, the invariants after every call.
+// Returns the renewals and the movers calls of the steps in [from, to).
+template <class Move>
+std::pair<std::uint64_t, std::uint64_t> renewals_of(std::vector<Shape>& shapes,
+                                                    const std::vector<std::uint32_t>& movers,
+                                                    int steps, int from, int to, Move&& move) {
+  PairTracker trackers[3];
+  on_threads(trackers);
+  ArrayCallStats stats;
+  {
+    Storage st(shapes, Layout::soa_double);
+    call_on_each(trackers, st.objects, Changes::everything(), oracle(st.objects), stats);
+  }
+  std::uint64_t renewed = 0, calls = 0;
+  for (int step = 0; step < steps; ++step) {
+    move(step);
+    Storage st(shapes, Layout::soa_double);
+    SCOPED_TRACE(::testing::Message() << "step " << step);
+    call_on_each(trackers, st.objects, Changes::only(movers), oracle(st.objects), stats);
+    if (step >= from && step < to && stats.movers) {
+      ++calls;
+      renewed += stats.renewed;
+    }
+  }
+  return {renewed, calls};
 }
 
 // The tracker over random frames: moves, teleports, resizes, kind changes,
@@ -200,15 +230,7 @@ TEST(Arrays, MoverListsLieAheadOfSteadyMovers) {
     constexpr int kRows = 12;
     std::vector<std::uint32_t> movers;
     std::vector<Shape> shapes = rows_with_movers(rng, kRows, 12, true, movers);
-    PairTracker trackers[3];
-    on_threads(trackers);
-    ArrayCallStats stats;
-    {
-      Storage st(shapes, Layout::soa_double);
-      call_on_each(trackers, st.objects, Changes::everything(), oracle(st.objects), stats);
-    }
-    std::uint64_t renewed = 0, calls = 0;
-    for (int step = 0; step < 700; ++step) {
+    const auto [renewed, calls] = renewals_of(shapes, movers, 700, 40, 400, [&](int step) {
       for (const std::uint32_t i : movers) {
         Vec3& c = shapes[i].center;
         if (step < 400) {
@@ -220,14 +242,7 @@ TEST(Arrays, MoverListsLieAheadOfSteadyMovers) {
           c.y += rng.uniform(-0.1, 0.1);
         }
       }
-      Storage st(shapes, Layout::soa_double);
-      SCOPED_TRACE(::testing::Message() << "step " << step);
-      call_on_each(trackers, st.objects, Changes::only(movers), oracle(st.objects), stats);
-      if (step >= 40 && step < 400 && stats.movers) {
-        ++calls;
-        renewed += stats.renewed;
-      }
-    }
+    });
     ASSERT_GT(calls, 300u);
     // About one renewal a mover every 24 calls; centred lists take 12.
     EXPECT_LT(renewed * 18, calls * kRows) << renewed << " renewals in " << calls << " calls";
@@ -250,24 +265,9 @@ TEST(Arrays, MoverListsFollowTheirMoversInAnyOrder) {
     // The movers' places shuffled among their indices.
     for (std::size_t k = movers.size() - 1; k > 0; --k)
       std::swap(shapes[movers[k]], shapes[movers[rng.below(k + 1)]]);
-    PairTracker trackers[3];
-    on_threads(trackers);
-    ArrayCallStats stats;
-    {
-      Storage st(shapes, Layout::soa_double);
-      call_on_each(trackers, st.objects, Changes::everything(), oracle(st.objects), stats);
-    }
-    std::uint64_t renewed = 0, calls = 0;
-    for (int step = 0; step < 160; ++step) {
+    const auto [renewed, calls] = renewals_of(shapes, movers, 160, 40, 160, [&](int) {
       for (const std::uint32_t i : movers) shapes[i].center.x += 0.01;
-      Storage st(shapes, Layout::soa_double);
-      SCOPED_TRACE(::testing::Message() << "step " << step);
-      call_on_each(trackers, st.objects, Changes::only(movers), oracle(st.objects), stats);
-      if (step >= 40 && stats.movers) {
-        ++calls;
-        renewed += stats.renewed;
-      }
-    }
+    });
     ASSERT_GT(calls, 100u);
     EXPECT_LT(renewed * 8, calls * kRows) << renewed << " renewals in " << calls << " calls";
   }
