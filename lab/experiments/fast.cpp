@@ -22,7 +22,7 @@ namespace broadphase::app {
 namespace {
 
 // Our structure's frames may take this long per run (at least 50 frames;
-// a million objects take about 70 ms per frame here).
+// a million objects take 55-75 ms per frame here).
 constexpr double kOursSeconds = 8;
 // `advise`'s default budget (seconds for all its candidates on a scene).
 constexpr double kAdviseSeconds = 10;

@@ -182,7 +182,7 @@ class SphereCells {
   }
   /// Spheres in the set.
   std::size_t size() const { return placed_.size() < 3 ? 0 : placed_.size() - 3; }
-  /// Bytes held (the cells' starts and the records).
+  /// Bytes held (the cells' starts, the records and any columns).
   std::size_t memory_bytes() const {
     return (start_.capacity() + cid_.capacity()) * sizeof(std::uint32_t) +
            placed_.capacity() * sizeof(Placed) +
