@@ -228,6 +228,17 @@ struct Advice {
   }
 };
 
+/// `advise`'s candidates on a scene of `n` objects: every structure of
+/// `registry`, the peers too with `peers`, the quadratic oracle only up to
+/// 3 000 objects (worth timing only there).
+inline std::vector<std::string> advise_candidates(const Registry& registry, std::size_t n,
+                                                  bool peers) {
+  std::vector<std::string> specs;
+  for (const StructureInfo& e : registry.entries())
+    if ((peers || !e.peer) && !(e.name == "naive" && n > 3000)) specs.push_back(e.name);
+  return specs;
+}
+
 /// The limits `advise` gives each of `count` candidates within about
 /// `seconds` in all: at most `frames` frames, two warm-up frames and then
 /// at least six, and about half the time for the frames (building and the

@@ -53,11 +53,7 @@ void advise(const AdviseOptions& o) {
   const Registry& reg = registry();
   std::vector<std::string> specs;
   if (o.algos.empty()) {
-    for (const StructureInfo& e : reg.entries()) {
-      // The oracle is quadratic: only worth timing on small scenes.
-      if (e.name == "naive" && scene.size() > 3000) continue;
-      specs.push_back(e.name);
-    }
+    specs = advise_candidates(reg, scene.size(), true);
   } else {
     specs = split_list(o.algos);
     if (specs.empty()) throw UsageError("--algos: empty list");

@@ -159,9 +159,7 @@ std::string lab_performance(const LabContext& ctx) {
     // recommends among ours (its default budget), timed as the peers are.
     if (w.advise && !row.peers.empty()) {
       progress(w.label + " advise");
-      std::vector<std::string> candidates;
-      for (const StructureInfo& e : reg.entries())
-        if (!e.peer && !(e.name == "naive" && n > 3000)) candidates.push_back(e.name);
+      const std::vector<std::string> candidates = advise_candidates(reg, n, false);
       const Advice advice =
           advise_on(reg, candidates, scene,
                     advise_limits(100, ctx.quick ? 1 : kAdviseSeconds, candidates.size()),
