@@ -447,13 +447,22 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   // by sorting the quiet objects into cells of their own and dropping the
   // listed objects' pairs, without finding the quiet pairs again
   // (scaled-even 1 024 000, that call 410 -> 324 ms on one core).
+  // The cells are those the quiet spheres take (build_pending_cells):
+  // coarse where the radii spread. The kernel's own, four cells a sphere
+  // over three grids there, took this call (the first of a process, its
+  // pages fresh) 454 ms against 278, one run each on one core; its
+  // starts alone were 16 MB.
   if (rebuild && !im.pending) {
     detail::SphereCells cells;
-    if (cells.build(objects) && cells.crowd() <= kMoversCrowd) {
+    if (build_pending_cells(cells, objects)) {
       const ArrayOptions options = im.options;
       const std::uint32_t quiet_after = im.quiet_after;
       clear();
+      // Reserved, not written: untouched pages cost nothing. Grown by
+      // doubling, the 2.58 million pairs of scaled-even 1 024 000 took
+      // 15-20 ms more in copies and fresh pages.
       std::vector<IndexPair> all;
+      all.reserve(std::min<std::size_t>(4 * objects.count, std::size_t{1} << 26));
       stats = cell_pairs(cells, sink, options, &all);
       im.quiet_after = quiet_after;
       im.pending = true;

@@ -127,6 +127,11 @@ inline void set_bit(std::vector<std::uint64_t>& bits, std::uint32_t k) {
   bits[k >> 6] |= std::uint64_t{1} << (k & 63);
 }
 
+// The cells a call without an index keeps for the next call's partition
+// (pair_tracker_movers.cpp): those the quiet spheres would take, over all
+// of `o`. False when the kernel refuses them.
+bool build_pending_cells(detail::SphereCells& cells, const Objects& o);
+
 struct PairTracker::Impl {
   ArrayOptions options;
   // Half of ArrayOptions::spare_bytes: for the quiet pairs as IndexPairs,

@@ -57,6 +57,12 @@ bool build_quiet_cells(detail::SphereCells& cells, const Objects& o,
 
 }  // namespace
 
+bool build_pending_cells(detail::SphereCells& cells, const Objects& o) {
+  if (o.radius.empty()) return false;  // (boxes only)
+  if (build_coarse_cells(cells, o, {})) return true;
+  return cells.build(o) && cells.crowd() <= kMoversCrowd;
+}
+
 // Its distance from the list's centre plus its radius at most the reach,
 // less a margin far above the rounding of this test, of the predicate and of
 // the probe that made the list (relative 2^-40 of the magnitudes involved,
