@@ -218,11 +218,20 @@ bool PairTracker::Impl::enter_from_pending(const Objects& o,
   still.reserve(n - moving.size());
   for (std::uint32_t i = 0; i < n; ++i)
     if (!test_bit(changed, i)) still.push_back(i);
+  // The pending cells go first: the new ones then take their blocks
+  // (big_blocks.cpp) rather than fresh pages. At scaled-even 1 024 000,
+  // where this is the second call of a process, the build took 120-140 ms
+  // with them kept to the end, 50-53 without (timed inside the call, on
+  // one core).
+  quiet_cells = detail::SphereCells{};
   detail::SphereCells cells;
   if (!build_quiet_cells(cells, o, still)) return false;
   quiet_cells = std::move(cells);
-  quiet_hits.erase_if(
-      [&](const IndexPair& p) { return test_bit(changed, p.i) || test_bit(changed, p.j); });
+  // (Both bits read, without a branch between them: see erase_if.)
+  quiet_hits.erase_if([&](const IndexPair& p) {
+    return (static_cast<unsigned>(test_bit(changed, p.i)) |
+            static_cast<unsigned>(test_bit(changed, p.j))) != 0;
+  });
   set_quiet(changed);
   active = std::move(moving);
   woken.clear();

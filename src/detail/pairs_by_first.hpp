@@ -104,13 +104,18 @@ class PairsByFirst {
       plain_.shrink_to_fit();
       return;
     }
+    // Without a branch a pair: where a fifth of the objects move, a third
+    // of the pairs go, a coin toss for a branch (the pass over 2.58
+    // million pairs at scaled-even 1 024 000: 16 ms with one, 10 without).
     std::uint32_t w = 0;
     for (std::size_t i = 0; i + 1 < start_.size(); ++i) {
       const std::uint32_t b = start_[i], e = start_[i + 1];
       start_[i] = w;
-      for (std::uint32_t p = b; p < e; ++p)
-        if (!drop(IndexPair{static_cast<std::uint32_t>(i), partner_[p]}))
-          partner_[w++] = partner_[p];
+      for (std::uint32_t p = b; p < e; ++p) {
+        const std::uint32_t j = partner_[p];
+        partner_[w] = j;
+        w += drop(IndexPair{static_cast<std::uint32_t>(i), j}) ? 0 : 1;
+      }
     }
     if (w == 0) {
       clear();
