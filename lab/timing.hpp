@@ -26,6 +26,7 @@ struct StructureTiming {
   std::string spec;
   double build_ms = 0;
   std::vector<double> frame_ms;      ///< wall time of update + find_pairs, per frame after warm-up
+  std::vector<double> warm_ms;       ///< the same for the warm-up frames left out of frame_ms
   std::vector<FrameDigest> digests;  ///< per frame
   double query_us = 0;               ///< one exact overlap query (median of batches)
   double insert_us = 0;              ///< one insert (median of batches)
@@ -42,6 +43,16 @@ struct StructureTiming {
     double sum = 0;
     for (double v : frame_ms) sum += v;
     return sum / static_cast<double>(frame_ms.size());
+  }
+  /// The mean of the first `k` frames run, warm-up included (of fewer
+  /// when fewer ran): what a short run costs a frame. `build_ms` (the
+  /// inserts; for the lean path, its first call, frame 0) is not added.
+  double first_frames_ms(std::size_t k) const {
+    double sum = 0;
+    std::size_t n = 0;
+    for (const std::vector<double>* v : {&warm_ms, &frame_ms})
+      for (std::size_t f = 0; f < v->size() && n < k; ++f, ++n) sum += (*v)[f];
+    return n > 0 ? sum / static_cast<double>(n) : 0;
   }
   static double median(std::vector<double> v) {
     if (v.empty()) return 0;
@@ -94,6 +105,7 @@ void run_frames(const TimingLimits& limits, StructureTiming& t, Frame&& frame) {
     if (spent > 2 * limits.budget_seconds) break;  // the frames are too slow for min_frames
   }
   const std::size_t warm = t.frame_ms.size() > 2 ? 2 : (t.frame_ms.size() > 1 ? 1 : 0);
+  t.warm_ms.assign(t.frame_ms.begin(), t.frame_ms.begin() + static_cast<std::ptrdiff_t>(warm));
   t.frame_ms.erase(t.frame_ms.begin(), t.frame_ms.begin() + static_cast<std::ptrdiff_t>(warm));
 }
 

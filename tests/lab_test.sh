@@ -91,6 +91,22 @@ if "**Where the lead is thin**" in report:
             errors.append("advise's pick is missing on %s" % kind)
 elif "this build has no peer adapter" not in report:
     errors.append("REPORT.md lacks advise's picks against the peers")
+# The first six frames of every workload, the warm-up included: the lean
+# path's first two calls and the default structure's inserts, all times.
+if "**A short run**" in report:
+    short = report.split("**A short run**")[1].split("\n\n**")[0]
+    lines = [l for l in short.splitlines() if l.startswith("| ") and "---" not in l][1:]
+    if len(lines) < 9:
+        errors.append("the short-run table has %d rows" % len(lines))
+    for l in lines:
+        cells = [c.strip() for c in l.strip("|").split("|")]
+        try:
+            if len(cells) != 7 or min(float(c) for c in cells[1:]) <= 0:
+                errors.append("short-run row not seven positive times: %s" % l)
+        except ValueError:
+            errors.append("short-run row not seven positive times: %s" % l)
+else:
+    errors.append("REPORT.md lacks the short-run table")
 if "**pairs differ**" in report:
     errors.append("the performance tables report pairs that differ")
 # Medians of the study's tests are positive where they are times.
