@@ -520,7 +520,6 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
     stats.renewed = renewals.size();
     if (list_pool_live == 0 && records.size() <= pool_room) {
       list_pool = std::move(records);
-      records = {};
       for (MoverList& l : mover_lists) l.first = 0;  // (all empty)
       for (const Renewal& rn : renewals) {
         MoverList next = rn.list;
