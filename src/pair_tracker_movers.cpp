@@ -408,7 +408,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
       std::vector<std::uint32_t> records;
     };
     std::vector<Renewal> renewals;
-    detail::BigVector<std::uint32_t> records;
+    std::vector<std::uint32_t> records;
     run_in_order<Chunk>(
         m, threads,
         [&](std::size_t begin, std::size_t end, Chunk& out) {
@@ -513,22 +513,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
         });
     // The new lists, in place of the old ones where they fit, else at the
     // end of the pool, which is compacted once a fifth of it is dead.
-    // Where no list holds an entry (the first lists after a partition),
-    // the records are the pool as they stand, in the visit order: at
-    // scaled-even 1 024 000 that call copied 22 MB into a pool that grew
-    // from nothing on fresh pages, and this step took 24-26 ms, now 7-11.
     stats.renewed = renewals.size();
-    if (list_pool_live == 0 && records.size() <= pool_room) {
-      list_pool = std::move(records);
-      for (MoverList& l : mover_lists) l.first = 0;  // (all empty)
-      for (const Renewal& rn : renewals) {
-        MoverList next = rn.list;
-        next.first = static_cast<std::uint32_t>(rn.at);
-        list_pool_live += next.len;
-        mover_lists[rn.index] = next;
-      }
-      renewals.clear();
-    }
     for (const Renewal& rn : renewals) {
       MoverList& held = mover_lists[rn.index];
       MoverList next = rn.list;
