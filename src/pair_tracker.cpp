@@ -447,14 +447,14 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   // by sorting the quiet objects into cells of their own and dropping the
   // listed objects' pairs, without finding the quiet pairs again
   // (scaled-even 1 024 000, that call 410 -> 324 ms on one core).
-  // The cells are those the quiet spheres take (build_pending_cells):
+  // The cells are those the quiet spheres take (build_quiet_cells):
   // coarse where the radii spread. The kernel's own, four cells a sphere
   // over three grids there, took this call (the first of a process, its
   // pages fresh) 454 ms against 278, one run each on one core; its
   // starts alone were 16 MB.
   if (rebuild && !im.pending) {
     detail::SphereCells cells;
-    if (build_pending_cells(cells, objects)) {
+    if (build_quiet_cells(cells, objects, {})) {
       const ArrayOptions options = im.options;
       const std::uint32_t quiet_after = im.quiet_after;
       clear();

@@ -127,10 +127,14 @@ inline void set_bit(std::vector<std::uint64_t>& bits, std::uint32_t k) {
   bits[k >> 6] |= std::uint64_t{1} << (k & 63);
 }
 
-// The cells a call without an index keeps for the next call's partition
-// (pair_tracker_movers.cpp): those the quiet spheres would take, over all
-// of `o`. False when the kernel refuses them.
-bool build_pending_cells(detail::SphereCells& cells, const Objects& o);
+// The quiet spheres' cells (pair_tracker_movers.cpp), over the spheres
+// `still` of `o`, or over all of them when `still` is empty (the cells a
+// call without an index keeps for the next call's partition): coarse ones
+// where they suit (one cell a sphere, where the radii spread over more
+// than kCoarseSpread and crowd at most kCoarseCrowd), else as many as the
+// one-shot kernel takes. False when the kernel refuses them.
+bool build_quiet_cells(detail::SphereCells& cells, const Objects& o,
+                       std::span<const std::uint32_t> still);
 
 struct PairTracker::Impl {
   ArrayOptions options;

@@ -31,6 +31,7 @@ constexpr std::size_t kReadPrefetch = 16;
 // size keep the kernel's cells, as fine as their diameter.
 bool build_coarse_cells(detail::SphereCells& cells, const Objects& o,
                         std::span<const std::uint32_t> subset) {
+  if (o.radius.empty()) return false;  // (boxes only)
   double rmin = HUGE_VAL, rmax = 0;
   const std::size_t n = subset.empty() ? o.count : subset.size();
   for (std::size_t k = 0; k < n; ++k) {
@@ -46,21 +47,13 @@ bool build_coarse_cells(detail::SphereCells& cells, const Objects& o,
   return false;
 }
 
-// The quiet spheres' cells: coarse ones where they suit (see
-// build_coarse_cells), else as many as the one-shot kernel takes. False
-// when the kernel refuses them.
+}  // namespace
+
 bool build_quiet_cells(detail::SphereCells& cells, const Objects& o,
                        std::span<const std::uint32_t> still) {
   if (build_coarse_cells(cells, o, still)) return true;
-  return cells.build(o, still) && cells.crowd() <= kMoversCrowd;
-}
-
-}  // namespace
-
-bool build_pending_cells(detail::SphereCells& cells, const Objects& o) {
-  if (o.radius.empty()) return false;  // (boxes only)
-  if (build_coarse_cells(cells, o, {})) return true;
-  return cells.build(o) && cells.crowd() <= kMoversCrowd;
+  const bool built = still.empty() ? cells.build(o) : cells.build(o, still);
+  return built && cells.crowd() <= kMoversCrowd;
 }
 
 // Its distance from the list's centre plus its radius at most the reach,
