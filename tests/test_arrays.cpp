@@ -256,19 +256,27 @@ TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
   EXPECT_FALSE(taken(std::vector<Shape>(100, Shape::sphere({1, 2, 3}, 0))));  // all points
 }
 
-TEST(Arrays, CellKernelScansTheSameWithAndWithoutAvx512) {
-  // The kernel's scan tests eight partners at a time with AVX-512 where
-  // the processor has it: the same pairs in the same order as one at a
-  // time, on worlds of one size, of many sizes (coarser grids' long runs),
-  // crowded lattices (runs past eight and past 64) and touching spheres;
-  // the same again from columns (add_columns, read on one grid), on the
-  // kernel's grids and on coarse ones of one cell a sphere (one grid for
-  // spheres of many sizes, as the tracker's movers have).
-  if (!detail::SphereCells::avx512()) GTEST_SKIP() << "no AVX-512 here: one way only";
-  using Way = detail::SphereCells::Avx512;
+TEST(Arrays, CellKernelScansTheSameWithEveryInstructionSet) {
+  // The kernel tests several partners at a time with AVX-512 or AVX2
+  // where the processor has them: the same pairs in the same order as one
+  // at a time, on worlds of one size, of many sizes (coarser grids' long
+  // runs), crowded lattices (runs past eight and past 64) and touching
+  // spheres; the same again from columns (add_columns, read on one grid),
+  // on the kernel's grids and on coarse ones of one cell a sphere (one grid
+  // for spheres of many sizes, as the tracker's movers have); and the same
+  // records from probes and from lists of records (the tracker's movers).
+  using Isa = detail::SphereCells::Isa;
+  const Isa best = detail::SphereCells::isa();
+  if (best == Isa::scalar) GTEST_SKIP() << "no AVX2 here: one way only";
+  std::vector<Isa> ways{Isa::avx2};
+  if (best == Isa::avx512) ways.push_back(Isa::avx512);
   struct Restore {
-    ~Restore() { detail::SphereCells::use_avx512(Way::where_crowded); }
+    ~Restore() {
+      detail::SphereCells::use_isa(Isa::avx512);
+      detail::SphereCells::use_wide(detail::SphereCells::Wide::where_crowded);
+    }
   } restore;
+  detail::SphereCells::use_wide(detail::SphereCells::Wide::always);
   int one_grid = 0;
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(24)); ++seed) {
     Rng rng(seed * 7919);
@@ -289,20 +297,48 @@ TEST(Arrays, CellKernelScansTheSameWithAndWithoutAvx512) {
       SCOPED_TRACE(::testing::Message() << "cells per object " << per_object);
       detail::SphereCells cells;
       if (!cells.build(st.objects, per_object)) continue;  // crowded: the kernel is not used
-      std::vector<IndexPair> wide, one, columns;
-      detail::SphereCells::use_avx512(Way::always);
-      ASSERT_TRUE(detail::SphereCells::avx512());
-      const std::uint64_t wide_tests = cells.pairs(0, cells.cell_count(), wide);
-      detail::SphereCells::use_avx512(Way::never);
-      ASSERT_FALSE(detail::SphereCells::avx512());
+      // Probes of spheres of the set, grown by up to a radius, and lists of
+      // records (the probes' finds with others between, 1 to 130 long).
+      auto probes_and_lists = [&] {
+        std::vector<std::uint32_t> found;
+        Rng pick(seed);
+        for (int p = 0; p < 40; ++p) {
+          const Shape& s = shapes[pick.below(shapes.size())];
+          const double r = s.half.x * (1 + pick.uniform(0, 1));
+          std::vector<std::uint32_t> near, list;
+          cells.probe_records(s.center.x, s.center.y, s.center.z, r,
+                              [&](std::uint32_t k) { near.push_back(k); });
+          for (std::uint32_t k : near) {
+            list.push_back(k);
+            list.push_back(static_cast<std::uint32_t>(pick.below(cells.size())));
+          }
+          list.resize(std::min<std::size_t>(list.size(), 1 + pick.below(130)));
+          found.insert(found.end(), near.begin(), near.end());
+          found.push_back(0xFFFFFFFFu);
+          cells.test_records(list, s.center.x, s.center.y, s.center.z, r,
+                             [&](std::uint32_t k) { found.push_back(k); });
+          found.push_back(0xFFFFFFFFu);
+        }
+        return found;
+      };
+      detail::SphereCells::use_isa(Isa::scalar);
+      std::vector<IndexPair> one;
       const std::uint64_t one_tests = cells.pairs(0, cells.cell_count(), one);
-      EXPECT_EQ(wide_tests, one_tests);
-      EXPECT_EQ(wide, one);
-      EXPECT_EQ(sorted(wide), oracle(st.objects));
-      cells.add_columns();
-      detail::SphereCells::use_avx512(Way::always);
-      EXPECT_EQ(cells.pairs(0, cells.cell_count(), columns), one_tests);
-      EXPECT_EQ(columns, one);
+      EXPECT_EQ(sorted(one), oracle(st.objects));
+      const std::vector<std::uint32_t> one_found = probes_and_lists();
+      detail::SphereCells columns = cells;
+      columns.add_columns();
+      for (const Isa way : ways) {
+        SCOPED_TRACE(::testing::Message() << "instructions " << static_cast<int>(way));
+        detail::SphereCells::use_isa(way);
+        ASSERT_EQ(detail::SphereCells::isa(), way);
+        std::vector<IndexPair> wide, from_columns;
+        EXPECT_EQ(cells.pairs(0, cells.cell_count(), wide), one_tests);
+        EXPECT_EQ(wide, one);
+        EXPECT_EQ(columns.pairs(0, columns.cell_count(), from_columns), one_tests);
+        EXPECT_EQ(from_columns, one);
+        EXPECT_EQ(probes_and_lists(), one_found);
+      }
       one_grid += cells.level_count() == 1 ? 1 : 0;
     }
   }

@@ -232,13 +232,16 @@ void SphereCells::release() {
 }
 
 void SphereCells::add_columns() {
+  // Three NaN entries past the end, as for the records: the AVX2 scan
+  // reads four partners a step.
+  if (placed_.size() < 3) return;  // (not built)
   const std::size_t n = size();
-  cx_.resize(n);
-  cy_.resize(n);
-  cz_.resize(n);
-  cr_.resize(n);
-  cid_.resize(n);
-  for (std::size_t k = 0; k < n; ++k) {
+  cx_.resize(n + 3);
+  cy_.resize(n + 3);
+  cz_.resize(n + 3);
+  cr_.resize(n + 3);
+  cid_.resize(n + 3);
+  for (std::size_t k = 0; k < n + 3; ++k) {
     cx_[k] = placed_[k].x;
     cy_[k] = placed_[k].y;
     cz_[k] = placed_[k].z;
@@ -249,28 +252,45 @@ void SphereCells::add_columns() {
 
 namespace {
 
-std::atomic<SphereCells::Avx512> avx512_when{SphereCells::Avx512::where_crowded};
+std::atomic<SphereCells::Wide> wide_when{SphereCells::Wide::where_crowded};
+std::atomic<SphereCells::Isa> isa_cap{SphereCells::Isa::avx512};
 
-bool avx512_present() {
+bool turned_off(const char* name) {
+  const char* v = std::getenv(name);
+  return v != nullptr && *v != '\0';
+}
+
+// What the processor has, less what the environment turns off.
+SphereCells::Isa isa_present() {
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-  static const bool present = [] {
+  static const SphereCells::Isa present = [] {
     __builtin_cpu_init();
-    const char* off = std::getenv("BROADPHASE_NO_AVX512");
-    return __builtin_cpu_supports("avx512f") && (off == nullptr || *off == '\0');
+    if (!__builtin_cpu_supports("avx2") || turned_off("BROADPHASE_NO_AVX2"))
+      return SphereCells::Isa::scalar;
+    if (!__builtin_cpu_supports("avx512f") || turned_off("BROADPHASE_NO_AVX512"))
+      return SphereCells::Isa::avx2;
+    return SphereCells::Isa::avx512;
   }();
   return present;
 #else
-  return false;
+  return SphereCells::Isa::scalar;
 #endif
 }
 
 }  // namespace
 
-bool SphereCells::avx512() {
-  return avx512_present() && avx512_when.load(std::memory_order_relaxed) != Avx512::never;
+SphereCells::Isa SphereCells::isa() {
+  const Isa use = std::min(isa_present(), isa_cap.load(std::memory_order_relaxed));
+  isa_in_use_.store(static_cast<int>(use), std::memory_order_relaxed);
+  return use;
 }
 
-void SphereCells::use_avx512(Avx512 when) { avx512_when.store(when, std::memory_order_relaxed); }
+void SphereCells::use_isa(Isa most) {
+  isa_cap.store(most, std::memory_order_relaxed);
+  isa();
+}
+
+void SphereCells::use_wide(Wide when) { wide_when.store(when, std::memory_order_relaxed); }
 
 namespace {
 
@@ -424,6 +444,178 @@ __attribute__((target("avx512f"))) std::uint64_t SphereCells::scan_columns(
   out.insert(out.end(), buf, buf + m);
   return tests;
 }
+
+namespace {
+
+// For each mask of four lanes, the 32-bit words that put the hits' pairs
+// (two words each) first, in order: _mm256_permutevar8x32_epi32's indices.
+struct Compress4 {
+  alignas(32) std::uint32_t idx[16][8];
+  constexpr Compress4() : idx{} {
+    for (unsigned m = 0; m < 16; ++m) {
+      unsigned w = 0;
+      for (unsigned lane = 0; lane < 4; ++lane)
+        if (m >> lane & 1) {
+          idx[m][w++] = 2 * lane;
+          idx[m][w++] = 2 * lane + 1;
+        }
+    }
+  }
+};
+constexpr Compress4 kCompress4;
+
+// The predicate of spheres_overlap between the sphere (x, y, z, r) and
+// four partners, in the arithmetic of `overlaps` (no fused multiply-add),
+// lane by lane: the hits as four bits.
+[[gnu::always_inline]] __attribute__((target("avx2"))) inline unsigned hits4(
+    __m256d x, __m256d y, __m256d z, __m256d r, __m256d px, __m256d py, __m256d pz, __m256d pr) {
+  const __m256d dx = _mm256_sub_pd(x, px), dy = _mm256_sub_pd(y, py), dz = _mm256_sub_pd(z, pz);
+  const __m256d sr = _mm256_add_pd(r, pr);
+  const __m256d d2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
+                                   _mm256_mul_pd(dz, dz));
+  return static_cast<unsigned>(
+      _mm256_movemask_pd(_mm256_cmp_pd(d2, _mm256_mul_pd(sr, sr), _CMP_LE_OQ)));
+}
+
+// The pairs (min, max) of the sphere of index `id` with the four partners
+// of indices `pid` that `hit` marks, written to `out` from its start
+// (four pairs' room) without a branch; returns how many.
+[[gnu::always_inline]] __attribute__((target("avx2"))) inline std::uint32_t pairs4(__m128i id,
+                                                                                   __m128i pid,
+                                                                                   unsigned hit,
+                                                                                   IndexPair* out) {
+  const __m128i lo = _mm_min_epu32(id, pid), hi = _mm_max_epu32(id, pid);
+  const __m256i pairs = _mm256_set_m128i(_mm_unpackhi_epi32(lo, hi), _mm_unpacklo_epi32(lo, hi));
+  const __m256i order = _mm256_load_si256(reinterpret_cast<const __m256i*>(kCompress4.idx[hit]));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(out), _mm256_permutevar8x32_epi32(pairs, order));
+  return static_cast<std::uint32_t>(std::popcount(hit));
+}
+
+// The x, y, z and r of four records (each read whole, 32 bytes from its
+// start), transposed into a vector each.
+[[gnu::always_inline]] __attribute__((target("avx2"))) inline void load4(
+    const void* a, const void* b, const void* c, const void* d, __m256d& x, __m256d& y, __m256d& z,
+    __m256d& r) {
+  const __m256d r0 = _mm256_loadu_pd(static_cast<const double*>(a));
+  const __m256d r1 = _mm256_loadu_pd(static_cast<const double*>(b));
+  const __m256d r2 = _mm256_loadu_pd(static_cast<const double*>(c));
+  const __m256d r3 = _mm256_loadu_pd(static_cast<const double*>(d));
+  const __m256d xz01 = _mm256_unpacklo_pd(r0, r1), yr01 = _mm256_unpackhi_pd(r0, r1);
+  const __m256d xz23 = _mm256_unpacklo_pd(r2, r3), yr23 = _mm256_unpackhi_pd(r2, r3);
+  x = _mm256_permute2f128_pd(xz01, xz23, 0x20);
+  z = _mm256_permute2f128_pd(xz01, xz23, 0x31);
+  y = _mm256_permute2f128_pd(yr01, yr23, 0x20);
+  r = _mm256_permute2f128_pd(yr01, yr23, 0x31);
+}
+
+}  // namespace
+
+// Where the processor has AVX2 and no AVX-512F. Alternated on one core of
+// a 2-core AMD EPYC VM (Zen 3) against one at a time, the same pairs
+// (docs/arrays.md, point 21): study even 6 400 0.449-0.456 -> 0.360-0.384
+// ms a call; one-shot clusters 200 000 50 -> 35-40 ms; the tracker at
+// scaled-even 1 024 000 (also the probes and list tests below, and the
+// columns' scan) 81-89 -> 68-75 ms.
+__attribute__((target("avx2"))) std::uint32_t SphereCells::pair_block_avx2(
+    const Placed* __restrict P, const Placed& i, std::uint32_t b, std::uint32_t len,
+    IndexPair* out) {
+  static_assert(sizeof(Placed) == 36 && sizeof(IndexPair) == 8);
+  const __m256d x = _mm256_set1_pd(i.x), y = _mm256_set1_pd(i.y), z = _mm256_set1_pd(i.z),
+                r = _mm256_set1_pd(i.r);
+  const __m128i id = _mm_set1_epi32(static_cast<int>(i.id));
+  std::uint32_t m = 0;
+  for (std::uint32_t t = 0; t < len; t += 4) {
+    const std::uint32_t left = len - t;
+    const unsigned lanes = left >= 4 ? 0xFu : (1u << left) - 1;
+    const Placed* q = P + b + t;  // (up to three past the run: see test_block)
+    __m256d px, py, pz, pr;
+    load4(q, q + 1, q + 2, q + 3, px, py, pz, pr);
+    const __m128i pid = _mm_setr_epi32(static_cast<int>(q[0].id), static_cast<int>(q[1].id),
+                                       static_cast<int>(q[2].id), static_cast<int>(q[3].id));
+    m += pairs4(id, pid, hits4(x, y, z, r, px, py, pz, pr) & lanes, out + m);
+  }
+  return m;
+}
+
+__attribute__((target("avx2"))) std::uint64_t SphereCells::hits_avx2(const Placed* __restrict P,
+                                                                     double x, double y, double z,
+                                                                     double r, std::uint32_t b,
+                                                                     std::uint32_t len) {
+  const __m256d X = _mm256_set1_pd(x), Y = _mm256_set1_pd(y), Z = _mm256_set1_pd(z),
+                R = _mm256_set1_pd(r);
+  std::uint64_t hits = 0;
+  for (std::uint32_t t = 0; t < len; t += 4) {
+    const Placed* q = P + b + t;
+    __m256d px, py, pz, pr;
+    load4(q, q + 1, q + 2, q + 3, px, py, pz, pr);
+    hits |= static_cast<std::uint64_t>(hits4(X, Y, Z, R, px, py, pz, pr)) << t;
+  }
+  return len < 64 ? hits & ((std::uint64_t{1} << len) - 1) : hits;
+}
+
+__attribute__((target("avx2"))) std::uint64_t SphereCells::hits_avx2(const Placed* __restrict P,
+                                                                     const std::uint32_t* ks,
+                                                                     std::size_t len, double x,
+                                                                     double y, double z, double r) {
+  const __m256d X = _mm256_set1_pd(x), Y = _mm256_set1_pd(y), Z = _mm256_set1_pd(z),
+                R = _mm256_set1_pd(r);
+  std::uint64_t hits = 0;
+  std::size_t t = 0;
+  __m256d px, py, pz, pr;
+  for (; t + 4 <= len; t += 4) {
+    load4(P + ks[t], P + ks[t + 1], P + ks[t + 2], P + ks[t + 3], px, py, pz, pr);
+    hits |= static_cast<std::uint64_t>(hits4(X, Y, Z, R, px, py, pz, pr)) << t;
+  }
+  if (t < len) {  // the last one to three, the last record again in the lanes past them
+    const std::size_t last = len - 1;
+    load4(P + ks[t], P + ks[std::min(t + 1, last)], P + ks[std::min(t + 2, last)],
+          P + ks[std::min(t + 3, last)], px, py, pz, pr);
+    hits |= static_cast<std::uint64_t>(hits4(X, Y, Z, R, px, py, pz, pr) & ((1u << (len - t)) - 1))
+            << t;
+  }
+  return hits;
+}
+
+// The wide scan of scan_columns with AVX2, four partners a step (the
+// columns end in three NaN entries: a step may read past a run).
+__attribute__((target("avx2"))) std::uint64_t SphereCells::scan_columns_avx2(
+    std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const {
+  constexpr std::uint32_t kBuffer = 256;
+  IndexPair buf[kBuffer + 64 + 8];
+  std::uint32_t m = 0;
+  std::uint64_t tests = 0;
+  const std::uint32_t* st = start_.data();
+  const double *X = cx_.data(), *Y = cy_.data(), *Z = cz_.data(), *R = cr_.data();
+  const std::uint32_t* I = cid_.data();
+  const std::size_t nx = levels_[0].nx, nxy = levels_[0].nxy;
+  for (std::size_t c = c0; c < c1; ++c) {
+    for (std::uint32_t a = st[c]; a < st[c + 1]; ++a) {
+      const __m256d x = _mm256_set1_pd(X[a]), y = _mm256_set1_pd(Y[a]), z = _mm256_set1_pd(Z[a]),
+                    r = _mm256_set1_pd(R[a]);
+      const __m128i id = _mm_set1_epi32(static_cast<int>(I[a]));
+      std::uint32_t from[5], to[5];
+      own_runs(st, c, a, nx, nxy, from, to);
+      for (int q = 0; q < 5; ++q) {
+        const std::uint32_t e = to[q];
+        tests += e - from[q];
+        for (std::uint32_t b = from[q]; b < e; b += 4) {
+          const std::uint32_t left = e - b;
+          const unsigned lanes = left >= 4 ? 0xFu : (1u << left) - 1;
+          const unsigned hit = hits4(x, y, z, r, _mm256_loadu_pd(X + b), _mm256_loadu_pd(Y + b),
+                                     _mm256_loadu_pd(Z + b), _mm256_loadu_pd(R + b)) &
+                               lanes;
+          m += pairs4(id, _mm_loadu_si128(reinterpret_cast<const __m128i*>(I + b)), hit, buf + m);
+          if (m >= kBuffer) {
+            out.insert(out.end(), buf, buf + m);
+            m = 0;
+          }
+        }
+      }
+    }
+  }
+  out.insert(out.end(), buf, buf + m);
+  return tests;
+}
 #pragma GCC diagnostic pop
 #else
 std::uint32_t SphereCells::pair_block_avx512(const Placed* __restrict P, const Placed& i,
@@ -431,9 +623,29 @@ std::uint32_t SphereCells::pair_block_avx512(const Placed* __restrict P, const P
   return pair_block(P, i, b, len, out);
 }
 
+std::uint32_t SphereCells::pair_block_avx2(const Placed* __restrict P, const Placed& i,
+                                           std::uint32_t b, std::uint32_t len, IndexPair* out) {
+  return pair_block(P, i, b, len, out);
+}
+
+std::uint64_t SphereCells::hits_avx2(const Placed* __restrict, double, double, double, double,
+                                     std::uint32_t, std::uint32_t) {
+  return 0;  // (isa() is scalar here: never called)
+}
+
+std::uint64_t SphereCells::hits_avx2(const Placed* __restrict, const std::uint32_t*, std::size_t,
+                                     double, double, double, double) {
+  return 0;
+}
+
 std::uint64_t SphereCells::scan_columns(std::size_t c0, std::size_t c1,
                                         std::vector<IndexPair>& out) const {
-  return scan<true>(c0, c1, out);
+  return scan<Isa::scalar>(c0, c1, out);
+}
+
+std::uint64_t SphereCells::scan_columns_avx2(std::size_t c0, std::size_t c1,
+                                             std::vector<IndexPair>& out) const {
+  return scan<Isa::scalar>(c0, c1, out);
 }
 #endif
 
@@ -442,15 +654,17 @@ std::uint64_t SphereCells::pairs(std::size_t c0, std::size_t c1,
   // On sparse grids (radii over one or three decades, 100 000 spheres:
   // a crowd of 1.3-1.4, five tests a sphere, runs of one or two) the
   // scan took 8.3 and 6.6 ms one at a time, 9.7 and 8.0 ms eight at a time.
-  const Avx512 when = avx512_when.load(std::memory_order_relaxed);
-  const bool wide = avx512_present() && (when == Avx512::always ||
-                                         (when == Avx512::where_crowded && crowd_ >= kWideCrowd));
-  // scan<true> calls pair_block_avx512 (compiled for AVX-512F) once a run.
-  if (wide && levels_.size() == 1 && cx_.size() == size()) return scan_columns(c0, c1, out);
-  return wide ? scan<true>(c0, c1, out) : scan<false>(c0, c1, out);
+  const Isa use = isa();
+  const bool wide =
+      use != Isa::scalar &&
+      (wide_when.load(std::memory_order_relaxed) == Wide::always || crowd_ >= kWideCrowd);
+  if (wide && levels_.size() == 1 && cx_.size() >= size())
+    return use == Isa::avx512 ? scan_columns(c0, c1, out) : scan_columns_avx2(c0, c1, out);
+  if (!wide) return scan<Isa::scalar>(c0, c1, out);
+  return use == Isa::avx512 ? scan<Isa::avx512>(c0, c1, out) : scan<Isa::avx2>(c0, c1, out);
 }
 
-template <bool kWide>
+template <SphereCells::Isa kIsa>
 std::uint64_t SphereCells::scan(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const {
   constexpr std::uint32_t kBuffer = 256;
   IndexPair buf[kBuffer + 64 + 8];
@@ -470,8 +684,10 @@ std::uint64_t SphereCells::scan(std::size_t c0, std::size_t c1, std::vector<Inde
         tests += e - b;
         for (; b < e; b += 64) {
           const std::uint32_t len = std::min<std::uint32_t>(e - b, 64);
-          if constexpr (kWide)
+          if constexpr (kIsa == Isa::avx512)
             m += pair_block_avx512(P, i, b, len, buf + m);
+          else if constexpr (kIsa == Isa::avx2)
+            m += pair_block_avx2(P, i, b, len, buf + m);
           else
             m += pair_block(P, i, b, len, buf + m);
           if (m >= kBuffer) {

@@ -23,6 +23,7 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <broadphase/arrays.hpp>
 #include <cmath>
@@ -56,8 +57,9 @@ class SphereCells {
   static constexpr std::size_t kMaxCellsPerObject = 4;
   static constexpr std::size_t kMaxCrowd = 16;
   static constexpr std::size_t kMaxLevels = 8;
-  /// The crowd (see crowd()) from which `pairs` tests eight at a time:
-  /// where spheres share their cells, runs are long enough to fill a step.
+  /// The crowd (see crowd()) from which `pairs` tests several partners at
+  /// a time: where spheres share their cells, runs are long enough to fill
+  /// a step.
   static constexpr double kWideCrowd = 2.0;
 
   /// Cells of all grids, each with one empty layer around the centres' box.
@@ -74,24 +76,30 @@ class SphereCells {
 
   /// Copies the records into columns (x, y, z, r, index; 36 bytes a
   /// sphere more, dropped by the next build), from which `pairs` reads
-  /// eight partners with masked loads rather than gathers where it tests
-  /// eight at a time on one grid; the pairs and their order are the same.
-  /// For a set that is scanned once, right after its build (the tracker's
-  /// movers among themselves); probes read the records.
+  /// its partners with plain or masked loads rather than gathers where it
+  /// tests several at a time on one grid; the pairs and their order are
+  /// the same. For a set that is scanned once, right after its build (the
+  /// tracker's movers among themselves); probes read the records.
   void add_columns();
-
-  /// Whether `pairs` may test eight partners at a time with AVX-512: the
-  /// processor has AVX-512F, BROADPHASE_NO_AVX512 is not set in the
-  /// environment, and use_avx512(Avx512::never) was not called. The pairs
-  /// and their order are the same either way: the same arithmetic in the
-  /// same order, lane by lane.
-  static bool avx512();
-  /// When `pairs` tests eight at a time where it may: on grids whose crowd
-  /// (see crowd()) is at least kWideCrowd (the default), always (for the
-  /// tests that compare both ways), or never. Not while a call runs.
-  enum class Avx512 { where_crowded, always, never };
-  static void use_avx512(Avx512 when);
-
+  /// The vector instructions the tests use: AVX-512F (eight partners a
+  /// step in the scan), AVX2 (four a step, in the scan, the probes and the
+  /// list tests), or neither (one at a time). The pairs and their order
+  /// are the same with each: the same arithmetic in the same order, lane by
+  /// lane, without fused multiply-adds.
+  enum class Isa { scalar, avx2, avx512 };
+  /// The widest the processor has, less what the environment turns off
+  /// (BROADPHASE_NO_AVX512 or BROADPHASE_NO_AVX2 set and not empty; the
+  /// second turns off both), at most the cap of use_isa.
+  static Isa isa();
+  /// Caps the instructions used (the tests compare them); the widest by
+  /// default. Not while a call runs.
+  static void use_isa(Isa most);
+  /// Where `pairs` tests several partners at a time (with isa() above
+  /// scalar): on grids whose crowd (see crowd()) is at least kWideCrowd
+  /// (the default), or always (for the tests that compare the ways). Not
+  /// while a call runs.
+  enum class Wide { where_crowded, always };
+  static void use_wide(Wide when);
   /// Calls `hit(i)` for every sphere i of the set that overlaps the sphere
   /// (x, y, z, r) by the contract's predicate, any size, on every grid (in
   /// the grids' order); returns the number of exact tests. A probe reads
@@ -159,8 +167,11 @@ class SphereCells {
     for (std::size_t b = 0; b < ks.size(); b += 64) {
       const std::size_t len = std::min<std::size_t>(ks.size() - b, 64);
       std::uint64_t hits = 0;
-      for (std::size_t t = 0; t < len; ++t)
-        hits |= static_cast<std::uint64_t>(overlaps(P[ks[b + t]], x, y, z, r)) << t;
+      if (avx2_tests())
+        hits = hits_avx2(P, ks.data() + b, len, x, y, z, r);
+      else
+        for (std::size_t t = 0; t < len; ++t)
+          hits |= static_cast<std::uint64_t>(overlaps(P[ks[b + t]], x, y, z, r)) << t;
       for (; hits != 0; hits &= hits - 1)
         hit(ks[b + static_cast<std::size_t>(std::countr_zero(hits))]);
     }
@@ -214,10 +225,12 @@ class SphereCells {
              static_cast<std::size_t>((x - lo[0]) * inv) + 1;
     }
   };
-  template <bool kWide>
+  template <Isa kIsa>
   std::uint64_t scan(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
-  // scan<true> on one grid from the columns (see add_columns).
+  // The wide scan on one grid from the columns (see add_columns).
   std::uint64_t scan_columns(std::size_t c0, std::size_t c1, std::vector<IndexPair>& out) const;
+  std::uint64_t scan_columns_avx2(std::size_t c0, std::size_t c1,
+                                  std::vector<IndexPair>& out) const;
   template <class At>
   bool build_over(const Objects& o, std::size_t n, At at, std::size_t cells_per_object);
 
@@ -276,18 +289,40 @@ class SphereCells {
   // multiply-add), the hits' pairs compressed into `out` without a branch.
   static std::uint32_t pair_block_avx512(const Placed* __restrict P, const Placed& i,
                                          std::uint32_t b, std::uint32_t len, IndexPair* out);
+  // The same four records at a time with AVX2 (loaded whole and
+  // transposed: AMD's gathers are slow).
+  static std::uint32_t pair_block_avx2(const Placed* __restrict P, const Placed& i, std::uint32_t b,
+                                       std::uint32_t len, IndexPair* out);
+  // Whether test_block and test_records use AVX2 (isa() at least avx2):
+  // a relaxed load once the first call has set it.
+  static bool avx2_tests() {
+    int v = isa_in_use_.load(std::memory_order_relaxed);
+    if (v < 0) v = static_cast<int>(isa());
+    return v >= static_cast<int>(Isa::avx2);
+  }
+  static inline std::atomic<int> isa_in_use_{-1};  // isa(), once known
+  // The hits among records [b, b + len) (len at most 64; up to three
+  // records past them read), bit t for record b + t, four at a time with
+  // AVX2; with `ks`, among records ks[0 .. len) instead (none read past).
+  static std::uint64_t hits_avx2(const Placed* __restrict P, double x, double y, double z, double r,
+                                 std::uint32_t b, std::uint32_t len);
+  static std::uint64_t hits_avx2(const Placed* __restrict P, const std::uint32_t* ks,
+                                 std::size_t len, double x, double y, double z, double r);
 };
 
 template <class Hit>
 void SphereCells::test_block(const Placed* __restrict P, double x, double y, double z, double r,
                              std::uint32_t b, std::uint32_t len, Hit&& hit) {
   std::uint64_t hits = 0;
-  for (std::uint32_t t = 0; t < len; t += 4) {
-    std::uint64_t four = 0;
-    for (std::uint32_t u = 0; u < 4; ++u)
-      four |= static_cast<std::uint64_t>(overlaps(P[b + t + u], x, y, z, r)) << u;
-    hits |= four << t;
-  }
+  if (avx2_tests())
+    hits = hits_avx2(P, x, y, z, r, b, len);
+  else
+    for (std::uint32_t t = 0; t < len; t += 4) {
+      std::uint64_t four = 0;
+      for (std::uint32_t u = 0; u < 4; ++u)
+        four |= static_cast<std::uint64_t>(overlaps(P[b + t + u], x, y, z, r)) << u;
+      hits |= four << t;
+    }
   if (len < 64) hits &= (std::uint64_t{1} << len) - 1;
   for (; hits != 0; hits &= hits - 1) hit(b + static_cast<std::uint32_t>(std::countr_zero(hits)));
 }
