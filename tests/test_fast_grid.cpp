@@ -72,6 +72,12 @@ IdPairs naive_pairs(const std::vector<Shape>& shapes) {
   return pairs_of(n);
 }
 
+/// Whether the bulk-update tests on 32 000 objects ask the oracle. Under
+/// ThreadSanitizer they check the races and compare one thread with two
+/// (on_one_and_two_threads), and the oracle's O(n^2) pass is left to the
+/// other builds: it took most of their 120 s each there.
+constexpr bool kOracleOnLargeScenes = !broadphase::testing::kThreadSanitizer;
+
 /// Runs body(grid, scene, handles, threads, pairs) on a copy of `start`
 /// inserted into a grid with threads=1, then threads=2, and expects the
 /// pairs the two runs leave in `pairs` to be equal.
@@ -440,7 +446,7 @@ TEST(GridVerlet, ParallelBulkUpdateKeepsOrderAndChecks) {
         };
         EXPECT_TRUE(same_shapes()) << "threads=" << t;
         before = pairs_of(g);
-        EXPECT_EQ(before, naive_pairs(now)) << "threads=" << t;
+        if (kOracleOnLargeScenes) EXPECT_EQ(before, naive_pairs(now)) << "threads=" << t;
         auto has = [&](std::size_t a, std::size_t b) {
           return before.count({std::min(a, b), std::max(a, b)}) == 1;
         };
@@ -514,7 +520,7 @@ TEST(GridVerlet, BulkUpdateNamingEveryMoverTwiceKeepsTheLaterMoves) {
                 << "object " << i << ", blocks of " << block << ", threads=" << t;
         }
         pairs = pairs_of(g);
-        EXPECT_EQ(pairs, naive_pairs(scene.objects)) << "threads=" << t;
+        if (kOracleOnLargeScenes) EXPECT_EQ(pairs, naive_pairs(scene.objects)) << "threads=" << t;
       });
 }
 
