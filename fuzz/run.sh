@@ -5,7 +5,7 @@
 # inputs go to build-fuzz/corpus/<target>/ (the tree stays clean); a finding
 # is written to build-fuzz/artifacts/ and makes the script exit non-zero.
 #
-# Usage: fuzz/run.sh [SECONDS per target, default 60] [TARGET...]
+# Usage: [FUZZ_PARALLEL=N] fuzz/run.sh [SECONDS per target, default 60] [TARGET...]
 # Extra libFuzzer flags: FUZZ_FLAGS="-runs=10000000" fuzz/run.sh 0 fuzz_scene_reader
 # (SECONDS 0: no time limit, for campaigns bounded by -runs).
 set -euo pipefail
@@ -26,20 +26,41 @@ cmake --build "$build" -j "${FUZZ_JOBS:-2}" --target "${targets[@]}"
 # run rather than throw): no input of a few kilobytes should ask for that.
 export ASAN_OPTIONS=${ASAN_OPTIONS:-allocator_may_return_null=1:max_allocation_size_mb=512:detect_leaks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1:suppressions=$PWD/fuzz/ubsan.supp}
-failed=()
-for t in "${targets[@]}"; do
-  work="$build/corpus/$t"
+# FUZZ_PARALLEL targets run at once (default 1; CI runs two, one a core),
+# each with its own log, reported as it ends.
+parallel=${FUZZ_PARALLEL:-1}
+run_target() {
+  local t=$1 work="$build/corpus/$1" limit=()
   mkdir -p "$work" "$build/artifacts"
-  limit=()
   [ "$seconds" -gt 0 ] && limit=(-max_total_time="$seconds")
-  echo "== $t (${seconds}s)"
   # shellcheck disable=SC2086
-  if ! "$build/fuzz/$t" "${limit[@]}" -timeout=60 -rss_limit_mb=4096 -print_final_stats=1 \
-      -artifact_prefix="$build/artifacts/$t-" ${FUZZ_FLAGS:-} "$work" "fuzz/corpus/$t" 2>"$build/$t.log"; then
-    failed+=("$t")
-    tail -n 60 "$build/$t.log"
+  "$build/fuzz/$t" "${limit[@]}" -timeout=60 -rss_limit_mb=4096 -print_final_stats=1 \
+    -artifact_prefix="$build/artifacts/$t-" ${FUZZ_FLAGS:-} "$work" "fuzz/corpus/$t" 2>"$build/$t.log"
+}
+report() {  # target, its exit status
+  echo "== $1 (${seconds}s)"
+  if [ "$2" -ne 0 ]; then
+    failed+=("$1")
+    tail -n 60 "$build/$1.log"
   fi
-  grep -E "^#[0-9]+ +DONE|^stat::number_of_executed_units|cov:" "$build/$t.log" | tail -n 2 || true
+  grep -E "^#[0-9]+ +DONE|^stat::number_of_executed_units|cov:" "$build/$1.log" | tail -n 2 || true
+}
+failed=()
+running=()
+for t in "${targets[@]}"; do
+  run_target "$t" &
+  running+=("$!:$t")
+  if [ ${#running[@]} -ge "$parallel" ]; then
+    status=0
+    wait "${running[0]%%:*}" || status=$?
+    report "${running[0]#*:}" "$status"
+    running=("${running[@]:1}")
+  fi
+done
+for r in "${running[@]}"; do
+  status=0
+  wait "${r%%:*}" || status=$?
+  report "${r#*:}" "$status"
 done
 if [ ${#failed[@]} -gt 0 ]; then
   echo "fuzz/run.sh: findings in ${failed[*]} (inputs in $build/artifacts/)" >&2
