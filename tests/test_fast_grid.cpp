@@ -446,7 +446,9 @@ TEST(GridVerlet, ParallelBulkUpdateKeepsOrderAndChecks) {
         };
         EXPECT_TRUE(same_shapes()) << "threads=" << t;
         before = pairs_of(g);
-        if (kOracleOnLargeScenes) EXPECT_EQ(before, naive_pairs(now)) << "threads=" << t;
+        if (kOracleOnLargeScenes) {
+          EXPECT_EQ(before, naive_pairs(now)) << "threads=" << t;
+        }
         auto has = [&](std::size_t a, std::size_t b) {
           return before.count({std::min(a, b), std::max(a, b)}) == 1;
         };
@@ -520,7 +522,9 @@ TEST(GridVerlet, BulkUpdateNamingEveryMoverTwiceKeepsTheLaterMoves) {
                 << "object " << i << ", blocks of " << block << ", threads=" << t;
         }
         pairs = pairs_of(g);
-        if (kOracleOnLargeScenes) EXPECT_EQ(pairs, naive_pairs(scene.objects)) << "threads=" << t;
+        if (kOracleOnLargeScenes) {
+          EXPECT_EQ(pairs, naive_pairs(scene.objects)) << "threads=" << t;
+        }
       });
 }
 
