@@ -134,23 +134,27 @@ def test_iter_pairs_is_the_pairs_in_chunks(rng):
 def test_spare_bytes_bound_the_memory_not_the_pairs(rng):
     """A crowded world (each sphere overlaps several) whose movers move in
     place: the same pairs as brute force on every frame with no bytes
-    spared, some, and the default; the lean tracker's memory grows with
-    them."""
+    spared, some, and the default. The three runs see the same world and
+    the same motion, so the lean tracker's memory is what differs: it grows
+    with the bytes spared (96 KiB may already hold every pair, as the
+    default's 16 MiB does, so the last step may be equal)."""
+    n = 1200
+    start = rng.uniform(0, 15, size=(n, 3))
+    r = rng.uniform(0.5, 1.5, size=n)
+    movers = np.flatnonzero(rng.integers(0, 7, size=n) == 0)
+    steps = [rng.uniform(-0.05, 0.05, size=(len(movers), 3)) for _ in range(6 if QUICK else 12)]
     memory = []
     for spare in (1, 96 << 10, 0):
-        n = 1200
-        c = rng.uniform(0, 15, size=(n, 3))
-        r = rng.uniform(0.5, 1.5, size=n)
+        c = start.copy()
         ix = broadphase.Index(c, r, spare_bytes=spare)
-        movers = np.flatnonzero(rng.integers(0, 7, size=n) == 0)
-        for frame in range(6 if QUICK else 12):
-            c[movers] += rng.uniform(-0.05, 0.05, size=(len(movers), 3))
+        for frame, step in enumerate(steps):
+            c[movers] += step
             ix.update(movers)
             got = as_set(ix.pairs())
             assert len(got) > 2 * n, "not a crowded world"
             assert got == as_set(oracle_pairs(c, r)), f"spare_bytes {spare}, frame {frame}"
         memory.append(ix.memory_bytes())
-    assert memory[0] < memory[1] < memory[2], memory
+    assert memory[0] < memory[1] <= memory[2], memory
 
 
 def test_spare_bytes_must_not_be_negative():
