@@ -583,6 +583,7 @@ void PairTracker::Impl::check_movers(const Objects& objects) const {
   }
   // The quiet cells hold every quiet and woken object once, and no other,
   // the quiet ones exactly as they are now.
+  im.quiet_cells.validate();
   std::vector<char> held(n, 0);
   im.quiet_cells.for_each([&](std::uint32_t i, double x, double y, double z, double r) {
     if (i >= n || held[i] || role[i] == kActive)

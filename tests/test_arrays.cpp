@@ -433,10 +433,67 @@ TEST(Arrays, CellKernelGridsReachTheirLargestSphere) {
     Storage st(shapes, layout);
     detail::SphereCells cells;
     ASSERT_TRUE(cells.build(st.objects)) << "the kernel must take them, or this tests nothing";
+    EXPECT_NO_THROW(cells.validate());
     std::vector<IndexPair> got;
     find_pairs(st.objects, got);
     EXPECT_EQ(sorted(got), oracle(st.objects)) << name(layout);
   }
+}
+
+// The randomized form of the test above: worlds of spheres whose radii
+// span two to five decades, cut into slabs of space as a rank of an MPI run
+// cuts them (the objects whose extent reaches an interval of one axis,
+// widened by a margin), shuffled, and checked against brute force. The
+// randomized tests before it drew whole worlds, where the kernel's budget
+// never widened a grid's cell past its largest radius; a slab's few
+// objects in a wide box do.
+TEST(Arrays, CellKernelSlabsOfWorldsOfManySizes) {
+  const int seeds = testing::repeats(60);
+  int kernel_took = 0, checked = 0;
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(seeds); ++seed) {
+    Rng rng(seed);
+    const double decades = rng.uniform(2, 5);
+    const double rmax = rng.uniform(20, 200);
+    std::vector<Shape> world(200 + rng.below(600));
+    for (Shape& s : world)
+      s = Shape::sphere({rng.uniform(0, 1e3), rng.uniform(0, 1e3), rng.uniform(0, 1e3)},
+                        rmax * std::pow(10.0, -decades * rng.uniform()));
+    for (int slab = 0; slab < 25; ++slab) {
+      const int axis = static_cast<int>(rng.below(3));
+      double a = rng.uniform(0, 1e3), b = rng.uniform(0, 1e3);
+      if (a > b) std::swap(a, b);
+      const double pad = rng.uniform(0, 50);
+      std::vector<Shape> cut;
+      for (const Shape& s : world)
+        if (s.center[axis] + s.half[axis] >= a - pad && s.center[axis] - s.half[axis] <= b + pad)
+          cut.push_back(s);
+      if (cut.size() < 40) continue;
+      for (std::size_t i = cut.size() - 1; i > 0; --i) std::swap(cut[i], cut[rng.below(i + 1)]);
+      SCOPED_TRACE(::testing::Message()
+                   << "seed " << seed << " slab " << slab << ": " << cut.size() << " spheres, axis "
+                   << axis << " [" << a << ", " << b << "] + " << pad);
+      Storage st(cut, Layout::soa_double);
+      // The kernel as find_pairs builds it, and with fewer cells a sphere
+      // (budgets that widen the grids' cells more often).
+      for (const std::size_t cells_per_object : {std::size_t{4}, std::size_t{1 + rng.below(3)}}) {
+        detail::SphereCells cells;
+        const bool took = cells.build(st.objects, cells_per_object);
+        kernel_took += took && cells.level_count() > 1 && cells_per_object == 4 ? 1 : 0;
+        EXPECT_NO_THROW(cells.validate()) << cells_per_object << " cells a sphere";
+        if (!took) continue;
+        std::vector<IndexPair> pairs;
+        cells.pairs(0, cells.cell_count(), pairs);
+        EXPECT_EQ(sorted(pairs), oracle(st.objects)) << cells_per_object << " cells a sphere";
+      }
+      std::vector<IndexPair> got;
+      find_pairs(st.objects, got);
+      ASSERT_EQ(sorted(got), oracle(st.objects));
+      ++checked;
+    }
+  }
+  // Most slabs must reach the kernel with more than one grid, or this
+  // tests little of it.
+  EXPECT_GE(2 * kernel_took, checked) << kernel_took << " of " << checked << " slabs";
 }
 
 TEST(Arrays, ObjectsFarApartInSize) {

@@ -6,12 +6,25 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <stdexcept>
+#include <string>
 
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
 
 namespace broadphase::detail {
+
+namespace {
+// Two spheres that overlap are at most ri + rj apart per axis. A sphere
+// sits on a grid whose cell is a hair wider than its diameter, and grids
+// are coarser the later they come, so for a pair on one grid or on two,
+// the coarser grid's cells are wider than that distance: the spheres'
+// cells there differ by at most one per axis. The 2^-20 margin covers
+// the rounding of (x - lo) / h, whose error is a few ulps of a value
+// below 2^26, far below 2^-20.
+constexpr double kMargin = 1 + 0x1p-20;
+}  // namespace
 
 bool SphereCells::build(const Objects& o) { return build(o, kMaxCellsPerObject); }
 
@@ -60,14 +73,6 @@ bool SphereCells::build_over(const Objects& o, std::size_t n, At at, std::size_t
   }
   if (!valid) return false;
 
-  // Two spheres that overlap are at most ri + rj apart per axis. A sphere
-  // sits on a grid whose cell is a hair wider than its diameter, and grids
-  // are coarser the later they come, so for a pair on one grid or on two,
-  // the coarser grid's cells are wider than that distance: the spheres'
-  // cells there differ by at most one per axis. The 2^-20 margin covers
-  // the rounding of (x - lo) / h, whose error is a few ulps of a value
-  // below 2^26, far below 2^-20.
-  constexpr double kMargin = 1 + 0x1p-20;
   std::size_t dims[3];
   auto grid_cells = [&](double side) {
     const double inv = 1 / side;
@@ -220,6 +225,61 @@ bool SphereCells::build_over(const Objects& o, std::size_t n, At at, std::size_t
   for (std::size_t c = cells_; c > 0; --c) start_[c] = start_[c - 1];
   start_[0] = 0;
   return true;
+}
+
+void SphereCells::validate() const {
+  auto fail = [](const std::string& why) { throw std::logic_error("sphere kernel: " + why); };
+  if (placed_.size() < 3) {
+    if (!levels_.empty() || cells_ != 0) fail("grids without records");
+    return;
+  }
+  const std::size_t n = size();
+  if (levels_.empty() || levels_.size() > kMaxLevels) fail("no grids or too many");
+  std::size_t first = 0;
+  for (std::size_t l = 0; l < levels_.size(); ++l) {
+    const Level& g = levels_[l];
+    const std::string name = "grid " + std::to_string(l);
+    if (g.first != first || g.cells != g.dims[0] * g.dims[1] * g.dims[2] || g.nx != g.dims[0] ||
+        g.nxy != g.dims[0] * g.dims[1])
+      fail(name + "'s cells are counted wrongly");
+    if (!(g.h > 0) || g.inv != 1 / g.h || !(2 * kMargin * g.rmax <= g.h))
+      fail(name + "'s cell is not wider than its largest diameter");
+    if (l > 0 && !(levels_[l - 1].h < g.h)) fail(name + " is not coarser than the one before");
+    first += g.cells;
+  }
+  if (first != cells_ || start_.size() != cells_ + 1 || start_[0] != 0 || start_[cells_] != n)
+    fail("the cells' starts do not cover the records");
+  std::size_t l = 0;
+  for (std::size_t c = 0; c < cells_; ++c) {
+    if (start_[c] > start_[c + 1]) fail("cell " + std::to_string(c) + " ends before it starts");
+    while (c >= levels_[l].first + levels_[l].cells) ++l;
+    const Level& g = levels_[l];
+    for (std::uint32_t k = start_[c]; k < start_[c + 1]; ++k) {
+      const Placed& p = placed_[k];
+      const std::string name = "sphere " + std::to_string(p.id) + " (record " + std::to_string(k) +
+                               ", grid " + std::to_string(l) + ")";
+      if (g.cell_of(lo_, p.x, p.y, p.z) != c) fail(name + " is not in the cell of its centre");
+      if (!(p.r <= g.rmax))
+        fail(name + " is larger than its grid's largest radius: probes fall short of it");
+      if (!(2 * kMargin * p.r <= g.h)) fail(name + " is wider than its grid's cell");
+      if (k > start_[c] && !(placed_[k - 1].id < p.id)) fail(name + " is out of order in its cell");
+    }
+  }
+  for (std::size_t k = n; k < n + 3; ++k)
+    if (!std::isnan(placed_[k].x) || !std::isnan(placed_[k].y) || !std::isnan(placed_[k].z))
+      fail("record " + std::to_string(k) + " past the end overlaps");
+  if (!cx_.empty()) {
+    if (cx_.size() != n + 3 || cy_.size() != n + 3 || cz_.size() != n + 3 || cr_.size() != n + 3 ||
+        cid_.size() != n + 3)
+      fail("the columns are not as long as the records");
+    for (std::size_t k = 0; k < n + 3; ++k) {
+      const Placed& p = placed_[k];
+      auto same = [](double a, double b) { return a == b || (std::isnan(a) && std::isnan(b)); };
+      if (!same(cx_[k], p.x) || !same(cy_[k], p.y) || !same(cz_[k], p.z) || !same(cr_[k], p.r) ||
+          (k < n && cid_[k] != p.id))
+        fail("column entry " + std::to_string(k) + " differs from its record");
+    }
+  }
 }
 
 bool SphereCells::fail() {

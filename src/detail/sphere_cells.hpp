@@ -191,6 +191,14 @@ class SphereCells {
     for (std::size_t k = 0; k + 3 < placed_.size(); ++k)
       f(placed_[k].id, placed_[k].x, placed_[k].y, placed_[k].z, placed_[k].r);
   }
+  /// Checks the invariants every query relies on, and throws
+  /// std::logic_error naming the first it finds broken: grids coarser the
+  /// later they come, each sphere in the cell of its centre on a grid whose
+  /// cell is wider than its diameter and whose largest radius is at least
+  /// its own (probes reach that far), cells listing their spheres by
+  /// increasing index, the three NaN records past the end, and the columns
+  /// (when made) equal to the records. Nothing to check when not built.
+  void validate() const;
   /// Spheres in the set.
   std::size_t size() const { return placed_.size() < 3 ? 0 : placed_.size() - 3; }
   /// Bytes held (the cells' starts, the records and any columns).
