@@ -1,5 +1,6 @@
 // `advise`: times the candidate structures briefly on the user's scene and
 // recommends the fastest one whose pairs agree with the others.
+#include <CLI/CLI.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <cstdio>
 #include <memory>

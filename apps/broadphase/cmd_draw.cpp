@@ -4,6 +4,7 @@
 // tools/draw.py renders it with matplotlib.
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <array>
 #include <broadphase/lab/output_file.hpp>

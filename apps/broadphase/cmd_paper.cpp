@@ -3,6 +3,7 @@
 // writes CSV, JSON, figures and REPORT.md.
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <broadphase/lab/output_file.hpp>
 #include <chrono>

@@ -1,4 +1,5 @@
 // `list`, `run` and `gen`: the structures, the replay contract, and scenes.
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <broadphase/lab/replay.hpp>
 #include <broadphase/lab/scene.hpp>

@@ -1,5 +1,6 @@
 // `sim`: steps a scene with collision response over any structure, and
 // measures the contacts a discrete step misses.
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <broadphase/lab/scene.hpp>
 #include <broadphase/lab/sim.hpp>

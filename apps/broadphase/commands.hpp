@@ -2,10 +2,17 @@
 // CLI11 app; `main.cpp` only wires them together and reports errors.
 #pragma once
 
-#include <CLI/CLI.hpp>
 #include <broadphase/registry.hpp>
 #include <stdexcept>
 #include <string>
+
+// (CLI11 is declared, not included: its header is about 12 s of every
+// compile that includes it, and the lab's files that include this one for
+// registry() and UsageError use none of it. A file that adds a command
+// includes <CLI/CLI.hpp> itself.)
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace broadphase::app {
 
