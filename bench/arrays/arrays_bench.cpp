@@ -63,7 +63,7 @@ double median(std::vector<double> v) {
 int main(int argc, char** argv) {
   if (argc < 3) {
     std::fprintf(stderr,
-                 "usage: arrays_bench DIST N [FRAMES] [--threads T] [--skin S] [--all] "
+                 "usage: arrays_bench DIST N [FRAMES] [--threads T] [--skin S] [--spare BYTES] [--all] "
                  "[--compare ALGO] [--seed S] [--quiet] [--one-shot]\n");
     return 2;
   }
@@ -82,6 +82,8 @@ int main(int argc, char** argv) {
       opt.threads = std::atoi(argv[++argi]);
     else if (a == "--skin" && argi + 1 < argc)
       opt.skin = std::atof(argv[++argi]);
+    else if (a == "--spare" && argi + 1 < argc)  // ArrayOptions::spare_bytes
+      opt.spare_bytes = std::strtoull(argv[++argi], nullptr, 10);
     else if (a == "--all")
       tell_all = true;
     else if (a == "--quiet")
