@@ -62,9 +62,10 @@ double median(std::vector<double> v) {
 
 int main(int argc, char** argv) {
   if (argc < 3) {
-    std::fprintf(stderr,
-                 "usage: arrays_bench DIST N [FRAMES] [--threads T] [--skin S] [--spare BYTES] [--all] "
-                 "[--compare ALGO] [--seed S] [--quiet] [--one-shot]\n");
+    std::fprintf(
+        stderr,
+        "usage: arrays_bench DIST N [FRAMES] [--threads T] [--skin S] [--spare BYTES] [--all] "
+        "[--compare ALGO] [--seed S] [--quiet] [--one-shot]\n");
     return 2;
   }
   const Distribution dist = parse_distribution(argv[1]);

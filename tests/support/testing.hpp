@@ -13,18 +13,20 @@
 
 namespace broadphase::testing {
 
+// GCC says which sanitizer a build has by __SANITIZE_THREAD__ and
+// __SANITIZE_ADDRESS__, clang by __has_feature.
+#if defined(__has_feature)
+#define BROADPHASE_TESTING_HAS(feature) __has_feature(feature)
+#else
+#define BROADPHASE_TESTING_HAS(feature) 0
+#endif
+
 /// True in a ThreadSanitizer build. Every memory access costs there many
 /// times more, so tests that repeat a threaded call many times, or compare
 /// tens of thousands of objects with an O(n^2) oracle, do fewer repeats
 /// (a race shows in a few; the Release build runs them all).
-#if defined(__SANITIZE_THREAD__)
+#if defined(__SANITIZE_THREAD__) || BROADPHASE_TESTING_HAS(thread_sanitizer)
 inline constexpr bool kThreadSanitizer = true;
-#elif defined(__has_feature)
-#if __has_feature(thread_sanitizer)
-inline constexpr bool kThreadSanitizer = true;
-#else
-inline constexpr bool kThreadSanitizer = false;
-#endif
 #else
 inline constexpr bool kThreadSanitizer = false;
 #endif
@@ -32,14 +34,8 @@ inline constexpr bool kThreadSanitizer = false;
 /// True in an AddressSanitizer build (CI's ASan + UBSan stage), where the
 /// lean path's randomized tests ran 6-8 times as long as in Release (the
 /// stage's tests 648 s on a 2-core AMD EPYC VM, 95 s the longest).
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(__SANITIZE_ADDRESS__) || BROADPHASE_TESTING_HAS(address_sanitizer)
 inline constexpr bool kAddressSanitizer = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-inline constexpr bool kAddressSanitizer = true;
-#else
-inline constexpr bool kAddressSanitizer = false;
-#endif
 #else
 inline constexpr bool kAddressSanitizer = false;
 #endif
