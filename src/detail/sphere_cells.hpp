@@ -196,8 +196,10 @@ class SphereCells {
   /// later they come, each sphere in the cell of its centre on a grid whose
   /// cell is wider than its diameter and whose largest radius is at least
   /// its own (probes reach that far), cells listing their spheres by
-  /// increasing index, the three NaN records past the end, and the columns
-  /// (when made) equal to the records. Nothing to check when not built.
+  /// increasing index (the build is stable, and every subset the library
+  /// builds over is in increasing order), the three NaN records past the
+  /// end, and the columns (when made) equal to the records. Nothing to
+  /// check when not built.
   void validate() const;
   /// Spheres in the set.
   std::size_t size() const { return placed_.size() < 3 ? 0 : placed_.size() - 3; }
