@@ -256,13 +256,17 @@ void SphereCells::validate() const {
     const Level& g = levels_[l];
     for (std::uint32_t k = start_[c]; k < start_[c + 1]; ++k) {
       const Placed& p = placed_[k];
-      const std::string name = "sphere " + std::to_string(p.id) + " (record " + std::to_string(k) +
-                               ", grid " + std::to_string(l) + ")";
-      if (g.cell_of(lo_, p.x, p.y, p.z) != c) fail(name + " is not in the cell of its centre");
+      // (The name is made only for a failure: the tracker's validate()
+      // runs this over every quiet sphere after each step of its tests.)
+      auto fail_sphere = [&](const char* why) {
+        fail("sphere " + std::to_string(p.id) + " (record " + std::to_string(k) + ", grid " +
+             std::to_string(l) + ") " + why);
+      };
+      if (g.cell_of(lo_, p.x, p.y, p.z) != c) fail_sphere("is not in the cell of its centre");
       if (!(p.r <= g.rmax))
-        fail(name + " is larger than its grid's largest radius: probes fall short of it");
-      if (!(2 * kMargin * p.r <= g.h)) fail(name + " is wider than its grid's cell");
-      if (k > start_[c] && !(placed_[k - 1].id < p.id)) fail(name + " is out of order in its cell");
+        fail_sphere("is larger than its grid's largest radius: probes fall short of it");
+      if (!(2 * kMargin * p.r <= g.h)) fail_sphere("is wider than its grid's cell");
+      if (k > start_[c] && !(placed_[k - 1].id < p.id)) fail_sphere("is out of order in its cell");
     }
   }
   for (std::size_t k = n; k < n + 3; ++k)
@@ -272,9 +276,9 @@ void SphereCells::validate() const {
     if (cx_.size() != n + 3 || cy_.size() != n + 3 || cz_.size() != n + 3 || cr_.size() != n + 3 ||
         cid_.size() != n + 3)
       fail("the columns are not as long as the records");
+    auto same = [](double a, double b) { return a == b || (std::isnan(a) && std::isnan(b)); };
     for (std::size_t k = 0; k < n + 3; ++k) {
       const Placed& p = placed_[k];
-      auto same = [](double a, double b) { return a == b || (std::isnan(a) && std::isnan(b)); };
       if (!same(cx_[k], p.x) || !same(cy_[k], p.y) || !same(cz_[k], p.z) || !same(cr_[k], p.r) ||
           (k < n && cid_[k] != p.id))
         fail("column entry " + std::to_string(k) + " differs from its record");
