@@ -93,7 +93,8 @@ std::string lab_performance(const LabContext& ctx) {
   const bool two_cores = std::thread::hardware_concurrency() >= 2;
   const std::string ours2_spec = g.at("two_threads_spec");
   const std::size_t runs = workloads.size() * (2 + (two_cores ? 1 : 0) + peers.size()) + 2;
-  const double per_run = std::max(0.2, 0.6 * ctx.budget_seconds / static_cast<double>(runs));
+  const double per_run =
+      std::max(ctx.quick ? 0.1 : 0.2, 0.6 * ctx.budget_seconds / static_cast<double>(runs));
   std::size_t done = 0;
   auto progress = [&](const std::string& what) {
     if (ctx.progress) ctx.progress("performance: " + what, static_cast<double>(done) / runs);
