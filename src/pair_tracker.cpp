@@ -31,8 +31,8 @@ void PairTracker::Impl::rebuild(const Objects& o) {
   free_vector(active);
   free_vector(woken);
   free_mover_lists();
-  margin_used = margin(o);
-  rel_skin = kOwnSkinShare * (options.skin > 0 ? options.skin : 0.25);
+  margin_used = skin_growth * margin(o);
+  rel_skin = skin_growth * kOwnSkinShare * (options.skin > 0 ? options.skin : 0.25);
   std::vector<AabbF> boxes(n);
   for (std::size_t i = 0; i < n; ++i) boxes[i] = fat_box(o.shape(i));
   grid = ArrayGrid{};
@@ -487,6 +487,14 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   auto partition_pays = [&] {
     return bits_hold && (n - im.quiet_count) - (changed_count - quiet_changed) > n / 8;
   };
+  // The default skin outrun by a share of the changed objects at one call:
+  // built again, once, with a wider one (kSkinGrowth). A skin the caller
+  // chose stays as it is.
+  if (!rebuild && im.built && im.options.skin <= 0 && im.skin_growth == 1 &&
+      renew.size() * kSkinGrowShare > changed_count) {
+    im.skin_growth = kSkinGrowth;
+    rebuild = true;
+  }
   if (rebuild) {
     im.rebuild(objects);
     stats.rebuilt = true;

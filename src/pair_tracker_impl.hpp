@@ -44,6 +44,19 @@ struct LoosePair {
 // is cheaper than renewing each (a renewal queries the grid on every level,
 // several times the work of one object's probe in a build).
 constexpr double kRebuildFraction = 0.25;
+// The default skin widens once, by this factor, at a call where more than
+// one changed object in kSkinGrowShare left its fat box (the motion
+// outruns the skin, beyond the waves of renewals of steady movers): the
+// index is then built again with the wider skin. Alternated with the
+// build before on one core (20 000 objects, 20% movers, 60 calls,
+// docs/arrays.md point 24): boxes 6.4-8.3 -> 1.4-1.5 ms a call,
+// half-boxes 3.9-4.0 -> 1.0-1.2, box-decades 33-34 -> 7.7-9.1. Widened
+// at renewals alone, without the build, the boxes not renewed kept the
+// narrow skin: boxes 3.2 ms, box-decades 16. With one in four, city
+// widened too (a wave of 29% at its third call) and got slower, 1.2-1.9
+// -> 1.5-2.3 ms.
+constexpr double kSkinGrowth = 4;
+constexpr std::size_t kSkinGrowShare = 2;
 // Afresh only in cells this crowded at most (the largest, over the
 // kernel's grids, of the spheres sharing a sphere's cell, itself included,
 // on average): all-moving 20 000 gives 1.3, scaled-even 1 024 000 at most
@@ -149,6 +162,7 @@ struct PairTracker::Impl {
   std::size_t count = 0;
   double margin_used = 0;  // the skin as a distance, fixed at the last build
   double rel_skin = 0;     // the skin relative to an object's own size
+  double skin_growth = 1;  // kSkinGrowth once the default skin was outrun
   // Per object: its bounds when it was last (re)placed, fattened by the
   // skin. While every object's bounds stay inside its fat box, every
   // overlapping pair is among the candidates (pairs of overlapping fat boxes).

@@ -721,5 +721,56 @@ TEST(Arrays, TrackerRenewsObjectsThatLeaveTheirSkin) {
   }
 }
 
+// Boxes whose movers leave the default skin at every call (a fifth of
+// them, each a fifth of a box a call): the tracker builds its index again
+// once with a wider skin, and then renews far fewer of them; a skin the
+// caller chose stays, however often it is outrun. Exact at every call.
+TEST(Arrays, TrackerWidensAnOutrunDefaultSkinOnce) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(3)); ++seed) {
+    std::uint64_t renewed[2] = {0, 0};
+    for (int chosen = 0; chosen < 2; ++chosen) {
+      Rng rng(seed * 7727);
+      const std::size_t n = 400 + rng.below(400);
+      const double world = 4.0 * std::cbrt(static_cast<double>(n));
+      std::vector<Shape> shapes;
+      std::vector<Vec3> step;
+      for (std::size_t i = 0; i < n; ++i) {
+        const Vec3 c{rng.uniform(0, world), rng.uniform(0, world), rng.uniform(0, world)};
+        shapes.push_back(
+            Shape::box(c, {rng.uniform(0.2, 0.8), rng.uniform(0.2, 0.8), rng.uniform(0.2, 0.8)}));
+        step.push_back(i % 5 == 0 ? Vec3{rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2), 0.2}
+                                  : Vec3{});
+      }
+      ArrayOptions opt;
+      opt.skin = chosen ? 0.25 : 0;  // the default's value, chosen
+      PairTracker tracker(opt);
+      int rebuilds = 0;
+      for (int frame = 0; frame < 30; ++frame) {
+        SCOPED_TRACE(::testing::Message()
+                     << "seed " << seed << " skin " << opt.skin << " frame " << frame);
+        std::vector<std::uint32_t> moved;
+        if (frame > 0)
+          for (std::uint32_t i = 0; i < n; ++i)
+            if (step[i].z != 0) {
+              shapes[i].center = shapes[i].center + step[i];
+              moved.push_back(i);
+            }
+        Storage st(shapes, Layout::soa_double);
+        std::vector<IndexPair> got;
+        const auto stats = tracker.find_pairs(
+            st.objects, got, frame == 0 ? Changes::everything() : Changes::only(moved));
+        ASSERT_NO_THROW(tracker.validate(st.objects));
+        ASSERT_EQ(sorted(got), oracle(st.objects));
+        EXPECT_FALSE(stats.movers);
+        rebuilds += stats.rebuilt ? 1 : 0;
+        if (frame >= 10) renewed[chosen] += stats.renewed;
+      }
+      // The first call's build, and for the default skin the one that widens it.
+      EXPECT_EQ(rebuilds, chosen ? 1 : 2) << "seed " << seed;
+    }
+    EXPECT_LT(2 * renewed[0], renewed[1]) << "seed " << seed;
+  }
+}
+
 }  // namespace
 }  // namespace broadphase

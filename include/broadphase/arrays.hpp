@@ -170,7 +170,9 @@ struct ArrayOptions {
   /// last placed; one that leaves is renewed alone. 0 picks the default,
   /// 0.25 (docs/arrays.md: larger skins renew less often but keep more
   /// candidates; 0.25 gives 71 bytes per object at scaled-even after a
-  /// build).
+  /// build), widened once to 1 when more than half of the objects a call
+  /// changes leave it in that call (the index is then built again). A skin
+  /// given here is kept as it is.
   double skin = 0;
   /// Sort the pairs (by i, then j) before handing them over.
   bool sorted = false;
