@@ -24,8 +24,10 @@ namespace {
 // the rounding of (x - lo) / h, whose error is a few ulps of a value
 // below 2^26, far below 2^-20.
 constexpr double kMargin = 1 + 0x1p-20;
-// NaN entries past the end of the columns (add_columns).
-constexpr std::size_t kColumnPad = 7;
+// NaN entries past the end of the columns (add_columns): the AVX2 scan
+// reads eight partners from the start of each run, and a run may start at
+// the end (an empty one).
+constexpr std::size_t kColumnPad = 8;
 }  // namespace
 
 bool SphereCells::build(const Objects& o) { return build(o, kMaxCellsPerObject); }
@@ -676,7 +678,7 @@ __attribute__((target("avx2"))) std::uint64_t SphereCells::scan_columns_avx2(
         const std::uint32_t b0 = from[q], e = to[q], len = e - b0;
         tests += len;
         // The first eight partners without a branch on the run's length
-        // (the columns end in seven NaN entries), and their pairs written
+        // (the columns end in eight NaN entries), and their pairs written
         // only when there is a hit (about one run in ten at scaled-even
         // 1 024 000's movers: 3.4 million tests in runs of 0 to 8 at about
         // one sphere a cell, for 103 000 pairs). Against a loop of four a
