@@ -8,10 +8,10 @@
 
 namespace broadphase {
 
-// The skin as a distance: `options.skin` times the median largest
-// half-extent (of a sample), so it scales with the objects.
+// The skin as a distance: skin() times the median largest half-extent (of
+// a sample), so it scales with the objects.
 double PairTracker::Impl::margin(const Objects& o) const {
-  const double rel = options.skin > 0 ? options.skin : 0.25;
+  const double rel = skin();
   std::vector<double> sample;
   const std::size_t step = std::max<std::size_t>(1, o.count / 1024);
   for (std::size_t i = 0; i < o.count; i += step) sample.push_back(o.shape(i).max_half());
@@ -31,8 +31,8 @@ void PairTracker::Impl::rebuild(const Objects& o) {
   free_vector(active);
   free_vector(woken);
   free_mover_lists();
-  margin_used = skin_growth * margin(o);
-  rel_skin = skin_growth * kOwnSkinShare * (options.skin > 0 ? options.skin : 0.25);
+  margin_used = margin(o);
+  rel_skin = kOwnSkinShare * skin();
   std::vector<AabbF> boxes(n);
   for (std::size_t i = 0; i < n; ++i) boxes[i] = fat_box(o.shape(i));
   grid = ArrayGrid{};

@@ -55,6 +55,7 @@ constexpr double kRebuildFraction = 0.25;
 // narrow skin: boxes 3.2 ms, box-decades 16. With one in four, city
 // widened too (a wave of 29% at its third call) and got slower, 1.2-1.9
 // -> 1.5-2.3 ms.
+constexpr double kDefaultSkin = 0.25;  // ArrayOptions::skin's default
 constexpr double kSkinGrowth = 4;
 constexpr std::size_t kSkinGrowShare = 2;
 // Afresh only in cells this crowded at most (the largest, over the
@@ -320,6 +321,9 @@ struct PairTracker::Impl {
 
   AabbF& fat_of(std::uint32_t i) { return fat[place[i]]; }
   const AabbF& fat_of(std::uint32_t i) const { return fat[place[i]]; }
+  // The skin relative to the objects' size: the caller's, or the default
+  // (kDefaultSkin, times skin_growth once it was outrun).
+  double skin() const { return options.skin > 0 ? options.skin : skin_growth * kDefaultSkin; }
   double margin(const Objects& o) const;
   void rebuild(const Objects& o);
   // Takes the fat boxes (by object) into `fat` and `place` in the grid's
