@@ -15,7 +15,7 @@
 // (float32/float64, strided views, a scalar radius), so its inputs are
 // these.
 #include <algorithm>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>

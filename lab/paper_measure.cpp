@@ -1,7 +1,7 @@
 #include "paper_measure.hpp"
 
 #include <algorithm>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <broadphase/lab/array_caller.hpp>
 #include <broadphase/lab/replay.hpp>
 #include <chrono>

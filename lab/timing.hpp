@@ -5,7 +5,7 @@
 #pragma once
 
 #include <algorithm>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <broadphase/lab/array_caller.hpp>
 #include <broadphase/lab/replay.hpp>
 #include <broadphase/lab/scene.hpp>

@@ -6,17 +6,17 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <cmath>
 #include <limits>
 #include <set>
 
 #include "arrays_testing.hpp"
-#include "detail/array_grid.hpp"
-#include "detail/big_vector.hpp"
-#include "detail/pairs_by_first.hpp"
-#include "detail/sphere_cells.hpp"
+#include "arrays/box_grid.hpp"
+#include "arrays/big_vector.hpp"
+#include "arrays/pairs_by_first.hpp"
+#include "arrays/sphere_kernel.hpp"
 #include "testing.hpp"
 
 namespace broadphase {
@@ -779,7 +779,7 @@ TEST(Arrays, GeneratedScenesMatchBruteForce) {
 // call as the cells filled.
 TEST(BigVector, FreedBlocksAreKeptAndTakenBackBySize) {
   // Large per-call arrays keep their freed blocks for the next call
-  // (detail/big_blocks.cpp): a block is taken back by a request of its size
+  // (src/arrays/big_blocks.cpp): a block is taken back by a request of its size
   // or down to half of it, not by a larger or much smaller one; the cache
   // holds at most 512 MiB. (Under AddressSanitizer nothing is kept.)
   if (!detail::keeps_big_blocks()) GTEST_SKIP() << "no blocks are kept under AddressSanitizer";

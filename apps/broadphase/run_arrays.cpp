@@ -1,7 +1,7 @@
 // `broadphase run --arrays`: replays a scene through the lean path
 // (PairTracker over the scene's objects held as the caller's arrays),
 // printing the same `frame pairs hash` lines as any structure.
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <broadphase/lab/array_caller.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <chrono>

@@ -15,7 +15,7 @@
 // `--all` tells the tracker that everything may have changed (it then
 // finds the movers itself) instead of passing the movers' indices.
 #include <algorithm>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <broadphase/lab/array_caller.hpp>
 #include <broadphase/lab/replay.hpp>
 #include <broadphase/lab/scene.hpp>

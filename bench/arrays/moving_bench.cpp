@@ -11,7 +11,7 @@
 // object. `--one-shot` calls `find_pairs` on the whole set instead;
 // `--verbose` prints every call.
 #include <algorithm>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>

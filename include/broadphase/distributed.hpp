@@ -31,7 +31,7 @@
 #include <mpi.h>
 
 #include <array>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <broadphase/geometry.hpp>
 #include <cstddef>
 #include <cstdint>

@@ -7,7 +7,7 @@
 #include <pybind11/pybind11.h>
 
 #include <atomic>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <broadphase/registry.hpp>
 #include <cstddef>
 #include <cstdint>

@@ -7,7 +7,7 @@
 
 #include <pybind11/pybind11.h>
 
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <cstddef>
 #include <cstdint>
 #include <memory>

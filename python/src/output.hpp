@@ -4,7 +4,7 @@
 #pragma once
 
 #include <algorithm>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <cstdint>
 #include <memory>
 #include <span>

@@ -7,7 +7,7 @@
 #include <string>
 #include <type_traits>
 
-#include "sort_keys.hpp"
+#include <broadphase/detail/sort_keys.hpp>
 
 namespace broadphase::detail {
 

@@ -4,7 +4,7 @@
 #pragma once
 
 #include <algorithm>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <cmath>
 #include <cstdint>
@@ -129,7 +129,7 @@ inline std::vector<IndexPair> sorted(std::vector<IndexPair> v) {
 
 // The kinds of random worlds.
 // Sets of spheres only (`spheres`, `similar`, `lattice`, `sizes`) take
-// the one-shot's cell kernel (detail/sphere_cells.hpp) where it suits
+// the one-shot's cell kernel (src/arrays/sphere_kernel.hpp) where it suits
 // them; the others the multi-level grid.
 enum class World {
   spheres,

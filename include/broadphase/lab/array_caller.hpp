@@ -6,7 +6,7 @@
 /// measure the same caller.
 #pragma once
 
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <cstddef>
 #include <cstdint>

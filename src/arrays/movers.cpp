@@ -1,7 +1,7 @@
 // The lean tracker's movers mode (PairTracker::Impl::movers): the quiet
 // spheres in the sphere kernel's grids with their pairs, the movers' pairs
 // found afresh on every call; and its invariants for validate().
-#include "detail/big_vector.hpp"
+#include "big_vector.hpp"
 #include "pair_tracker_impl.hpp"
 
 namespace broadphase {

@@ -25,7 +25,7 @@
 #include <algorithm>
 #include <atomic>
 #include <bit>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <cmath>
 #include <cstdint>
 #include <span>

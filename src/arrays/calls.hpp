@@ -1,16 +1,16 @@
-// Helpers shared by the lean path's one-shot calls (src/arrays.cpp) and its
-// tracker (src/pair_tracker.cpp): reading an object, the chunks of pairs
+// Helpers shared by the lean path's one-shot calls (src/arrays/one_shot.cpp) and its
+// tracker (src/arrays/pair_tracker.cpp): reading an object, the chunks of pairs
 // and their hand-over to the caller's sink, the sphere kernel's calls.
 #pragma once
 
 #include <algorithm>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <span>
 #include <thread>
 #include <vector>
 
 #include "in_order.hpp"
-#include "sphere_cells.hpp"
+#include "sphere_kernel.hpp"
 
 namespace broadphase::detail {
 

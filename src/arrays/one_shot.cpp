@@ -4,17 +4,17 @@
 // is in pair_tracker.cpp.
 #include <algorithm>
 #include <bit>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <broadphase/handle.hpp>
 #include <cmath>
 #include <limits>
 #include <sstream>
 #include <thread>
 
-#include "detail/array_calls.hpp"
-#include "detail/array_grid.hpp"
-#include "detail/in_order.hpp"
-#include "detail/sphere_cells.hpp"
+#include "calls.hpp"
+#include "box_grid.hpp"
+#include "in_order.hpp"
+#include "sphere_kernel.hpp"
 
 namespace broadphase {
 namespace {

@@ -1,4 +1,4 @@
-#include "array_grid.hpp"
+#include "box_grid.hpp"
 
 #include <algorithm>
 #include <array>

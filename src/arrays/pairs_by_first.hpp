@@ -11,7 +11,7 @@
 #pragma once
 
 #include <algorithm>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <cstdint>
 #include <limits>
 #include <span>

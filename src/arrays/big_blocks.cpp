@@ -1,4 +1,4 @@
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <chrono>
 #include <cstdlib>
 #include <mutex>

@@ -1,23 +1,23 @@
 // The lean tracker's state (PairTracker::Impl) and constants, shared by
-// src/pair_tracker.cpp (the index, the calls, validate) and
-// src/pair_tracker_movers.cpp (movers mode). Private to the library.
+// src/arrays/pair_tracker.cpp (the index, the calls, validate) and
+// src/arrays/movers.cpp (movers mode). Private to the library.
 #pragma once
 
 #include <algorithm>
 #include <bit>
-#include <broadphase/arrays.hpp>
+#include <broadphase/arrays/arrays.hpp>
 #include <broadphase/handle.hpp>
 #include <cmath>
 #include <limits>
 #include <thread>
 #include <unordered_set>
 
-#include "detail/array_calls.hpp"
-#include "detail/array_grid.hpp"
-#include "detail/in_order.hpp"
-#include "detail/pairs_by_first.hpp"
-#include "detail/sort_keys.hpp"
-#include "detail/sphere_cells.hpp"
+#include "calls.hpp"
+#include "box_grid.hpp"
+#include "in_order.hpp"
+#include "pairs_by_first.hpp"
+#include <broadphase/detail/sort_keys.hpp>
+#include "sphere_kernel.hpp"
 
 namespace broadphase {
 
@@ -141,7 +141,7 @@ inline void set_bit(std::vector<std::uint64_t>& bits, std::uint32_t k) {
   bits[k >> 6] |= std::uint64_t{1} << (k & 63);
 }
 
-// The quiet spheres' cells (pair_tracker_movers.cpp), over the spheres
+// The quiet spheres' cells (movers.cpp), over the spheres
 // `still` of `o`, or over all of them when `still` is empty (the cells a
 // call without an index keeps for the next call's partition): coarse ones
 // where they suit (one cell a sphere, where the radii spread over more

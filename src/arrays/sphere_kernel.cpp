@@ -1,4 +1,4 @@
-#include "sphere_cells.hpp"
+#include "sphere_kernel.hpp"
 
 #include <algorithm>
 #include <atomic>
