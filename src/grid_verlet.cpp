@@ -31,9 +31,6 @@ using detail::release_if_oversized;
 using detail::Slice;
 using detail::slice;
 
-// Pieces joined in order: every chunk of every pass, and one more.
-using InOrder = detail::InOrder<kMaxThreads * kChunksPerShare + 1>;
-
 }  // namespace
 
 void GridVerletOptions::check() const {
@@ -482,7 +479,7 @@ QueryCost GridVerlet::find_pairs(std::vector<HandlePair>& out) const {
     std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
     if (buffers.size() < chunks) buffers.resize(chunks);
     std::vector<std::uint64_t> tests(chunks, 0);
-    InOrder joined;
+    detail::InOrder joined(chunks + 1);  // the fixed pairs, then every chunk
     shares_.run(chunks + 1, [&](unsigned job) {
       if (job == 0) {
         emit_fixed();

@@ -12,11 +12,11 @@
 #include <limits>
 #include <set>
 
-#include "arrays_testing.hpp"
-#include "arrays/box_grid.hpp"
 #include "arrays/big_vector.hpp"
+#include "arrays/box_grid.hpp"
 #include "arrays/pairs_by_first.hpp"
 #include "arrays/sphere_kernel.hpp"
+#include "arrays_testing.hpp"
 #include "testing.hpp"
 
 namespace broadphase {
@@ -97,15 +97,15 @@ TEST(Arrays, PairsByFirstMatchesItsModel) {
     // where they fit the bytes spared.
     const std::size_t bytes = given.size() * sizeof(IndexPair);
     const std::size_t spare = seed % 6 == 2 ? bytes : seed % 6 == 4 && bytes > 0 ? bytes - 1 : 0;
-    bool plain = given.size() < detail::PairsByFirst::kByFirstShare * n || bytes <= spare;
+    bool plain = given.size() < arrays::detail::PairsByFirst::kByFirstShare * n || bytes <= spare;
     std::vector<IndexPair> model = given;
     if (!plain)
       std::stable_sort(model.begin(), model.end(),
                        [](const IndexPair& p, const IndexPair& q) { return p.i < q.i; });
-    detail::PairsByFirst store;
+    arrays::detail::PairsByFirst store;
     store.assign(given, n, spare);
     EXPECT_EQ(store.plain(), plain || given.empty());
-    EXPECT_EQ(store.many(n), given.size() >= detail::PairsByFirst::kByFirstShare * n);
+    EXPECT_EQ(store.many(n), given.size() >= arrays::detail::PairsByFirst::kByFirstShare * n);
     (plain ? plain_sets : by_first_sets) += given.empty() ? 0 : 1;
     spared_sets += plain && store.many(n) ? 1 : 0;
     auto check = [&] {
@@ -135,9 +135,9 @@ TEST(Arrays, PairsByFirstMatchesItsModel) {
       std::erase_if(model, drop);
       check();
       // Kept by i while still many (else as IndexPairs from then on).
-      plain = plain || model.size() < detail::PairsByFirst::kByFirstShare * n;
+      plain = plain || model.size() < arrays::detail::PairsByFirst::kByFirstShare * n;
       EXPECT_EQ(store.plain(), plain);
-      EXPECT_EQ(store.many(n), model.size() >= detail::PairsByFirst::kByFirstShare * n);
+      EXPECT_EQ(store.many(n), model.size() >= arrays::detail::PairsByFirst::kByFirstShare * n);
     }
   }
   EXPECT_GE(plain_sets, 5);
@@ -160,7 +160,7 @@ TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
       SCOPED_TRACE(::testing::Message()
                    << "seed " << seed << " world " << name(w) << " layout " << name(layout));
       Storage st(shapes, layout);
-      detail::SphereCells cells;
+      arrays::detail::SphereCells cells;
       ASSERT_TRUE(cells.build(st.objects));
       if (w == World::sizes) {
         EXPECT_GE(cells.level_count(), 2u);
@@ -191,7 +191,7 @@ TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
         shapes.push_back(Shape::sphere({a + 1, y, z}, 0.5));
       }
     Storage st(shapes, Layout::soa_double);
-    detail::SphereCells cells;
+    arrays::detail::SphereCells cells;
     ASSERT_TRUE(cells.build(st.objects));
     std::vector<IndexPair> got;
     cells.pairs(0, cells.cell_count(), got);
@@ -201,7 +201,7 @@ TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
     // probing them, finds exactly its partners.
     std::vector<std::uint32_t> firsts;
     for (std::uint32_t k = 1; k < shapes.size(); k += 2) firsts.push_back(k);
-    detail::SphereCells half;
+    arrays::detail::SphereCells half;
     ASSERT_TRUE(half.build(st.objects, firsts));
     std::vector<IndexPair> probed, expected;
     for (std::uint32_t k = 2; k < shapes.size(); k += 2) {
@@ -228,7 +228,7 @@ TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
         shapes.push_back(Shape::sphere({a + 4.25, y, z}, 0.25));
       }
     Storage st(shapes, Layout::soa_double);
-    detail::SphereCells cells;
+    arrays::detail::SphereCells cells;
     ASSERT_TRUE(cells.build(st.objects));
     EXPECT_EQ(cells.level_count(), 2u);
     std::vector<IndexPair> got;
@@ -239,7 +239,7 @@ TEST(Arrays, SpheresOfOneSizeTakeTheCellKernel) {
   }
   auto taken = [](std::vector<Shape> shapes) {
     Storage st(shapes, Layout::soa_double);
-    return detail::SphereCells().build(st.objects);
+    return arrays::detail::SphereCells().build(st.objects);
   };
   Rng rng(9);
   std::vector<Shape> base = random_world(World::similar, 500, rng);
@@ -265,18 +265,18 @@ TEST(Arrays, CellKernelScansTheSameWithEveryInstructionSet) {
   // on the kernel's grids and on coarse ones of one cell a sphere (one grid
   // for spheres of many sizes, as the tracker's movers have); and the same
   // records from probes and from lists of records (the tracker's movers).
-  using Isa = detail::SphereCells::Isa;
-  const Isa best = detail::SphereCells::isa();
+  using Isa = arrays::detail::SphereCells::Isa;
+  const Isa best = arrays::detail::SphereCells::isa();
   if (best == Isa::scalar) GTEST_SKIP() << "no AVX2 here: one way only";
   std::vector<Isa> ways{Isa::avx2};
   if (best == Isa::avx512) ways.push_back(Isa::avx512);
   struct Restore {
     ~Restore() {
-      detail::SphereCells::use_isa(Isa::avx512);
-      detail::SphereCells::use_wide(detail::SphereCells::Wide::where_crowded);
+      arrays::detail::SphereCells::use_isa(Isa::avx512);
+      arrays::detail::SphereCells::use_wide(arrays::detail::SphereCells::Wide::where_crowded);
     }
   } restore;
-  detail::SphereCells::use_wide(detail::SphereCells::Wide::always);
+  arrays::detail::SphereCells::use_wide(arrays::detail::SphereCells::Wide::always);
   int one_grid = 0;
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(24)); ++seed) {
     Rng rng(seed * 7919);
@@ -293,9 +293,10 @@ TEST(Arrays, CellKernelScansTheSameWithEveryInstructionSet) {
     SCOPED_TRACE(::testing::Message()
                  << "seed " << seed << " world " << name(w) << " n " << shapes.size());
     Storage st(shapes, seed % 2 ? Layout::soa_double : Layout::aos_float);
-    for (const std::size_t per_object : {detail::SphereCells::kMaxCellsPerObject, std::size_t{1}}) {
+    for (const std::size_t per_object :
+         {arrays::detail::SphereCells::kMaxCellsPerObject, std::size_t{1}}) {
       SCOPED_TRACE(::testing::Message() << "cells per object " << per_object);
-      detail::SphereCells cells;
+      arrays::detail::SphereCells cells;
       if (!cells.build(st.objects, per_object)) continue;  // crowded: the kernel is not used
       // Probes of spheres of the set, grown by up to a radius, and lists of
       // records (the probes' finds with others between, 1 to 130 long).
@@ -321,17 +322,17 @@ TEST(Arrays, CellKernelScansTheSameWithEveryInstructionSet) {
         }
         return found;
       };
-      detail::SphereCells::use_isa(Isa::scalar);
+      arrays::detail::SphereCells::use_isa(Isa::scalar);
       std::vector<IndexPair> one;
       const std::uint64_t one_tests = cells.pairs(0, cells.cell_count(), one);
       EXPECT_EQ(sorted(one), oracle(st.objects));
       const std::vector<std::uint32_t> one_found = probes_and_lists();
-      detail::SphereCells columns = cells;
+      arrays::detail::SphereCells columns = cells;
       columns.add_columns();
       for (const Isa way : ways) {
         SCOPED_TRACE(::testing::Message() << "instructions " << static_cast<int>(way));
-        detail::SphereCells::use_isa(way);
-        ASSERT_EQ(detail::SphereCells::isa(), way);
+        arrays::detail::SphereCells::use_isa(way);
+        ASSERT_EQ(arrays::detail::SphereCells::isa(), way);
         std::vector<IndexPair> wide, from_columns;
         EXPECT_EQ(cells.pairs(0, cells.cell_count(), wide), one_tests);
         EXPECT_EQ(wide, one);
@@ -431,7 +432,7 @@ TEST(Arrays, CellKernelGridsReachTheirLargestSphere) {
   for (const auto& s : spheres) shapes.push_back(Shape::sphere({s[0], s[1], s[2]}, s[3]));
   for (Layout layout : {Layout::aos_float, Layout::soa_double}) {
     Storage st(shapes, layout);
-    detail::SphereCells cells;
+    arrays::detail::SphereCells cells;
     ASSERT_TRUE(cells.build(st.objects)) << "the kernel must take them, or this tests nothing";
     EXPECT_NO_THROW(cells.validate());
     std::vector<IndexPair> got;
@@ -477,7 +478,7 @@ TEST(Arrays, CellKernelSlabsOfWorldsOfManySizes) {
       // The kernel as find_pairs builds it, and with fewer cells a sphere
       // (budgets that widen the grids' cells more often).
       for (const std::size_t cells_per_object : {std::size_t{4}, std::size_t{1 + rng.below(3)}}) {
-        detail::SphereCells cells;
+        arrays::detail::SphereCells cells;
         const bool took = cells.build(st.objects, cells_per_object);
         kernel_took += took && cells.level_count() > 1 && cells_per_object == 4 ? 1 : 0;
         EXPECT_NO_THROW(cells.validate()) << cells_per_object << " cells a sphere";
@@ -782,34 +783,35 @@ TEST(BigVector, FreedBlocksAreKeptAndTakenBackBySize) {
   // (src/arrays/big_blocks.cpp): a block is taken back by a request of its size
   // or down to half of it, not by a larger or much smaller one; the cache
   // holds at most 512 MiB. (Under AddressSanitizer nothing is kept.)
-  if (!detail::keeps_big_blocks()) GTEST_SKIP() << "no blocks are kept under AddressSanitizer";
+  if (!arrays::detail::keeps_big_blocks())
+    GTEST_SKIP() << "no blocks are kept under AddressSanitizer";
   constexpr std::size_t kMiB = std::size_t{1} << 20;
   for (std::size_t b = 2 * kMiB; b <= (std::size_t{1} << 30); b *= 2)  // what earlier tests left
-    while (void* p = detail::take_big_block(b)) std::free(p);
+    while (void* p = arrays::detail::take_big_block(b)) std::free(p);
   void* a = std::aligned_alloc(2 * kMiB, 8 * kMiB);
   ASSERT_NE(a, nullptr);
-  ASSERT_TRUE(detail::keep_big_block(a, 8 * kMiB));
-  EXPECT_EQ(detail::take_big_block(10 * kMiB), nullptr);  // larger
-  EXPECT_EQ(detail::take_big_block(2 * kMiB), nullptr);   // under half
-  EXPECT_EQ(detail::take_big_block(6 * kMiB), a);
-  EXPECT_EQ(detail::take_big_block(6 * kMiB), nullptr);  // taken once
+  ASSERT_TRUE(arrays::detail::keep_big_block(a, 8 * kMiB));
+  EXPECT_EQ(arrays::detail::take_big_block(10 * kMiB), nullptr);  // larger
+  EXPECT_EQ(arrays::detail::take_big_block(2 * kMiB), nullptr);   // under half
+  EXPECT_EQ(arrays::detail::take_big_block(6 * kMiB), a);
+  EXPECT_EQ(arrays::detail::take_big_block(6 * kMiB), nullptr);  // taken once
   // Given back by a user of 6 MiB, it counts as the 8 MiB it is.
   const std::size_t before = scratch_bytes();
-  ASSERT_TRUE(detail::keep_big_block(a, 6 * kMiB));
+  ASSERT_TRUE(arrays::detail::keep_big_block(a, 6 * kMiB));
   EXPECT_EQ(scratch_bytes(), before + 8 * kMiB);
-  EXPECT_EQ(detail::take_big_block(8 * kMiB), a);
+  EXPECT_EQ(arrays::detail::take_big_block(8 * kMiB), a);
   void* big = std::aligned_alloc(2 * kMiB, 2 * kMiB);
   ASSERT_NE(big, nullptr);
-  EXPECT_FALSE(detail::keep_big_block(big, std::size_t{600} * kMiB));  // over the cap
+  EXPECT_FALSE(arrays::detail::keep_big_block(big, std::size_t{600} * kMiB));  // over the cap
   std::free(big);
   // A vector's blocks go round: freed, then taken by the next of its size.
   const void* first = nullptr;
   {
-    detail::BigVector<double> v(kMiB);
+    arrays::detail::BigVector<double> v(kMiB);
     first = v.data();
   }
   {
-    detail::BigVector<double> w(kMiB);
+    arrays::detail::BigVector<double> w(kMiB);
     EXPECT_EQ(static_cast<const void*>(w.data()), first);
   }
   std::free(a);
@@ -819,10 +821,10 @@ TEST(BigVector, FreedBlocksAreKeptAndTakenBackBySize) {
   const std::size_t limit = scratch_limit();
   set_scratch_limit(0);
   EXPECT_EQ(scratch_bytes(), 0u);
-  { detail::BigVector<double> v(kMiB); }
+  { arrays::detail::BigVector<double> v(kMiB); }
   EXPECT_EQ(scratch_bytes(), 0u);
   set_scratch_limit(limit);
-  { detail::BigVector<double> v(kMiB); }
+  { arrays::detail::BigVector<double> v(kMiB); }
   EXPECT_GE(scratch_bytes(), 8 * kMiB);
 }
 
@@ -841,18 +843,18 @@ TEST(ArrayGrid, KeepsTheFinestCellItIsGiven) {
       }
     }
     SCOPED_TRACE(::testing::Message() << "seed " << seed << " n " << n << " spread " << spread);
-    detail::ArrayGrid grid;
+    arrays::detail::ArrayGrid grid;
     grid.build(boxes);
     const double first = grid.base_cell();
     ASSERT_GT(first, 0);
     for (int compaction = 0; compaction < 10; ++compaction) {
-      detail::ArrayGrid next;
+      arrays::detail::ArrayGrid next;
       next.build(boxes, 1, grid.base_cell());
       ASSERT_EQ(next.base_cell(), first) << "after " << compaction + 1 << " builds";
       grid = std::move(next);
     }
     // A least cell wider than the sample's gives that cell.
-    detail::ArrayGrid wide;
+    arrays::detail::ArrayGrid wide;
     wide.build(boxes, 1, 3 * first);
     EXPECT_EQ(wide.base_cell(), 3 * first);
   }

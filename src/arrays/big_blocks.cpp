@@ -18,7 +18,7 @@
 #define BROADPHASE_KEEP_BLOCKS 1
 #endif
 
-namespace broadphase::detail {
+namespace broadphase::arrays::detail {
 
 namespace {
 
@@ -125,9 +125,9 @@ bool keep_big_block(void* p, std::size_t bytes) noexcept {
   return false;
 }
 
-}  // namespace broadphase::detail
+}  // namespace broadphase::arrays::detail
 
-namespace broadphase {
+namespace broadphase::arrays {
 
 std::size_t scratch_bytes() {
   detail::Blocks& b = detail::blocks();
@@ -153,4 +153,4 @@ std::size_t scratch_limit() {
   return b.limit;
 }
 
-}  // namespace broadphase
+}  // namespace broadphase::arrays

@@ -16,7 +16,7 @@
 #include <sys/mman.h>
 #endif
 
-namespace broadphase::detail {
+namespace broadphase::arrays::detail {
 
 // Whether freed blocks are kept (not under AddressSanitizer).
 bool keeps_big_blocks() noexcept;
@@ -77,4 +77,4 @@ void free_vector(V& v) noexcept {
   V().swap(v);
 }
 
-}  // namespace broadphase::detail
+}  // namespace broadphase::arrays::detail

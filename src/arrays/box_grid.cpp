@@ -5,7 +5,7 @@
 #include <bit>
 #include <climits>
 
-namespace broadphase::detail {
+namespace broadphase::arrays::detail {
 namespace {
 
 // Each level's cells are twice those of the one below; an object sits on
@@ -247,4 +247,4 @@ void ArrayGrid::release() {
   boxes_ = {};
 }
 
-}  // namespace broadphase::detail
+}  // namespace broadphase::arrays::detail

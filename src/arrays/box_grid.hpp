@@ -28,7 +28,7 @@
 
 #include "big_vector.hpp"
 
-namespace broadphase::detail {
+namespace broadphase::arrays::detail {
 
 /// A float box and the object it belongs to, stored in bucket order so that
 /// a probe reads the boxes it tests from consecutive memory.
@@ -376,4 +376,4 @@ inline bool ArrayGrid::may_hold(const Level& lv, std::int64_t x0, std::int64_t x
   return false;
 }
 
-}  // namespace broadphase::detail
+}  // namespace broadphase::arrays::detail

@@ -5,14 +5,18 @@
 
 #include <algorithm>
 #include <broadphase/arrays/arrays.hpp>
+#include <broadphase/detail/in_order.hpp>
 #include <span>
 #include <thread>
 #include <vector>
 
-#include "in_order.hpp"
 #include "sphere_kernel.hpp"
 
-namespace broadphase::detail {
+namespace broadphase::arrays::detail {
+
+// The library's in-order joiner (include/broadphase/detail/in_order.hpp).
+using broadphase::detail::kChunkItems;
+using broadphase::detail::run_in_order;
 
 inline unsigned thread_count(unsigned requested) {
   if (requested != 0) return requested;
@@ -125,4 +129,4 @@ inline ArrayCallStats cell_pairs(const detail::SphereCells& cells, const PairSin
   return stats;
 }
 
-}  // namespace broadphase::detail
+}  // namespace broadphase::arrays::detail

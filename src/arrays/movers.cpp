@@ -4,7 +4,7 @@
 #include "big_vector.hpp"
 #include "pair_tracker_impl.hpp"
 
-namespace broadphase {
+namespace broadphase::arrays {
 
 namespace {
 
@@ -318,7 +318,7 @@ ArrayCallStats PairTracker::Impl::movers_call(const Objects& o,
   auto mover = [&](std::size_t k) {
     return k < active.size() ? active[k] : woken[k - active.size()];
   };
-  sort_by_high_word(keyed);
+  broadphase::detail::sort_by_high_word(keyed);
   // Lists for every mover where the quiet pairs are few (fewer than two
   // an object). In denser sets a list holds tens of candidates: there
   // the lists together take at most half of ArrayOptions::spare_bytes
@@ -656,4 +656,4 @@ void PairTracker::Impl::check_movers(const Objects& objects) const {
   if (live != im.list_pool_live) fail("the movers' lists' live entries miscounted");
 }
 
-}  // namespace broadphase
+}  // namespace broadphase::arrays

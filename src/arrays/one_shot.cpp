@@ -5,18 +5,18 @@
 #include <algorithm>
 #include <bit>
 #include <broadphase/arrays/arrays.hpp>
+#include <broadphase/detail/in_order.hpp>
 #include <broadphase/handle.hpp>
 #include <cmath>
 #include <limits>
 #include <sstream>
 #include <thread>
 
-#include "calls.hpp"
 #include "box_grid.hpp"
-#include "in_order.hpp"
+#include "calls.hpp"
 #include "sphere_kernel.hpp"
 
-namespace broadphase {
+namespace broadphase::arrays {
 namespace {
 
 // The grid, the chunk hand-over and the sphere kernel (src/detail/).
@@ -226,4 +226,4 @@ std::vector<std::uint32_t> query(const Objects& objects, const Shape& shape) {
   return out;
 }
 
-}  // namespace broadphase
+}  // namespace broadphase::arrays

@@ -6,7 +6,7 @@
 // tests read from the caller's data.
 #include "pair_tracker_impl.hpp"
 
-namespace broadphase {
+namespace broadphase::arrays {
 
 // The skin as a distance: skin() times the median largest half-extent (of
 // a sample), so it scales with the objects.
@@ -753,4 +753,4 @@ void PairTracker::validate(const Objects& objects) const {
                " are not candidates");
 }
 
-}  // namespace broadphase
+}  // namespace broadphase::arrays

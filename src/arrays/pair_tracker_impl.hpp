@@ -6,22 +6,22 @@
 #include <algorithm>
 #include <bit>
 #include <broadphase/arrays/arrays.hpp>
+#include <broadphase/detail/in_order.hpp>
+#include <broadphase/detail/sort_keys.hpp>
 #include <broadphase/handle.hpp>
 #include <cmath>
 #include <limits>
 #include <thread>
 #include <unordered_set>
 
-#include "calls.hpp"
 #include "box_grid.hpp"
-#include "in_order.hpp"
+#include "calls.hpp"
 #include "pairs_by_first.hpp"
-#include <broadphase/detail/sort_keys.hpp>
 #include "sphere_kernel.hpp"
 
-namespace broadphase {
+namespace broadphase::arrays {
 
-// The grid, the chunk hand-over and the sphere kernel (src/detail/).
+// The grid, the chunk hand-over and the sphere kernel (src/arrays/).
 using namespace detail;  // NOLINT(google-build-using-namespace)
 
 // ---------------------------------------------------------------------------
@@ -374,4 +374,4 @@ struct PairTracker::Impl {
   }
 };
 
-}  // namespace broadphase
+}  // namespace broadphase::arrays

@@ -20,7 +20,7 @@
 
 #include "big_vector.hpp"
 
-namespace broadphase::detail {
+namespace broadphase::arrays::detail {
 
 class PairsByFirst {
  public:
@@ -140,4 +140,4 @@ class PairsByFirst {
   std::vector<std::uint32_t> partner_;  // the j of each pair, by i
 };
 
-}  // namespace broadphase::detail
+}  // namespace broadphase::arrays::detail

@@ -13,7 +13,7 @@
 #include <immintrin.h>
 #endif
 
-namespace broadphase::detail {
+namespace broadphase::arrays::detail {
 
 namespace {
 // Two spheres that overlap are at most ri + rj apart per axis. A sphere
@@ -841,4 +841,4 @@ std::uint64_t SphereCells::scan(std::size_t c0, std::size_t c1, std::vector<Inde
   return tests;
 }
 
-}  // namespace broadphase::detail
+}  // namespace broadphase::arrays::detail

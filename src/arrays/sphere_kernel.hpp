@@ -33,7 +33,7 @@
 
 #include "big_vector.hpp"
 
-namespace broadphase::detail {
+namespace broadphase::arrays::detail {
 
 class SphereCells {
  public:
@@ -337,4 +337,4 @@ void SphereCells::test_block(const Placed* __restrict P, double x, double y, dou
   for (; hits != 0; hits &= hits - 1) hit(b + static_cast<std::uint32_t>(std::countr_zero(hits)));
 }
 
-}  // namespace broadphase::detail
+}  // namespace broadphase::arrays::detail

@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <broadphase/detail/sort_keys.hpp>
 #include <broadphase/detail/verlet_lists.hpp>
 #include <broadphase/detail/worker_pool.hpp>
 #include <cmath>
@@ -6,8 +7,6 @@
 #include <stdexcept>
 #include <string>
 #include <type_traits>
-
-#include <broadphase/detail/sort_keys.hpp>
 
 namespace broadphase::detail {
 
@@ -30,9 +29,6 @@ constexpr double kMinFrames = 2;
 // A candidate or near pool's capacity for n live entries: room for
 // renewals of half as many again.
 std::size_t with_room(std::size_t n) { return n + n / 2 + 1024; }
-
-// Pieces joined in order: every chunk of a pass.
-using Joined = InOrder<WorkShares::kMaxThreads * WorkShares::kChunksPerShare + 1>;
 
 }  // namespace
 
@@ -203,7 +199,7 @@ void VerletLists::renew(const LevelGrid& fixed, const LevelGrid& moving, const T
   }
   // The parts are appended as soon as the chunks before them are (while
   // later chunks still renew lists), on whichever thread is free.
-  Joined joined;
+  InOrder joined(chunks);
   shares.run(chunks, [&](unsigned c) {
     // Chunk 0 appends to the pools themselves (no other chunk reads them).
     // Each chunk works on vectors on its own stack, moved in and out (as in

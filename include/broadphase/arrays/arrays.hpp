@@ -32,7 +32,10 @@
 #include <type_traits>
 #include <vector>
 
-namespace broadphase {
+/// Everything here is in `broadphase::arrays`; the names are also declared
+/// in `broadphase` itself, where code written before the lean path had a
+/// namespace of its own finds them.
+namespace broadphase::arrays {
 
 /// The number type of a column of the caller's data.
 enum class Real : std::uint8_t { f64, f32 };
@@ -326,4 +329,23 @@ std::size_t scratch_bytes();
 void set_scratch_limit(std::size_t bytes);
 std::size_t scratch_limit();
 
+}  // namespace broadphase::arrays
+
+namespace broadphase {
+using arrays::ArrayCallStats;
+using arrays::ArrayOptions;
+using arrays::Changes;
+using arrays::check_objects;
+using arrays::Column;
+using arrays::find_pairs;
+using arrays::IndexPair;
+using arrays::InvalidObjects;
+using arrays::Objects;
+using arrays::PairSink;
+using arrays::PairTracker;
+using arrays::query;
+using arrays::Real;
+using arrays::scratch_bytes;
+using arrays::scratch_limit;
+using arrays::set_scratch_limit;
 }  // namespace broadphase

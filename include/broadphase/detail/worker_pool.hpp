@@ -1,12 +1,13 @@
 /// \file worker_pool.hpp
-/// Threads kept by a structure for its whole life, and the in-order join of
-/// results made on them: the engine under a structure's parallel passes
+/// Threads kept by a structure for its whole life (their results are joined
+/// in order by in_order.hpp's InOrder): the engine under a structure's parallel passes
 /// (grid-verlet's bulk update and find_pairs). Results never depend on the
 /// thread count: work is cut into pieces by index, and pieces' results are
 /// joined in index order.
 #pragma once
 
 #include <atomic>
+#include <broadphase/detail/in_order.hpp>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -66,30 +67,6 @@ class WorkerPool {
   std::atomic<std::uint64_t> round_{0};
   std::atomic<bool> stopping_{false};
   std::vector<std::jthread> threads_;
-};
-
-/// Pieces of work numbered 0, 1, ... (fewer than kMaxPieces) whose results
-/// are joined in that order while later pieces are still being made, on
-/// threads: finish(k, join) marks piece k made and then, under a lock,
-/// calls join(j) for every piece j from the next one not joined on that is
-/// made, in order. Each thread that finishes a piece joins what it can, so
-/// no made piece waits for more than the lock, and the last piece made
-/// leaves none unjoined.
-template <unsigned kMaxPieces>
-class InOrder {
- public:
-  /// Marks `piece` made and joins every made piece that is next in order.
-  template <class F>
-  void finish(unsigned piece, F&& join) {
-    std::lock_guard hold(m_);
-    made_[piece] = true;
-    for (; next_ < kMaxPieces && made_[next_]; ++next_) join(next_);
-  }
-
- private:
-  std::mutex m_;
-  bool made_[kMaxPieces] = {};
-  unsigned next_ = 0;
 };
 
 }  // namespace broadphase::detail
