@@ -16,6 +16,72 @@ void PairTracker::Impl::rebuild(const Objects& o) {
   mode = Mode::index;
 }
 
+// Motion outran the skin: so many objects left their fat boxes that the
+// index would be built again. A set of spheres in cells that are not
+// crowded is then searched afresh by the one-shot kernel, several times
+// cheaper than a build, and so are the next kAfreshCalls calls, without
+// an index (the tracker holds nothing meanwhile); the call after them
+// builds one again, to see whether the motion has slowed. Measured on
+// one core, all-moving 20 000 (every object moves every frame, mostly
+// past the skin): 11.0 ms a call on the index, 1.3 ms afresh. Where the
+// cells are crowded (the study's scenes at 6 400: calls afresh 1.2 to 1.5
+// times the index's between builds), the index is built as before.
+std::optional<ArrayCallStats> PairTracker::Impl::afresh_while_outrun(const Objects& objects,
+                                                                     const PairSink& sink,
+                                                                     bool outran) {
+  detail::SphereCells cells;
+  if (cells.build(objects) && cells.crowd() <= kAfreshCrowd) {
+    const std::uint32_t left = outran ? kAfreshCalls : afresh_left - 1;
+    reset();
+    afresh_left = left;
+    ArrayCallStats stats = cell_pairs(cells, sink, options);
+    stats.afresh = true;
+    return stats;
+  }
+  afresh_left = 0;
+  return std::nullopt;
+}
+
+// No index yet (a first call, a new count, movers mode left): a set that
+// movers mode may take is searched afresh, holding nothing, and the next
+// call that lists its changes partitions it straight away; a next call
+// that does not builds the index. The index's build (1.0-1.2 s at
+// scaled-even 1 024 000, three one-shot calls' worth) is then not paid
+// by a caller that lists its changes.
+// The pairs are kept, with the cells: the next call enters movers mode
+// by sorting the quiet objects into cells of their own and dropping the
+// listed objects' pairs, without finding the quiet pairs again
+// (scaled-even 1 024 000, that call 410 -> 324 ms on one core).
+// The cells are those the quiet spheres take (build_quiet_cells):
+// coarse where the radii spread. The kernel's own, four cells a sphere
+// over three grids there, took this call (the first of a process, its
+// pages fresh) 454 ms against 278, one run each on one core; its
+// starts alone were 16 MB.
+std::optional<ArrayCallStats> PairTracker::Impl::afresh_pending(const Objects& objects,
+                                                                const PairSink& sink) {
+  detail::SphereCells cells;
+  if (build_quiet_cells(cells, objects, {})) {
+    const std::uint32_t quiet_after = quiet.after;
+    reset();
+    // Reserved, not written: untouched pages cost nothing. Grown by
+    // doubling, the 2.58 million pairs of scaled-even 1 024 000 took
+    // 15-20 ms more in copies and fresh pages.
+    std::vector<IndexPair> all;
+    all.reserve(std::min<std::size_t>(4 * objects.count, std::size_t{1} << 26));
+    ArrayCallStats stats = cell_pairs(cells, sink, options, &all);
+    quiet.after = quiet_after;
+    mode = Mode::pending;
+    count = objects.count;
+    if (!stats.stopped) {  // (a sink that stopped early saw only some)
+      quiet.hits.assign(all, objects.count, spare_half(options));
+      movers.quiet_cells = std::move(cells);
+    }
+    stats.afresh = true;
+    return stats;
+  }
+  return std::nullopt;
+}
+
 PairTracker::PairTracker(const ArrayOptions& options) : impl_(std::make_unique<Impl>()) {
   impl_->options = options;
 }
@@ -104,104 +170,17 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   // Renewed in this call: the objects that left their fat box, and the
   // quiet ones the caller changed (woken), unless so many that a rebuild
   // is cheaper. (Renewal and compaction run on the calling thread only.)
-  std::vector<std::uint32_t> renew;
-  std::size_t left = 0, quiet_changed = 0;
+  TrackerIndex::Leavers leave;
   bool outran = false;  // a rebuild is due because objects left their boxes
   if (!rebuild) {
-    auto look = [&](std::uint32_t i) {
-      quiet_changed += im.quiet.has(i) ? 1 : 0;
-      if (!im.index.contained(objects, i)) {
-        im.index.fat_of(i) = im.index.renewed_box(objects.shape(i), im.index.fat_of(i));
-        renew.push_back(i);
-        ++left;
-      } else if (im.quiet.has(i)) {
-        renew.push_back(i);
-      }
-    };
-    // Each check reads the object's fat box, kept in the grid's order, so a
-    // cache miss: the boxes of the objects a few ahead are asked for first.
-    constexpr std::uint32_t kAhead = 16;
-    if (changes.all) {
-      for (std::uint32_t i = 0; i < n; ++i) {
-        if (i + kAhead < n) __builtin_prefetch(&im.index.fat_of(i + kAhead));
-        look(i);
-      }
-    } else {
-      std::vector<std::uint32_t> list;
-      list.reserve(changed_count);
-      for (std::size_t w = 0; w < changed.size(); ++w)
-        for (std::uint64_t b = changed[w]; b != 0; b &= b - 1)
-          list.push_back(
-              static_cast<std::uint32_t>(w * 64 + static_cast<unsigned>(std::countr_zero(b))));
-      for (std::size_t r = 0; r < list.size(); ++r) {
-        if (r + kAhead < list.size()) __builtin_prefetch(&im.index.fat_of(list[r + kAhead]));
-        look(list[r]);
-      }
-    }
-    rebuild = static_cast<double>(renew.size()) > kRebuildFraction * static_cast<double>(n);
+    leave = im.index.leavers(objects, changes.all, changed, changed_count, im.quiet);
+    rebuild = static_cast<double>(leave.renew.size()) > kRebuildFraction * static_cast<double>(n);
     outran = rebuild;
   }
-  // Motion outran the skin: so many objects left their fat boxes that the
-  // index would be built again. A set of spheres in cells that are not
-  // crowded is then searched afresh by the one-shot kernel, several times
-  // cheaper than a build, and so are the next kAfreshCalls calls, without
-  // an index (the tracker holds nothing meanwhile); the call after them
-  // builds one again, to see whether the motion has slowed. Measured on
-  // one core, all-moving 20 000 (every object moves every frame, mostly
-  // past the skin): 11.0 ms a call on the index, 1.3 ms afresh. Where the
-  // cells are crowded (the study's scenes at 6 400: calls afresh 1.2 to 1.5
-  // times the index's between builds), the index is built as before.
-  if (outran || (rebuild && im.afresh_left > 0)) {
-    detail::SphereCells cells;
-    if (cells.build(objects) && cells.crowd() <= kAfreshCrowd) {
-      const std::uint32_t afresh_left = outran ? kAfreshCalls : im.afresh_left - 1;
-      const ArrayOptions options = im.options;
-      clear();
-      im.afresh_left = afresh_left;
-      stats = cell_pairs(cells, sink, options);
-      stats.afresh = true;
-      return stats;
-    }
-    im.afresh_left = 0;
-  }
-  // No index yet (a first call, a new count, movers mode left): a set that
-  // movers mode may take is searched afresh, holding nothing, and the next
-  // call that lists its changes partitions it straight away; a next call
-  // that does not builds the index. The index's build (1.0-1.2 s at
-  // scaled-even 1 024 000, three one-shot calls' worth) is then not paid
-  // by a caller that lists its changes.
-  // The pairs are kept, with the cells: the next call enters movers mode
-  // by sorting the quiet objects into cells of their own and dropping the
-  // listed objects' pairs, without finding the quiet pairs again
-  // (scaled-even 1 024 000, that call 410 -> 324 ms on one core).
-  // The cells are those the quiet spheres take (build_quiet_cells):
-  // coarse where the radii spread. The kernel's own, four cells a sphere
-  // over three grids there, took this call (the first of a process, its
-  // pages fresh) 454 ms against 278, one run each on one core; its
-  // starts alone were 16 MB.
-  if (rebuild && im.mode != Impl::Mode::pending) {
-    detail::SphereCells cells;
-    if (build_quiet_cells(cells, objects, {})) {
-      const ArrayOptions options = im.options;
-      const std::uint32_t quiet_after = im.quiet.after;
-      clear();
-      // Reserved, not written: untouched pages cost nothing. Grown by
-      // doubling, the 2.58 million pairs of scaled-even 1 024 000 took
-      // 15-20 ms more in copies and fresh pages.
-      std::vector<IndexPair> all;
-      all.reserve(std::min<std::size_t>(4 * objects.count, std::size_t{1} << 26));
-      stats = cell_pairs(cells, sink, options, &all);
-      im.quiet.after = quiet_after;
-      im.mode = Impl::Mode::pending;
-      im.count = objects.count;
-      if (!stats.stopped) {  // (a sink that stopped early saw only some)
-        im.quiet.hits.assign(all, objects.count, spare_half(im.options));
-        im.movers.quiet_cells = std::move(cells);
-      }
-      stats.afresh = true;
-      return stats;
-    }
-  }
+  if (outran || (rebuild && im.afresh_left > 0))
+    if (auto afresh = im.afresh_while_outrun(objects, sink, outran)) return *afresh;
+  if (rebuild && im.mode != Impl::Mode::pending)
+    if (auto afresh = im.afresh_pending(objects, sink)) return *afresh;
   // Objects that did not change in this call while their candidates are
   // still scanned become quiet, when they are many (a pass over the rows).
   if (changes.all) {
@@ -213,13 +192,13 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
   const bool bits_hold =
       im.built() && !im.index.fresh && !changes.all && im.quiet.listed_calls >= im.quiet.after;
   auto partition_pays = [&] {
-    return bits_hold && (n - im.quiet.count) - (changed_count - quiet_changed) > n / 8;
+    return bits_hold && (n - im.quiet.count) - (changed_count - leave.quiet_changed) > n / 8;
   };
   // The default skin outrun by a share of the changed objects at one call:
   // built again, once, with a wider one (kSkinGrowth). A skin the caller
   // chose stays as it is.
   if (!rebuild && im.built() && im.options.skin <= 0 && im.skin_growth == 1 &&
-      renew.size() * kSkinGrowShare > changed_count) {
+      leave.renew.size() * kSkinGrowShare > changed_count) {
     im.skin_growth = kSkinGrowth;
     rebuild = true;
   }
@@ -236,113 +215,17 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
       stats.compacted = true;
       return stats;
     }
-    if (!renew.empty()) {
-      im.index.renew(renew, im.quiet);
-      stats.renewed = left;
-      stats.woken = quiet_changed;
+    if (!leave.renew.empty()) {
+      im.index.renew(leave.renew, im.quiet);
+      stats.renewed = leave.left;
+      stats.woken = leave.quiet_changed;
     }
-    if (partition_now || (!renew.empty() && im.index.wants_compaction(im.quiet))) {
+    if (partition_now || (!leave.renew.empty() && im.index.wants_compaction(im.quiet))) {
       im.index.compact(objects, bits_hold ? &changed : nullptr, im.quiet, spare_half(im.options));
       stats.compacted = true;
     }
   }
-  const bool test_all = changes.all || im.index.fresh;
-  auto is_changed = [&](std::uint32_t k) { return test_all || test_bit(changed, k); };
-  // Until every row is done (a sink may stop early or throw), the bits are
-  // not to be trusted.
-  im.index.fresh = true;
-
-  const std::size_t rows = im.index.offset.size() - 1;
-  const bool any_renewed = !im.index.renewed_list.empty();
-  Emitter emit(sink, im.options.sorted, stats);
-  const unsigned threads = thread_count(im.options.threads);
-  // The scan over the rows, then over the renewed objects' candidates in
-  // the order they were found, with shapes from `rd`.
-  auto scan = [&](const auto& rd) {
-    const bool go_on = run_in_order<PairChunk>(
-        rows, threads,
-        [&](std::size_t begin, std::size_t end, PairChunk& out) {
-          out.pairs.clear();
-          out.tests = 0;
-          for (std::size_t k = begin; k < end; ++k) {
-            if (k + kPrefetchRows < rows)
-              for (std::uint32_t p = im.index.offset[k + kPrefetchRows];
-                   p < im.index.offset[k + kPrefetchRows + 1]; ++p)
-                rd.prefetch(im.index.partner[p] & kIndexMask);
-            const std::uint32_t s = im.index.offset[k], e = im.index.offset[k + 1];
-            if (s == e) continue;
-            const std::uint32_t i = im.index.grid.probe_object(k);
-            if (any_renewed && im.index.is_renewed(i)) continue;  // its pairs are loose
-            const bool i_changed = is_changed(i);
-            for (std::uint32_t p = s; p < e; ++p) {
-              std::uint32_t& entry = im.index.partner[p];
-              const std::uint32_t q = entry & kIndexMask;
-              const std::uint32_t j = im.index.grid.probe_object(q);
-              if (any_renewed && im.index.is_renewed(j)) continue;
-              bool hit;
-              if (i_changed || is_changed(j)) {
-                ++out.tests;
-                hit = overlaps(rd.row(k, i), rd.row(q, j));
-                entry = q | (hit ? kOverlapBit : 0);
-              } else {
-                hit = (entry & kOverlapBit) != 0;
-              }
-              if (hit) out.pairs.push_back(ordered(i, j));
-            }
-          }
-        },
-        [&](PairChunk& c) { return emit.deliver(c); });
-    if (go_on)
-      run_in_order<PairChunk>(
-          im.index.loose.size(), threads,
-          [&](std::size_t begin, std::size_t end, PairChunk& out) {
-            out.pairs.clear();
-            out.tests = 0;
-            for (std::size_t p = begin; p < end; ++p) {
-              LoosePair& lp = im.index.loose[p];
-              const std::uint32_t ka = lp.a, kb = lp.b & kIndexMask;
-              const std::uint32_t i = im.index.grid.probe_object(ka),
-                                  j = im.index.grid.probe_object(kb);
-              bool hit;
-              if (is_changed(i) || is_changed(j)) {
-                ++out.tests;
-                hit = overlaps(rd.row(ka, i), rd.row(kb, j));
-                lp.b = kb | (hit ? kOverlapBit : 0);
-              } else {
-                hit = (lp.b & kOverlapBit) != 0;
-              }
-              if (hit) out.pairs.push_back(ordered(i, j));
-            }
-          },
-          [&](PairChunk& c) { return emit.deliver(c); });
-    if (!go_on || emit.stopped()) return;
-    im.quiet.deliver(emit, threads, any_renewed);
-  };
-  // When many objects changed, most objects take part in a test, and the
-  // tests' reads of the caller's columns (one cache miss a column, in the
-  // caller's order) dominate the call: the shapes are first copied, in one
-  // sequential pass over the columns, into the rows' order, where a row's
-  // partners lie near it (docs/arrays.md). With few changes, the tests
-  // read the columns directly.
-  if ((test_all ? n : changed_count) * kGatherShare >= objects.count) {
-    detail::BigVector<Shape> now(rows);
-    for (std::uint32_t i = 0; i < n; ++i) now[im.index.place[i]] = read_shape(objects, i);
-    struct Gathered {
-      const Shape* now;
-      // Object i's shape, at place k.
-      const Shape& row(std::size_t k, std::uint32_t) const { return now[k]; }
-      void prefetch(std::uint32_t q) const { __builtin_prefetch(now + q); }
-    };
-    scan(Gathered{now.data()});
-  } else {
-    struct Direct {
-      const Objects& o;
-      Shape row(std::size_t, std::uint32_t i) const { return read_shape(o, i); }
-      void prefetch(std::uint32_t) const {}
-    };
-    scan(Direct{objects});
-  }
-  emit.finish();
+  im.index.scan(objects, changes.all, changed, changed_count, im.quiet, im.options, sink, stats);
   im.index.fresh = stats.stopped;
   stats.quiet = im.quiet.count;
   return stats;
@@ -359,11 +242,7 @@ std::size_t PairTracker::memory_bytes() const {
          im.movers.memory_bytes();
 }
 
-void PairTracker::clear() {
-  const ArrayOptions options = impl_->options;
-  *impl_ = Impl{};
-  impl_->options = options;
-}
+void PairTracker::clear() { impl_->reset(); }
 
 void PairTracker::validate(const Objects& objects) const {
   const Impl& im = *impl_;

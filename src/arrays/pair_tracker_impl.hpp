@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include "calls.hpp"
@@ -58,6 +59,21 @@ struct PairTracker::Impl {
   double skin() const { return options.skin > 0 ? options.skin : skin_growth * kDefaultSkin; }
   // Builds the index afresh; movers mode and the quiet set go.
   void rebuild(const Objects& o);
+  // Forgets everything but the options.
+  void reset() {
+    const ArrayOptions kept = options;
+    *this = Impl{};
+    options = kept;
+  }
+  // A call afresh where motion outran the skin (or one of the calls afresh
+  // after it): the pairs when it searched afresh, holding nothing; nothing
+  // when the set does not suit it.
+  std::optional<ArrayCallStats> afresh_while_outrun(const Objects& objects, const PairSink& sink,
+                                                    bool outran);
+  // A call with no index yet on a set movers mode may take: the pairs,
+  // found afresh and kept with their cells (Mode::pending); nothing when
+  // the set does not suit it.
+  std::optional<ArrayCallStats> afresh_pending(const Objects& objects, const PairSink& sink);
 
   // Partitions the objects by `changed` (those it does not list become
   // quiet) into movers mode, dropping the index; false, with nothing

@@ -255,6 +255,146 @@ void TrackerIndex::compact(const Objects& o, const std::vector<std::uint64_t>* c
   loose.shrink_to_fit();
 }
 
+TrackerIndex::Leavers TrackerIndex::leavers(const Objects& o, bool all,
+                                            const std::vector<std::uint64_t>& changed,
+                                            std::size_t changed_count, const QuietSet& quiet) {
+  Leavers out;
+  const auto n = static_cast<std::uint32_t>(o.count);
+  auto look = [&](std::uint32_t i) {
+    out.quiet_changed += quiet.has(i) ? 1 : 0;
+    if (!contained(o, i)) {
+      fat_of(i) = renewed_box(o.shape(i), fat_of(i));
+      out.renew.push_back(i);
+      ++out.left;
+    } else if (quiet.has(i)) {
+      out.renew.push_back(i);
+    }
+  };
+  // Each check reads the object's fat box, kept in the grid's order, so a
+  // cache miss: the boxes of the objects a few ahead are asked for first.
+  constexpr std::uint32_t kAhead = 16;
+  if (all) {
+    for (std::uint32_t i = 0; i < n; ++i) {
+      if (i + kAhead < n) __builtin_prefetch(&fat_of(i + kAhead));
+      look(i);
+    }
+  } else {
+    std::vector<std::uint32_t> list;
+    list.reserve(changed_count);
+    for (std::size_t w = 0; w < changed.size(); ++w)
+      for (std::uint64_t b = changed[w]; b != 0; b &= b - 1)
+        list.push_back(
+            static_cast<std::uint32_t>(w * 64 + static_cast<unsigned>(std::countr_zero(b))));
+    for (std::size_t r = 0; r < list.size(); ++r) {
+      if (r + kAhead < list.size()) __builtin_prefetch(&fat_of(list[r + kAhead]));
+      look(list[r]);
+    }
+  }
+  return out;
+}
+
+void TrackerIndex::scan(const Objects& o, bool all, const std::vector<std::uint64_t>& changed,
+                        std::size_t changed_count, const QuietSet& quiet,
+                        const ArrayOptions& options, const PairSink& sink, ArrayCallStats& stats) {
+  const auto n = static_cast<std::uint32_t>(o.count);
+  const bool test_all = all || fresh;
+  auto is_changed = [&](std::uint32_t k) { return test_all || test_bit(changed, k); };
+  // Until every row is done (a sink may stop early or throw), the bits are
+  // not to be trusted.
+  fresh = true;
+
+  const std::size_t rows = offset.size() - 1;
+  const bool any_renewed = !renewed_list.empty();
+  Emitter emit(sink, options.sorted, stats);
+  const unsigned threads = thread_count(options.threads);
+  // The scan over the rows, then over the renewed objects' candidates in
+  // the order they were found, with shapes from `rd`.
+  auto scan = [&](const auto& rd) {
+    const bool go_on = run_in_order<PairChunk>(
+        rows, threads,
+        [&](std::size_t begin, std::size_t end, PairChunk& out) {
+          out.pairs.clear();
+          out.tests = 0;
+          for (std::size_t k = begin; k < end; ++k) {
+            if (k + kPrefetchRows < rows)
+              for (std::uint32_t p = offset[k + kPrefetchRows]; p < offset[k + kPrefetchRows + 1];
+                   ++p)
+                rd.prefetch(partner[p] & kIndexMask);
+            const std::uint32_t s = offset[k], e = offset[k + 1];
+            if (s == e) continue;
+            const std::uint32_t i = grid.probe_object(k);
+            if (any_renewed && is_renewed(i)) continue;  // its pairs are loose
+            const bool i_changed = is_changed(i);
+            for (std::uint32_t p = s; p < e; ++p) {
+              std::uint32_t& entry = partner[p];
+              const std::uint32_t q = entry & kIndexMask;
+              const std::uint32_t j = grid.probe_object(q);
+              if (any_renewed && is_renewed(j)) continue;
+              bool hit;
+              if (i_changed || is_changed(j)) {
+                ++out.tests;
+                hit = overlaps(rd.row(k, i), rd.row(q, j));
+                entry = q | (hit ? kOverlapBit : 0);
+              } else {
+                hit = (entry & kOverlapBit) != 0;
+              }
+              if (hit) out.pairs.push_back(ordered(i, j));
+            }
+          }
+        },
+        [&](PairChunk& c) { return emit.deliver(c); });
+    if (go_on)
+      run_in_order<PairChunk>(
+          loose.size(), threads,
+          [&](std::size_t begin, std::size_t end, PairChunk& out) {
+            out.pairs.clear();
+            out.tests = 0;
+            for (std::size_t p = begin; p < end; ++p) {
+              LoosePair& lp = loose[p];
+              const std::uint32_t ka = lp.a, kb = lp.b & kIndexMask;
+              const std::uint32_t i = grid.probe_object(ka), j = grid.probe_object(kb);
+              bool hit;
+              if (is_changed(i) || is_changed(j)) {
+                ++out.tests;
+                hit = overlaps(rd.row(ka, i), rd.row(kb, j));
+                lp.b = kb | (hit ? kOverlapBit : 0);
+              } else {
+                hit = (lp.b & kOverlapBit) != 0;
+              }
+              if (hit) out.pairs.push_back(ordered(i, j));
+            }
+          },
+          [&](PairChunk& c) { return emit.deliver(c); });
+    if (!go_on || emit.stopped()) return;
+    quiet.deliver(emit, threads, any_renewed);
+  };
+  // When many objects changed, most objects take part in a test, and the
+  // tests' reads of the caller's columns (one cache miss a column, in the
+  // caller's order) dominate the call: the shapes are first copied, in one
+  // sequential pass over the columns, into the rows' order, where a row's
+  // partners lie near it (docs/arrays.md). With few changes, the tests
+  // read the columns directly.
+  if ((test_all ? n : changed_count) * kGatherShare >= o.count) {
+    detail::BigVector<Shape> now(rows);
+    for (std::uint32_t i = 0; i < n; ++i) now[place[i]] = read_shape(o, i);
+    struct Gathered {
+      const Shape* now;
+      // Object i's shape, at place k.
+      const Shape& row(std::size_t k, std::uint32_t) const { return now[k]; }
+      void prefetch(std::uint32_t q) const { __builtin_prefetch(now + q); }
+    };
+    scan(Gathered{now.data()});
+  } else {
+    struct Direct {
+      const Objects& o;
+      Shape row(std::size_t, std::uint32_t i) const { return read_shape(o, i); }
+      void prefetch(std::uint32_t) const {}
+    };
+    scan(Direct{o});
+  }
+  emit.finish();
+}
+
 std::size_t TrackerIndex::memory_bytes() const {
   return fat.capacity() * sizeof(AabbF) + grid.memory_bytes() + grid.slim_bytes() +
          (place.capacity() + offset.capacity() + partner.capacity() + renewed_list.capacity()) *

@@ -75,6 +75,16 @@ struct TrackerIndex {
   // grid, every candidate row (on `threads` threads); nothing renewed, and
   // every candidate to be tested (`fresh`).
   void build(const Objects& o, double skin, unsigned threads);
+  // The objects a call renews: those of `o` that left their fat box (which
+  // then takes them again with renewed_box), and the quiet ones the caller
+  // changed (woken), among all of them or those `changed` lists.
+  struct Leavers {
+    std::vector<std::uint32_t> renew;  // distinct, sorted
+    std::size_t left = 0;              // how many of them left their box
+    std::size_t quiet_changed = 0;     // how many changed objects were quiet
+  };
+  Leavers leavers(const Objects& o, bool all, const std::vector<std::uint64_t>& changed,
+                  std::size_t changed_count, const QuietSet& quiet);
   // Renews the objects in `leave` (distinct, sorted); a quiet one wakes.
   void renew(const std::vector<std::uint32_t>& leave, QuietSet& quiet);
   // Folds the loose pairs into the rows and drops the dead entries; with
@@ -82,6 +92,13 @@ struct TrackerIndex {
   // of unchanged pairs must hold), their pairs moving to `quiet`.
   void compact(const Objects& o, const std::vector<std::uint64_t>* changed, QuietSet& quiet,
                std::size_t spare);
+  // Hands over every overlapping pair of `o`: the rows, the loose pairs,
+  // then the quiet pairs, testing the candidates with a changed object
+  // (every one when `all`, or while `fresh`) and keeping each one's overlap
+  // bit; the other candidates keep the answer of their bit.
+  void scan(const Objects& o, bool all, const std::vector<std::uint64_t>& changed,
+            std::size_t changed_count, const QuietSet& quiet, const ArrayOptions& options,
+            const PairSink& sink, ArrayCallStats& stats);
   bool wants_compaction(const QuietSet& quiet) const {
     return static_cast<double>(renewed_list.size()) >
                kCompactFraction * static_cast<double>(count()) ||
