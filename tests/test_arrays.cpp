@@ -687,6 +687,38 @@ TEST(Arrays, BadValuesNameTheIndexAndLeaveTheTrackerAsItWas) {
   EXPECT_THROW(t.find_pairs(st.objects, out, Changes::only(far_index)), InvalidObjects);
 }
 
+// Bad options are refused with InvalidConfig naming the option, by the
+// tracker's constructor and by every one-shot call, before anything runs;
+// the default (0) and positive skins pass.
+TEST(Arrays, BadOptionsAreRefusedByName) {
+  const double bad_skins[] = {std::nan(""), -1, HUGE_VAL, 1e-310};
+  std::vector<double> xyz = {0, 0, 0, 1, 0, 0}, r = {1, 1};
+  const Objects two = Objects::spheres(xyz.data(), r.data(), 2);
+  std::vector<IndexPair> out;
+  for (double skin : bad_skins) {
+    ArrayOptions o;
+    o.skin = skin;
+    try {
+      PairTracker t(o);
+      ADD_FAILURE() << "skin " << skin << " was taken";
+    } catch (const InvalidConfig& e) {
+      EXPECT_NE(std::string(e.what()).find("skin"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(find_pairs(two, out, o), InvalidConfig) << skin;
+    EXPECT_THROW(find_pairs(two, two, out, o), InvalidConfig) << skin;
+  }
+  ArrayOptions many;
+  many.threads = ArrayOptions::kMaxThreads + 1;
+  EXPECT_THROW(PairTracker{many}, InvalidConfig);
+  EXPECT_TRUE(out.empty());
+  for (double skin : {0.0, 0.25, 4.0}) {
+    ArrayOptions o;
+    o.skin = skin;
+    PairTracker t(o);
+    EXPECT_EQ(t.find_pairs(two, out).pairs, 1u);
+  }
+}
+
 // Reads a scene's objects in place: SoA columns kept by the test, updated
 // by the contract's motion frame after frame.
 struct SceneArrays {

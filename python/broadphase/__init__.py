@@ -335,8 +335,9 @@ class Index:
                 faster on large crowded worlds if the memory is there.
 
         Raises:
-            ValueError: bad arrays (see :func:`find_pairs`), or a negative
-                ``spare_bytes``.
+            ValueError: bad arrays (see :func:`find_pairs`), a negative
+                ``spare_bytes``, or a ``skin`` that is NaN, negative or
+                infinite.
         """
         # The compiled index holds buffer views of the arrays it borrows,
         # which keep them alive (and numpy from resizing them).

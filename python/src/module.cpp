@@ -54,7 +54,7 @@ PYBIND11_MODULE(_broadphase, m) {
       PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const bp::InvalidShape& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
-    } catch (const bp::UnknownStructure& e) {
+    } catch (const bp::InvalidConfig& e) {  // UnknownStructure too
       PyErr_SetString(PyExc_ValueError, e.what());
     }
   });

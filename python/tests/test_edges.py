@@ -126,6 +126,9 @@ def test_other_types_are_converted(rng):
     (lambda: broadphase.Index(np.zeros((2, 3)), 1.0).query([[0, 0, 0]], -1.0), "other_radii is negative"),
     (lambda: broadphase.Index(np.zeros((2, 3)), 1.0).query_box([0, 0, 0], [1, np.nan, 1]), "hi[1] is nan"),
     (lambda: broadphase.Index(np.zeros((2, 3)), 1.0).iter_pairs(0).__next__(), "chunk"),
+    (lambda: broadphase.Index(np.zeros((2, 3)), 1.0, skin=np.nan), "option 'skin'"),
+    (lambda: broadphase.Index(np.zeros((2, 3)), 1.0, skin=-1.0), "option 'skin'"),
+    (lambda: broadphase.Index(np.zeros((2, 3)), 1.0, skin=np.inf), "option 'skin'"),
 ])
 def test_bad_input_raises_value_error_naming_it(call, message):
     with pytest.raises(ValueError) as e:

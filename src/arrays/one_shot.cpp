@@ -162,6 +162,12 @@ void check_object(const Objects& o, std::size_t i, const char* what) {
 
 }  // namespace
 
+void ArrayOptions::check() const {
+  ::broadphase::detail::check_number("arrays", "skin", skin, 0, std::numeric_limits<double>::max(),
+                                     true);
+  ::broadphase::detail::check_integer("arrays", "threads", threads, 0, kMaxThreads);
+}
+
 void check_objects(const Objects& o, const char* what) {
   check_columns(o, what);
   for (std::size_t i = 0; i < o.count; ++i) check_object(o, i, what);
@@ -180,6 +186,7 @@ void check_listed(const Objects& o, const std::vector<std::uint64_t>& listed) {
 
 ArrayCallStats find_pairs(const Objects& objects, const PairSink& sink,
                           const ArrayOptions& options) {
+  options.check();
   // The sphere kernel checks the values it reads in its first pass; a set
   // it refuses, for a bad value or another reason, is checked here.
   {
@@ -198,6 +205,7 @@ ArrayCallStats find_pairs(const Objects& objects, std::vector<IndexPair>& out,
 
 ArrayCallStats find_pairs(const Objects& a, const Objects& b, const PairSink& sink,
                           const ArrayOptions& options) {
+  options.check();
   check_objects(a, "a");
   check_objects(b, "b");
   if (a.count + b.count > kMaxObjects)

@@ -83,6 +83,7 @@ std::optional<ArrayCallStats> PairTracker::Impl::afresh_pending(const Objects& o
 }
 
 PairTracker::PairTracker(const ArrayOptions& options) : impl_(std::make_unique<Impl>()) {
+  options.check();
   impl_->options = options;
 }
 PairTracker::~PairTracker() = default;

@@ -19,6 +19,7 @@
 /// the caller's arrays; the arrays must not change during a call.
 #pragma once
 
+#include <broadphase/config_error.hpp>
 #include <broadphase/geometry.hpp>
 #include <broadphase/handle.hpp>
 #include <cstddef>
@@ -164,6 +165,8 @@ using PairSink = std::function<bool(std::span<const IndexPair>)>;
 
 /// Options of the one-shot calls and the tracker.
 struct ArrayOptions {
+  /// The most threads a call takes (`threads`).
+  static constexpr unsigned kMaxThreads = 1024;
   /// Threads to use; 1 runs on the calling thread, 0 uses every core. The
   /// pairs and their order are the same for every thread count.
   unsigned threads = 1;
@@ -191,6 +194,12 @@ struct ArrayOptions {
   /// 1 024 000 has no room by default, 265 ms a call and 84 B/object;
   /// room for all took 182 ms and 163 B/object.
   std::size_t spare_bytes = 0;
+
+  /// Throws InvalidConfig (config_error.hpp) naming the option: `skin` must
+  /// be 0 (the default) or a positive finite number that is not subnormal
+  /// (a NaN does not mean "default"), `threads` at most kMaxThreads. The
+  /// tracker's constructor and every one-shot call check their options.
+  void check() const;
 };
 
 /// What one call did, for the lab and the tests.
