@@ -4,7 +4,7 @@
 // fast-grid's worker pool do), for a pass bound by arithmetic, by streaming
 // memory and by scattered writes. The ratio of the times between the
 // /1 and /2 variants is the ceiling for a pass of that kind here
-// (docs/performance.md, step 30).
+// (docs/performance.md).
 //
 //   broadphase_bench --benchmark_filter=TwoCores --benchmark_repetitions=5
 //                    --benchmark_report_aggregates_only=true

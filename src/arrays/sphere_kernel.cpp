@@ -603,7 +603,7 @@ constexpr Compress4 kCompress4;
 
 // Where the processor has AVX2 and no AVX-512F. Alternated on one core of
 // a 2-core AMD EPYC VM (Zen 3) against one at a time, the same pairs
-// (docs/arrays.md, point 21): study even 6 400 0.449-0.456 -> 0.360-0.384
+// (docs/arrays.md, "Vector forms"): study even 6 400 0.449-0.456 -> 0.360-0.384
 // ms a call; one-shot clusters 200 000 50 -> 35-40 ms; the tracker at
 // scaled-even 1 024 000 (also the probes and list tests below, and the
 // columns' scan) 81-89 -> 68-75 ms.

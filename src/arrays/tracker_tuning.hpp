@@ -26,7 +26,7 @@ constexpr double kRebuildFraction = 0.25;
 // outruns the skin, beyond the waves of renewals of steady movers): the
 // index is then built again with the wider skin. Alternated with the
 // build before on one core (20 000 objects, 20% movers, 60 calls,
-// docs/arrays.md point 24): boxes 6.4-8.3 -> 1.4-1.5 ms a call,
+// docs/arrays.md, "The tracker's index path"): boxes 6.4-8.3 -> 1.4-1.5 ms a call,
 // half-boxes 3.9-4.0 -> 1.0-1.2, box-decades 33-34 -> 7.7-9.1. Widened
 // at renewals alone, without the build, the boxes not renewed kept the
 // narrow skin: boxes 3.2 ms, box-decades 16. With one in four, city
@@ -102,7 +102,7 @@ constexpr double kListSkinQuiet = 0.5;
 // at scaled-even 1 024 000. Alternated on one core against centred lists
 // (the same pairs): there, 60 calls, median 72.4-73.2 -> 63.9-67.1 ms,
 // mean 74.5-76.9 -> 68.0-71.4; study even and uneven 6 400 4-5% faster;
-// a random walk the same within 1.2% (docs/arrays.md, point 16). At 1, 2,
+// a random walk the same within 1.2% (docs/arrays.md, "Movers mode"). At 1, 2,
 // 4 and 8 times, the million's mean 71.7, 70.9, 68.0 ms and 1% over 4's.
 constexpr double kListAhead = 4;
 constexpr std::size_t kCoarseCellsPerObject = 1;
