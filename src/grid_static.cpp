@@ -168,7 +168,7 @@ bool GridStatic::add_entries(Table& t, std::uint32_t i) {
       return;
     }
     std::uint32_t at = t.start[k] + t.count[k]++;
-    if (&t == &fixed_) {
+    if (t.sorted()) {
       // Keep the fixed segment sorted by low x: shift the later ones up.
       while (at > t.start[k] && t.boxes[at - 1].lo[0] > box_[i].lo[0]) {
         t.entries[at] = t.entries[at - 1];
@@ -189,7 +189,7 @@ void GridStatic::remove_entries(Table& t, std::uint32_t i) {
     for (std::uint32_t j = 0; j < t.count[k]; ++j) {
       if ((e[j].tag >> 3) == i && e[j].key == c) {
         const std::uint32_t last = --t.count[k];
-        if (&t == &fixed_) {
+        if (t.sorted()) {
           // Close the gap in order (the fixed segment stays sorted by x).
           AabbF* b = t.boxes.data() + t.start[k];
           for (std::uint32_t m = j; m < last; ++m) {
@@ -205,7 +205,8 @@ void GridStatic::remove_entries(Table& t, std::uint32_t i) {
   });
 }
 
-void GridStatic::rebuild(Table& t, Kind kind) {
+void GridStatic::rebuild(Table& t) {
+  const Kind kind = t.kind;
   ++rebuilds_;
   const std::size_t buckets = t.count.size();
   std::fill(t.count.begin(), t.count.end(), 0u);
@@ -221,13 +222,13 @@ void GridStatic::rebuild(Table& t, Kind kind) {
   std::uint32_t running = 0;
   for (std::size_t k = 0; k < buckets; ++k) {
     t.start[k] = running;
-    running += t.count[k] + (&t == &fixed_ ? t.count[k] / 4 : t.count[k] / 2) + 2;
+    running += t.count[k] + (t.sorted() ? t.count[k] / 4 : t.count[k] / 2) + 2;
     t.count[k] = 0;
   }
   t.start[buckets] = running;
   t.entries.resize(running);
-  if (&t == &fixed_) t.boxes.resize(running);
-  if (&t == &fixed_) {
+  if (t.sorted()) {
+    t.boxes.resize(running);
     // Entering the objects by increasing low x leaves every fixed segment
     // sorted without a per-segment sort.
     std::vector<std::uint32_t> order;
@@ -258,8 +259,8 @@ void GridStatic::finish_mutation() {
       t->dirty = true;
     }
   }
-  if (fixed_.dirty) rebuild(fixed_, kFixed);
-  if (dyn_.dirty) rebuild(dyn_, kDynamic);
+  if (fixed_.dirty) rebuild(fixed_);
+  if (dyn_.dirty) rebuild(dyn_);
 }
 
 void GridStatic::regrid(double cell) {
@@ -283,8 +284,8 @@ void GridStatic::regrid(double cell) {
     t->count.assign(buckets, 0);
     t->start.assign(buckets + 1, 0);
   }
-  rebuild(fixed_, kFixed);
-  rebuild(dyn_, kDynamic);
+  rebuild(fixed_);
+  rebuild(dyn_);
 }
 
 void GridStatic::cache_pairs_of(std::uint32_t i) {
@@ -348,7 +349,7 @@ void GridStatic::validate() const {
   std::vector<std::uint32_t> seen(slots, 0);
   for (const Table* t : {&fixed_, &dyn_}) {
     if (t->dirty) fail("table left dirty");
-    const Kind kind = t == &fixed_ ? kFixed : kDynamic;
+    const Kind kind = t->kind;
     const std::size_t buckets = t->count.size();
     if (t->start.size() != buckets + 1 || t->start[buckets] != t->entries.size())
       fail("table layout");
@@ -361,7 +362,7 @@ void GridStatic::validate() const {
         if (o >= slots || kind_[o] != kind || where_[o] != kNone) fail("entry of a wrong object");
         if (bucket_of(e.key) != k || !range_[o].contains(e.key)) fail("entry in a wrong cell");
         if ((e.tag & 7u) != detail::offset_mask(range_[o], e.key)) fail("entry mask");
-        if (t == &fixed_ && std::memcmp(&t->boxes[t->start[k] + j], &box_[o], sizeof(AabbF)) != 0)
+        if (t->sorted() && std::memcmp(&t->boxes[t->start[k] + j], &box_[o], sizeof(AabbF)) != 0)
           fail("stale bounds in the fixed table");
         ++seen[o];
       }

@@ -208,14 +208,21 @@ class GridStatic {
     detail::CellKey key;
     std::uint32_t tag;  // slot << 3 | offset mask of the key in the slot's range
   };
+  enum Kind : std::uint8_t { kDead = 0, kFixed = 1, kDynamic = 2 };
+  // One bucket table; `kind` says which population it holds. The fixed
+  // table also keeps every entry's box beside it, each bucket sorted by low
+  // x, and is packed tighter (it changes only on insert and remove).
   struct Table {
+    explicit Table(Kind k) : kind(k) {}
+    Kind kind;                         // kFixed or kDynamic, set once
     std::vector<Entry> entries;        // per bucket: count live entries, then free slots
     std::vector<AabbF> boxes;          // beside entries, fixed table only, sorted by low x
     std::vector<std::uint32_t> start;  // per bucket, plus the end
     std::vector<std::uint32_t> count;  // per bucket
     bool dirty = false;                // entries are stale until the end of the current mutation
+    bool sorted() const { return kind == kFixed; }             // keeps boxes, sorted by low x
+    unsigned bit() const { return kind == kFixed ? 1u : 2u; }  // in visit_region's mask
   };
-  enum Kind : std::uint8_t { kDead = 0, kFixed = 1, kDynamic = 2 };
 
   std::size_t bucket_of(const detail::CellKey& k) const {
     return static_cast<std::size_t>(detail::hash_cell(k) >> shift_);
@@ -242,7 +249,7 @@ class GridStatic {
           const unsigned rm = detail::offset_mask(r, c);
           const std::size_t k = bucket_of(c);
           for (const Table* t : {&fixed_, &dyn_}) {
-            if (((tables >> (t == &fixed_ ? 0 : 1)) & 1u) == 0) continue;
+            if ((tables & t->bit()) == 0) continue;
             const Entry* e = t->entries.data() + t->start[k];
             for (std::uint32_t j = 0; j < t->count[k]; ++j)
               if (e[j].key == c && (e[j].tag & rm) == 0 && !f(e[j].tag >> 3)) return false;
@@ -256,7 +263,7 @@ class GridStatic {
   void detach(std::uint32_t i, bool patch);
   bool add_entries(Table& t, std::uint32_t i);
   void remove_entries(Table& t, std::uint32_t i);
-  void rebuild(Table& t, Kind kind);
+  void rebuild(Table& t);
   void finish_mutation();
   void cache_pairs_of(std::uint32_t i);
   void drop_pairs_of(std::uint32_t i);
@@ -271,7 +278,7 @@ class GridStatic {
   std::vector<std::uint32_t> degree_;  // cached pairs per fixed object
   std::vector<std::uint32_t> overflow_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> fixed_pairs_;
-  Table fixed_, dyn_;
+  Table fixed_{kFixed}, dyn_{kDynamic};
   detail::CellMap map_;
   Vec3 origin_;
   int shift_ = 58;
