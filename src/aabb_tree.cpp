@@ -416,8 +416,7 @@ std::size_t AabbTree::memory_bytes() const {
 }
 
 void AabbTree::validate() const {
-  store_.validate();
-  auto fail = [](const char* what) { throw std::logic_error(std::string("aabb-tree: ") + what); };
+  const auto fail = validate_store("aabb-tree");
   std::size_t free_count = 0;
   for (std::uint32_t n = free_; n != kNull; n = nodes_[n].parent) {
     if (n >= nodes_.size() || nodes_[n].live || ++free_count > nodes_.size())

@@ -100,10 +100,7 @@ std::size_t GridImplicit::memory_bytes() const {
 }
 
 void GridImplicit::validate() const {
-  store_.validate();
-  auto fail = [](const char* what) {
-    throw std::logic_error(std::string("grid-implicit: ") + what);
-  };
+  const auto fail = validate_store("grid-implicit");
   if (store_.slot_count() > words_ * 64) fail("slots outgrew the bit arrays");
   for (int a = 0; a < 3; ++a) {
     std::vector<std::uint64_t> want(bits_[a].size(), 0);

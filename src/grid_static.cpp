@@ -325,8 +325,7 @@ std::size_t GridStatic::memory_bytes() const {
 }
 
 void GridStatic::validate() const {
-  store_.validate();
-  auto fail = [](const char* what) { throw std::logic_error(std::string("grid-static: ") + what); };
+  const auto fail = validate_store("grid-static");
   const std::uint32_t slots = store_.slot_count();
   std::size_t entries = 0;
   for (std::uint32_t i = 0; i < slots; ++i) {

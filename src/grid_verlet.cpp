@@ -527,7 +527,7 @@ std::size_t GridVerlet::memory_bytes() const {
 }
 
 void GridVerlet::validate() const {
-  auto fail = [](const std::string& what) { throw std::logic_error("grid-verlet: " + what); };
+  const detail::InvariantFailure fail("grid-verlet");
   const std::size_t slots = slots_.size();
   if (user_.size() != slots) fail("slot arrays differ in length");
   std::size_t alive = 0, free = 0, held = 0;

@@ -164,8 +164,7 @@ std::size_t HGrid::memory_bytes() const {
 }
 
 void HGrid::validate() const {
-  store_.validate();
-  auto fail = [](const char* what) { throw std::logic_error(std::string("hgrid: ") + what); };
+  const auto fail = validate_store("hgrid");
   std::vector<std::uint32_t> count(count_.size(), 0);
   for (std::uint32_t i = 0; i < store_.slot_count(); ++i) {
     if (!store_.slots().alive(i)) {

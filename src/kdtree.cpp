@@ -334,7 +334,7 @@ std::size_t KdTree::memory_bytes() const {
 }
 
 void KdTree::validate() const {
-  auto fail = [](const std::string& what) { throw std::logic_error("kdtree: " + what); };
+  const auto fail = validate_store("kdtree");
   const std::size_t placed =
       detail::validate_items(store_, index_, nodes_, fail, [&](std::uint32_t, std::uint32_t n) {
         if (!leaf(n)) fail("an object held by an inner node");

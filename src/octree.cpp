@@ -193,7 +193,7 @@ std::size_t Octree::memory_bytes() const {
 }
 
 void Octree::validate() const {
-  auto fail = [](const std::string& what) { throw std::logic_error("octree: " + what); };
+  const auto fail = validate_store("octree");
   const std::size_t placed = detail::validate_items(
       store_, index_, nodes_, fail, [&](std::uint32_t slot, std::uint32_t n) {
         const Aabb b = bounds(store_.shape(slot));

@@ -140,7 +140,7 @@ std::size_t LooseOctree::memory_bytes() const {
 }
 
 void LooseOctree::validate() const {
-  auto fail = [](const std::string& what) { throw std::logic_error("octree-loose: " + what); };
+  const auto fail = validate_store("octree-loose");
   const std::size_t placed = detail::validate_items(
       store_, index_, nodes_, fail, [&](std::uint32_t slot, std::uint32_t n) {
         const Shape& s = store_.shape(slot);

@@ -228,18 +228,18 @@ std::size_t Sap::memory_bytes() const {
 }
 
 void Sap::validate() const {
-  store_.validate();
+  const auto fail = validate_store("sap");
   pairs_.validate();
   for (int a = 0; a < 3; ++a) {
     const auto& e = ep_[a];
-    if (e.size() != 2 * store_.size()) throw std::logic_error("sap: endpoint count");
+    if (e.size() != 2 * store_.size()) fail("endpoint count");
     for (std::size_t k = 1; k < e.size(); ++k)
-      if (!(e[k - 1] < e[k])) throw std::logic_error("sap: endpoint list not sorted");
+      if (!(e[k - 1] < e[k])) fail("endpoint list not sorted");
     for (const std::uint64_t k : e) {
       const std::uint32_t o = slot_of(k);
-      if (!store_.slots().alive(o)) throw std::logic_error("sap: endpoint of a dead slot");
+      if (!store_.slots().alive(o)) fail("endpoint of a dead slot");
       const float v = is_upper(k) ? box_[o].hi[a] : box_[o].lo[a];
-      if (k != key(v, is_upper(k), o)) throw std::logic_error("sap: endpoint disagrees with box");
+      if (k != key(v, is_upper(k), o)) fail("endpoint disagrees with box");
     }
   }
   for (std::uint32_t o = 0; o < store_.slot_count(); ++o) {
@@ -247,15 +247,14 @@ void Sap::validate() const {
     const AabbF b = normalized_bounds(store_.shape(o));
     for (int a = 0; a < 3; ++a) {
       if (b.lo[a] != box_[o].lo[a] || b.hi[a] != box_[o].hi[a])
-        throw std::logic_error("sap: stored box is not the shape's bounds");
-      if (extent_of(b.lo[a], b.hi[a]) > max_extent_[a])
-        throw std::logic_error("sap: largest extent too small");
+        fail("stored box is not the shape's bounds");
+      if (extent_of(b.lo[a], b.hi[a]) > max_extent_[a]) fail("largest extent too small");
     }
   }
   for (const auto& p : pairs_.pairs())
     if (!store_.slots().alive(p.a) || !store_.slots().alive(p.b) ||
         !boxes_overlap(box_[p.a], box_[p.b]))
-      throw std::logic_error("sap: pair set holds a pair whose boxes do not overlap");
+      fail("pair set holds a pair whose boxes do not overlap");
   // Count overlapping boxes independently with a sweep along x.
   std::vector<std::uint32_t> active, where(store_.slot_count());
   std::size_t count = 0;
@@ -272,7 +271,7 @@ void Sap::validate() const {
     where[o] = static_cast<std::uint32_t>(active.size());
     active.push_back(o);
   }
-  if (count != pairs_.size()) throw std::logic_error("sap: pair set misses overlapping boxes");
+  if (count != pairs_.size()) fail("pair set misses overlapping boxes");
 }
 
 }  // namespace broadphase

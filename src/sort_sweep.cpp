@@ -118,16 +118,15 @@ std::size_t SortSweep::memory_bytes() const {
 }
 
 void SortSweep::validate() const {
-  store_.validate();
-  if (dense_.size() != store_.size() || box_.size() != dense_.size())
-    throw std::logic_error("sort-sweep: dense array size");
+  const auto fail = validate_store("sort-sweep");
+  if (dense_.size() != store_.size() || box_.size() != dense_.size()) fail("dense array size");
   for (std::size_t p = 0; p < dense_.size(); ++p) {
     if (!store_.slots().alive(dense_[p]) || slot_pos_[dense_[p]] != p)
-      throw std::logic_error("sort-sweep: dense array and slot positions disagree");
+      fail("dense array and slot positions disagree");
     const AabbF b = bounds_f(store_.shape(dense_[p]));
     for (int a = 0; a < 3; ++a)
       if (b.lo[a] != box_[p].lo[a] || b.hi[a] != box_[p].hi[a])
-        throw std::logic_error("sort-sweep: stored box is not the shape's bounds");
+        fail("stored box is not the shape's bounds");
   }
 }
 

@@ -12,6 +12,7 @@
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/inline_stack.hpp>
 #include <broadphase/detail/pair_table.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
 #include <mutex>
@@ -91,7 +92,7 @@ struct AabbTreeOptions {
 /// members may run concurrently; with a front, all-pairs passes serialise
 /// on an internal mutex (they update the front); with order=hit-ratio,
 /// traversals update per-node counters atomically.
-class AabbTree {
+class AabbTree : public detail::StoreBase<AabbTree> {
  public:
   /// Which child every traversal descends into first (option `order`).
   using Order = AabbTreeOrder;
@@ -140,16 +141,8 @@ class AabbTree {
   template <class V>
   QueryCost for_each_pair(V&& visitor, TraversalStats& stats) const;
 
-  /// Number of live objects.
-  std::size_t size() const { return store_.size(); }
   /// Bytes held (capacities of every array and table).
   std::size_t memory_bytes() const;
-  /// True when `h` names a live object.
-  bool contains(Handle h) const { return store_.contains(h); }
-  /// The object's shape. Throws InvalidHandle.
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  /// The object's user data. Throws InvalidHandle.
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Height of the tree (0 when empty, 1 for a single leaf).
   int height() const { return root_ == kNull ? 0 : nodes_[root_].height + 1; }
   /// The child ordering chosen at construction.
@@ -257,7 +250,6 @@ class AabbTree {
   template <class V>
   QueryCost pairs_with_front(V& visitor, TraversalStats& stats) const;
 
-  ObjectStore store_;
   std::vector<Node> nodes_;
   std::vector<std::uint32_t> leaf_;  // slot -> leaf node
   std::vector<AabbF> tight_;         // slot -> the object's own float box

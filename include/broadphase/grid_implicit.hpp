@@ -20,6 +20,7 @@
 #include <bit>
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/grid_common.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
 #include <vector>
@@ -48,7 +49,7 @@ struct GridImplicitOptions {
 /// candidates): quadratic in words, fast for small n thanks to 64-bit ANDs.
 /// Options: `cell=`. Handles stay valid until their object is removed.
 /// Const members may run concurrently; mutations need exclusive access.
-class GridImplicit {
+class GridImplicit : public detail::StoreBase<GridImplicit> {
  public:
   /// Slabs per axis at most.
   static constexpr std::int32_t kMaxSlabs = 1024;
@@ -108,16 +109,8 @@ class GridImplicit {
     return cost;
   }
 
-  /// Number of live objects. O(1).
-  std::size_t size() const { return store_.size(); }
   /// Bytes held: store, bounds, ranges, the three slab bit arrays.
   std::size_t memory_bytes() const;
-  /// True when `h` names a live object of this structure. O(1).
-  bool contains(Handle h) const { return store_.contains(h); }
-  /// The object's current shape. Throws InvalidHandle.
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  /// The user data given at insertion. Throws InvalidHandle.
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// The cell (slab) edge in use.
   double cell_size() const { return map_.cell(); }
 
@@ -142,7 +135,6 @@ class GridImplicit {
   void set_bits(std::uint32_t i, int axis, std::int32_t lo, std::int32_t hi, bool on);
   void layout(double cell, std::size_t words);
 
-  ObjectStore store_;
   std::vector<AabbF> box_;
   std::vector<detail::CellRange> range_;
   std::vector<std::uint64_t> bits_[3];  // per axis: slab-major, words_ words per slab

@@ -27,6 +27,7 @@
 
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/grid_common.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <span>
 #include <utility>
@@ -66,7 +67,7 @@ struct GridStaticOptions {
 /// Memory: O(n). Options: `cell=`, `policy=rebuild|patch|auto`,
 /// `fixed=cache|plain`. Handles stay valid until their object is removed.
 /// Const members may run concurrently; mutations need exclusive access.
-class GridStatic {
+class GridStatic : public detail::StoreBase<GridStatic> {
  public:
   /// How moved objects reach the dynamic table.
   using Policy = GridStaticPolicy;
@@ -173,16 +174,8 @@ class GridStatic {
     return cost;
   }
 
-  /// Number of live objects. O(1).
-  std::size_t size() const { return store_.size(); }
   /// Bytes held: store, per-object arrays, both tables, the pair cache.
   std::size_t memory_bytes() const;
-  /// True when `h` names a live object of this structure. O(1).
-  bool contains(Handle h) const { return store_.contains(h); }
-  /// The object's current shape. Throws InvalidHandle.
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  /// The user data given at insertion. Throws InvalidHandle.
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// The cell edge in use.
   double cell_size() const { return map_.cell(); }
   /// Times a table was re-packed from scratch (for the policy measurements).
@@ -270,7 +263,6 @@ class GridStatic {
   void regrid(double cell);
   void grow_slots(std::uint32_t i);
 
-  ObjectStore store_;
   std::vector<AabbF> box_;
   std::vector<detail::CellRange> range_;
   std::vector<Kind> kind_;

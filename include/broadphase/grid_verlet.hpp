@@ -61,6 +61,7 @@
 #include <algorithm>
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/level_grid.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/detail/verlet_lists.hpp>
 #include <broadphase/detail/work_shares.hpp>
 #include <broadphase/structure.hpp>
@@ -108,7 +109,7 @@ struct GridVerletOptions {
 /// O(f + pairs), only when the fixed set changed. Handles stay valid until
 /// their object is removed. Const members may run concurrently; mutations
 /// need exclusive access.
-class GridVerlet {
+class GridVerlet : public detail::StructureBase<GridVerlet> {
  public:
   using Options = GridVerletOptions;
   /// Reads the deprecated Config::options map into GridVerletOptions.

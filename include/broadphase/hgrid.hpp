@@ -26,6 +26,7 @@
 
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/grid_common.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cmath>
 #include <cstdint>
@@ -49,7 +50,7 @@ struct HGridOptions {
 /// coarser levels + candidates). Memory: O(n). No options. Handles stay
 /// valid until their object is removed. Const members may run concurrently;
 /// mutations need exclusive access.
-class HGrid {
+class HGrid : public detail::StoreBase<HGrid> {
  public:
   using Options = HGridOptions;
   /// Reads the deprecated Config::options (none accepted). Throws InvalidConfig.
@@ -110,16 +111,8 @@ class HGrid {
     return cost;
   }
 
-  /// Number of live objects. O(1).
-  std::size_t size() const { return store_.size(); }
   /// Bytes held: store, per-object arrays, the cell table, the level list.
   std::size_t memory_bytes() const;
-  /// True when `h` names a live object of this structure. O(1).
-  bool contains(Handle h) const { return store_.contains(h); }
-  /// The object's current shape. Throws InvalidHandle.
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  /// The user data given at insertion. Throws InvalidHandle.
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// The occupied levels (cell edge 2^level), finest first.
   const std::vector<int>& levels() const { return levels_; }
   /// The level of a live object, or a value above 1023 for an overflowing one.
@@ -202,7 +195,6 @@ class HGrid {
     return k;
   }
 
-  ObjectStore store_;
   std::vector<AabbF> box_;
   std::vector<std::int32_t> level_;
   std::vector<detail::CellKey> cell_;

@@ -6,6 +6,7 @@
 /// enough to be rebuilt.
 #pragma once
 
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/octree.hpp>
 #include <cstdint>
 #include <span>
@@ -58,7 +59,7 @@ struct KdTreeOptions {
 /// against itself with a growable stack, each pair met once. Handles stay
 /// valid until their object is removed. Mutations need exclusive access;
 /// const members may run concurrently.
-class KdTree {
+class KdTree : public detail::StoreBase<KdTree> {
  public:
   /// How the tree reacts to motion.
   using Policy = KdTreePolicy;
@@ -89,16 +90,8 @@ class KdTree {
   template <class V>
   QueryCost for_each_pair(V&& visitor) const;
 
-  /// Objects held. O(1).
-  std::size_t size() const { return store_.size(); }
   /// Bytes held (capacities of every array and table). O(nodes).
   std::size_t memory_bytes() const;
-  /// True when `h` names a live object of this structure. O(1).
-  bool contains(Handle h) const { return store_.contains(h); }
-  /// The object's current shape. Throws InvalidHandle. O(1).
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  /// The user data given at insertion. Throws InvalidHandle. O(1).
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Checks positions, exact refitted boxes, links and the free list.
   void validate() const;
   /// Reports every node: its box (fitted to the objects below it), its depth,
@@ -133,7 +126,6 @@ class KdTree {
   void after_motion();
   void after_resize();
 
-  ObjectStore store_;
   Policy policy_ = Policy::decay;
   double decay_ = 1.5;
   std::size_t leaf_size_ = 8;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <broadphase/config_error.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <vector>
 
@@ -21,7 +22,7 @@ struct NaiveOptions {
 /// Keeps objects in a dense array and tests every pair.
 /// insert, remove, update: O(1). query: O(n). for_each_pair: O(n²).
 /// Handles stay valid until their object is removed.
-class Naive {
+class Naive : public detail::StoreBase<Naive> {
  public:
   using Options = NaiveOptions;
   /// Reads the deprecated Config::options (none accepted). Throws InvalidConfig.
@@ -83,27 +84,22 @@ class Naive {
     return cost;
   }
 
-  std::size_t size() const { return store_.size(); }
   std::size_t memory_bytes() const {
     return store_.memory_bytes() +
            (dense_.capacity() + slot_pos_.capacity()) * sizeof(std::uint32_t);
   }
-  bool contains(Handle h) const { return store_.contains(h); }
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
 
   /// Checks that the dense array lists exactly the live slots.
   void validate() const {
-    store_.validate();
-    if (dense_.size() != store_.size()) throw std::logic_error("naive: dense array size");
+    const auto fail = validate_store("naive");
+    if (dense_.size() != store_.size()) fail("dense array size");
     for (std::size_t p = 0; p < dense_.size(); ++p) {
       if (!store_.slots().alive(dense_[p]) || slot_pos_[dense_[p]] != p)
-        throw std::logic_error("naive: dense array and slot positions disagree");
+        fail("dense array and slot positions disagree");
     }
   }
 
  private:
-  ObjectStore store_;
   std::vector<std::uint32_t> dense_;     // live slot indices
   std::vector<std::uint32_t> slot_pos_;  // slot index -> position in dense_
 };

@@ -12,6 +12,7 @@
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/inline_stack.hpp>
 #include <broadphase/detail/node_items.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/detail/tree_walk.hpp>
 #include <broadphase/structure.hpp>
 #include <cmath>
@@ -52,7 +53,7 @@ struct OctreeOptions {
 /// every object is tested against its own node and the touching cells of its
 /// subtree. Handles stay valid until their object is removed. Mutations
 /// need exclusive access; const members may run concurrently.
-class Octree {
+class Octree : public detail::StoreBase<Octree> {
  public:
   static constexpr int kMaxDepth = 20;
 
@@ -83,16 +84,8 @@ class Octree {
     return detail::nested_tree_pairs(*this, store_, visitor);
   }
 
-  /// Objects held. O(1).
-  std::size_t size() const { return store_.size(); }
   /// Bytes held (capacities of every array and table). O(nodes).
   std::size_t memory_bytes() const;
-  /// True when `h` names a live object of this structure. O(1).
-  bool contains(Handle h) const { return store_.contains(h); }
-  /// The object's current shape. Throws InvalidHandle. O(1).
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  /// The user data given at insertion. Throws InvalidHandle. O(1).
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Checks placement, positions, subtree counts, merging and the free list.
   void validate() const;
   /// Reports every node with objects below it: its cell, its depth, the objects
@@ -140,7 +133,6 @@ class Octree {
   void free_children(std::uint32_t node);
   std::uint32_t allocate_children(std::uint32_t parent);
 
-  ObjectStore store_;
   detail::Cube cube_;
   std::size_t split_ = 32;
   std::vector<Node> nodes_;

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <bit>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/octree.hpp>
 #include <cstdint>
 #include <span>
@@ -42,7 +43,7 @@ struct LinearOctreeOptions {
 /// touching cells below it. Objects outside the world cube live at the root.
 /// Handles stay valid until their object is removed. Mutations need
 /// exclusive access; const members may run concurrently.
-class LinearOctree {
+class LinearOctree : public detail::StoreBase<LinearOctree> {
  public:
   using Options = LinearOctreeOptions;
   /// Reads the deprecated Config::options map into LinearOctreeOptions.
@@ -71,16 +72,8 @@ class LinearOctree {
     return detail::nested_tree_pairs(*this, store_, visitor);
   }
 
-  /// Objects held. O(1).
-  std::size_t size() const { return store_.size(); }
   /// Bytes held (capacities of every array and table). O(nodes).
   std::size_t memory_bytes() const;
-  /// True when `h` names a live object of this structure. O(1).
-  bool contains(Handle h) const { return store_.contains(h); }
-  /// The object's current shape. Throws InvalidHandle. O(1).
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  /// The user data given at insertion. Throws InvalidHandle. O(1).
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Checks placement, positions, child masks, the key table and that no
   /// empty leaf survives.
   void validate() const;
@@ -122,7 +115,6 @@ class LinearOctree {
   std::uint32_t node_at(std::uint64_t key);
   void prune(std::uint32_t node);
 
-  ObjectStore store_;
   detail::Cube cube_;
   int max_depth_ = 4;
   std::vector<Node> nodes_;

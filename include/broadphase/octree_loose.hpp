@@ -7,6 +7,7 @@
 #pragma once
 
 #include <algorithm>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/octree.hpp>
 #include <cstdint>
 #include <span>
@@ -46,7 +47,7 @@ struct LooseOctreeOptions {
 /// from the node with the smaller index, so each is met once. Handles stay
 /// valid until their object is removed. Mutations need exclusive access;
 /// const members may run concurrently.
-class LooseOctree {
+class LooseOctree : public detail::StoreBase<LooseOctree> {
  public:
   using Options = LooseOctreeOptions;
   /// Reads the deprecated Config::options map into LooseOctreeOptions.
@@ -73,16 +74,8 @@ class LooseOctree {
   template <class V>
   QueryCost for_each_pair(V&& visitor) const;
 
-  /// Objects held. O(1).
-  std::size_t size() const { return store_.size(); }
   /// Bytes held (capacities of every array and table). O(nodes).
   std::size_t memory_bytes() const;
-  /// True when `h` names a live object of this structure. O(1).
-  bool contains(Handle h) const { return store_.contains(h); }
-  /// The object's current shape. Throws InvalidHandle. O(1).
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  /// The user data given at insertion. Throws InvalidHandle. O(1).
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Checks placement, positions, loose boxes, links, the key table and
   /// that no empty leaf survives.
   void validate() const;
@@ -130,7 +123,6 @@ class LooseOctree {
   std::uint32_t node_at(const Place& p);
   void prune(std::uint32_t node);
 
-  ObjectStore store_;
   detail::Cube cube_;
   double margin_ = 0;  // (k - 1) / 2 world sides: the margin at depth 0
   int max_depth_ = 4;

@@ -11,6 +11,7 @@
 #include <bit>
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/pair_table.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
 #include <vector>
@@ -39,7 +40,7 @@ struct SapOptions {
 /// for_each_pair: O(pairs of overlapping boxes); query: O(log n + k).
 /// Handles stay valid until their object is removed. Const members may run
 /// concurrently; mutations need exclusive access.
-class Sap {
+class Sap : public detail::StoreBase<Sap> {
  public:
   using Options = SapOptions;
   /// Reads the deprecated Config::options (none accepted). Throws InvalidConfig.
@@ -94,16 +95,8 @@ class Sap {
     return cost;
   }
 
-  /// Number of live objects.
-  std::size_t size() const { return store_.size(); }
   /// Bytes held (capacities of every array and table).
   std::size_t memory_bytes() const;
-  /// True when `h` names a live object.
-  bool contains(Handle h) const { return store_.contains(h); }
-  /// The object's shape. Throws InvalidHandle.
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  /// The object's user data. Throws InvalidHandle.
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// Pairs of overlapping boxes currently in the set (candidates).
   std::size_t box_pairs() const { return pairs_.size(); }
   /// Endpoint crossings since construction (the incremental work done).
@@ -163,7 +156,6 @@ class Sap {
   // A float at or below lo - extent (so every box reaching lo starts above it).
   static float lower_limit(float lo, float extent);
 
-  ObjectStore store_;
   std::vector<AabbF> box_;                        // slot -> normalized float box
   std::array<std::vector<std::uint64_t>, 3> ep_;  // sorted endpoint keys per axis
   std::array<float, 3> max_extent_{};             // upper bound of hi - lo per axis

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <broadphase/config_error.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
 #include <span>
@@ -32,7 +33,7 @@ struct SortSweepOptions {
 /// Thread-safety: const members may run concurrently (the sort buffers are
 /// per thread); a visitor must not start another all-pairs pass of a
 /// sort-sweep on the same thread.
-class SortSweep {
+class SortSweep : public detail::StoreBase<SortSweep> {
  public:
   using Options = SortSweepOptions;
   /// Reads the deprecated Config::options (none accepted). Throws InvalidConfig.
@@ -87,16 +88,8 @@ class SortSweep {
     return cost;
   }
 
-  /// Number of live objects.
-  std::size_t size() const { return store_.size(); }
   /// Bytes held (capacities of every array and table).
   std::size_t memory_bytes() const;
-  /// True when `h` names a live object.
-  bool contains(Handle h) const { return store_.contains(h); }
-  /// The object's shape. Throws InvalidHandle.
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  /// The object's user data. Throws InvalidHandle.
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// The axis the next pass would sweep along (largest variance of centres).
   int sweep_axis() const;
   /// Checks the dense arrays against the object store.
@@ -111,7 +104,6 @@ class SortSweep {
   // The boxes sorted along sweep_axis(), in a per-thread buffer.
   const std::vector<Item>& sorted() const;
 
-  ObjectStore store_;
   std::vector<AabbF> box_;               // dense position -> float box
   std::vector<std::uint32_t> dense_;     // dense position -> slot
   std::vector<std::uint32_t> slot_pos_;  // slot -> dense position

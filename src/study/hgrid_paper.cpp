@@ -232,27 +232,26 @@ std::size_t HGridPaper::memory_bytes() const {
 }
 
 void HGridPaper::validate() const {
-  store_.validate();
+  const auto fail = validate_store("hgrid-paper");
   const std::uint32_t slots = store_.slot_count();
-  if (entry_.size() < slots && store_.size() > 0)
-    throw std::logic_error("hgrid-paper: fewer entries than slots");
+  if (entry_.size() < slots && store_.size() > 0) fail("fewer entries than slots");
   std::array<std::uint32_t, kMaxLevels + 1> count{};
   for (std::uint32_t i = 0; i < slots; ++i) {
     if (!store_.slots().alive(i)) continue;
     const Entry& e = entry_[i];
     const Placement p = place(store_.shape(i));
-    const std::string who = "hgrid-paper: object " + std::to_string(i);
+    const std::string who = "object " + std::to_string(i);
     if (p.level != e.level || (p.level != 0 && (p.cell[0] != e.cell[0] || p.cell[1] != e.cell[1] ||
                                                 p.cell[2] != e.cell[2])))
-      throw std::logic_error(who + " is not at the level and cell its shape prescribes");
+      fail(who + " is not at the level and cell its shape prescribes");
     if (e.level == 0 ? (slot_[i] >= oversize_.size() || oversize_[slot_[i]] != i)
                      : slot_[i] != bucket_of(e.level, e.cell))
-      throw std::logic_error(who + " does not remember its bucket or oversize place");
+      fail(who + " does not remember its bucket or oversize place");
     ++count[e.level];
   }
-  if (count != count_) throw std::logic_error("hgrid-paper: per-level counts disagree");
+  if (count != count_) fail("per-level counts disagree");
   if (oversize_.size() != count_[0] || in_table_ + oversize_.size() != store_.size())
-    throw std::logic_error("hgrid-paper: table and oversize counts disagree with the size");
+    fail("table and oversize counts disagree with the size");
   // Walk every chain: at most in_table_ steps in all (so a cycle is caught),
   // every entry alive, in the table, in the bucket it remembers.
   std::vector<char> seen(slots, 0);
@@ -262,13 +261,13 @@ void HGridPaper::validate() const {
     for (std::uint32_t j = head_[b]; j != kNull; before = j, j = entry_[j].next) {
       if (j >= slots || !store_.slots().alive(j) || entry_[j].level == 0 || slot_[j] != b ||
           prev_[j] != before || seen[j] || ++chained > in_table_)
-        throw std::logic_error("hgrid-paper: bucket " + std::to_string(b) +
-                               " chains a dead, foreign or repeated object, a wrong back link, or "
-                               "a cycle");
+        fail("bucket " + std::to_string(b) +
+             " chains a dead, foreign or repeated object, a wrong back link, or "
+             "a cycle");
       seen[j] = 1;
     }
   }
-  if (chained != in_table_) throw std::logic_error("hgrid-paper: objects missing from the chains");
+  if (chained != in_table_) fail("objects missing from the chains");
 }
 
 void HGridPaper::visit_cells(CellVisitor visitor) const {

@@ -152,7 +152,7 @@ std::size_t OctreePaper::memory_bytes() const {
 }
 
 void OctreePaper::validate() const {
-  store_.validate();
+  const auto fail = validate_store("octree-paper");
   std::vector<char> seen(store_.slot_count(), 0);
   std::size_t listed = 0;
   for (std::uint32_t node = 0; node < kNodeCount; ++node) {
@@ -160,21 +160,20 @@ void OctreePaper::validate() const {
     if (level_of(node) < kFinest)
       for (std::uint32_t k = 1; k <= 8; ++k) below += subtree_count_[8 * node + k];
     if (subtree_count_[node] != below)
-      throw std::logic_error("octree-paper: subtree count of node " + std::to_string(node) +
-                             " disagrees with its lists");
+      fail("subtree count of node " + std::to_string(node) + " disagrees with its lists");
     for (std::uint32_t i : lists_[node]) {
       if (!store_.slots().alive(i) || seen[i])
-        throw std::logic_error("octree-paper: node " + std::to_string(node) +
-                               " lists a dead or repeated object " + std::to_string(i));
+        fail("node " + std::to_string(node) + " lists a dead or repeated object " +
+             std::to_string(i));
       seen[i] = 1;
       if (node_of(store_.shape(i)) != node)
-        throw std::logic_error("octree-paper: object " + std::to_string(i) + " is in node " +
-                               std::to_string(node) + ", its bounds prescribe another");
+        fail("object " + std::to_string(i) + " is in node " + std::to_string(node) +
+             ", its bounds prescribe another");
       ++listed;
     }
   }
   if (listed != store_.size() || subtree_count_[0] != store_.size())
-    throw std::logic_error("octree-paper: the lists do not hold every live object once");
+    fail("the lists do not hold every live object once");
 }
 
 void OctreePaper::visit_cells(CellVisitor visitor) const {

@@ -10,6 +10,7 @@
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/cell_tally.hpp>
 #include <broadphase/detail/grid_common.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cstring>
 #include <stdexcept>
@@ -26,7 +27,7 @@ namespace detail {
 /// bucket's list is kept sorted by the low x of the bounds and swept, and
 /// cells are `cell_scale` times the automatic size).
 template <bool kHashed, bool kSorted = false>
-class LinkedGrid {
+class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
  public:
   /// A grid of cells of edge `cell` (0: automatic), and when hashed of
   /// `buckets` heads (0: automatic); both already checked by the options
@@ -121,8 +122,6 @@ class LinkedGrid {
     }
   }
 
-  /// Number of live objects. O(1).
-  std::size_t size() const { return store_.size(); }
   /// Bytes held: object store, per-object bounds, ranges and links, cell heads.
   std::size_t memory_bytes() const {
     return store_.memory_bytes() + box_.capacity() * sizeof(AabbF) +
@@ -131,12 +130,6 @@ class LinkedGrid {
             overflow_.capacity()) *
                sizeof(std::uint32_t);
   }
-  /// True when `h` names a live object of this structure. O(1).
-  bool contains(Handle h) const { return store_.contains(h); }
-  /// The object's current shape. Throws InvalidHandle.
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  /// The user data given at insertion. Throws InvalidHandle.
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// The cell edge in use.
   double cell_size() const { return map_.cell(); }
   /// Objects that span more than two cells on some axis.
@@ -146,40 +139,36 @@ class LinkedGrid {
 
   /// Checks bounds, ranges, link masks, list links and the overflow list.
   void validate() const {
-    store_.validate();
-    const std::string n = name_;
+    const auto fail = this->validate_store(name_);
     std::size_t links = 0;
     for (std::uint32_t i = 0; i < store_.slot_count(); ++i) {
       if (!store_.slots().alive(i)) {
-        if (kmask_[i] != 0 || where_[i] != kNone)
-          throw std::logic_error(n + ": a free slot is still in the grid");
+        if (kmask_[i] != 0 || where_[i] != kNone) fail("a free slot is still in the grid");
         continue;
       }
       const AabbF b = bounds_f(store_.shape(i));
-      if (std::memcmp(&b, &box_[i], sizeof b) != 0) throw std::logic_error(n + ": stale bounds");
-      if (!(map_.range(b) == range_[i])) throw std::logic_error(n + ": stale cell range");
+      if (std::memcmp(&b, &box_[i], sizeof b) != 0) fail("stale bounds");
+      if (!(map_.range(b) == range_[i])) fail("stale cell range");
       const unsigned want = link_mask(range_[i]);
-      if (want != kmask_[i]) throw std::logic_error(n + ": link mask disagrees with range");
-      if ((want == 0) != (where_[i] != kNone))
-        throw std::logic_error(n + ": overflow membership disagrees with range");
+      if (want != kmask_[i]) fail("link mask disagrees with range");
+      if ((want == 0) != (where_[i] != kNone)) fail("overflow membership disagrees with range");
       if (where_[i] != kNone && (where_[i] >= overflow_.size() || overflow_[where_[i]] != i))
-        throw std::logic_error(n + ": overflow position");
+        fail("overflow position");
       for (unsigned k = 0; k < 8; ++k) {
         if ((want >> k & 1u) == 0) continue;
         ++links;
         const std::uint32_t l = 8 * i + k;
         const std::size_t bucket = bucket_of(key_of(range_[i], k));
         if (prev_[l] == kNone ? heads_[bucket] != l : next_[prev_[l]] != l)
-          throw std::logic_error(n + ": broken backward link");
+          fail("broken backward link");
         if (next_[l] != kNone &&
             (prev_[next_[l]] != l ||
              bucket_of(key_of(range_[next_[l] >> 3], next_[l] & 7u)) != bucket))
-          throw std::logic_error(n + ": broken forward link");
-        if (kSorted && next_[l] != kNone && low_x(next_[l]) < low_x(l))
-          throw std::logic_error(n + ": list out of x order");
+          fail("broken forward link");
+        if (kSorted && next_[l] != kNone && low_x(next_[l]) < low_x(l)) fail("list out of x order");
       }
     }
-    if (links != link_count_) throw std::logic_error(n + ": link count");
+    if (links != link_count_) fail("link count");
   }
 
   /// Reports every occupied cell (level 0) with the objects its list holds,
@@ -193,6 +182,9 @@ class LinkedGrid {
   }
 
  private:
+  using Base = StoreBase<LinkedGrid>;
+  using Base::store_;
+
   // One link copied out of a list for the all-pairs pass.
   struct Gathered {
     AabbF box;
@@ -514,7 +506,6 @@ class LinkedGrid {
   const char* name_;
   Aabb world_;
   double cell_scale_;
-  ObjectStore store_;
   std::vector<AabbF> box_;            // per slot: float bounds
   std::vector<CellRange> range_;      // per slot: cells covered
   std::vector<std::uint8_t> kmask_;   // per slot: which of the 8 links are used (0: none)

@@ -90,8 +90,8 @@ inline bool same_box(const AabbF& a, const AabbF& b) {
   return true;
 }
 
-/// The opening every tree's `validate()` shares: the object store's own
-/// check, then for each live object that its node and position point back
+/// What every tree's `validate()` checks after the store's own check
+/// (StoreBase::validate_store): for each live object that its node and position point back
 /// at it and that its stored box is its current conservative box. Calls
 /// `placed_at(slot, node)` for the structure's own placement rule and
 /// `fail(what)` (which throws) on a broken invariant. Returns the number of
@@ -99,7 +99,6 @@ inline bool same_box(const AabbF& a, const AabbF& b) {
 template <class Store, class Node, class Fail, class PlacedAt>
 std::size_t validate_items(const Store& store, const ItemIndex& index,
                            const std::vector<Node>& nodes, const Fail& fail, PlacedAt&& placed_at) {
-  store.validate();
   std::size_t placed = 0;
   for (std::uint32_t slot = 0; slot < store.slot_count(); ++slot) {
     if (!store.slots().alive(slot)) continue;

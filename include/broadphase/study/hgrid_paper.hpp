@@ -29,6 +29,7 @@
 #include <algorithm>
 #include <array>
 #include <broadphase/config_error.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cmath>
 #include <cstdint>
@@ -58,7 +59,7 @@ struct HGridPaperOptions {
 /// level and at each coarser non-empty level.
 /// Handles stay valid until their object is removed. Not thread-safe for
 /// writers; const members may run concurrently.
-class HGridPaper {
+class HGridPaper : public detail::StoreBase<HGridPaper> {
  public:
   /// The most levels the option `levels=` accepts.
   static constexpr int kMaxLevels = 30;
@@ -92,13 +93,9 @@ class HGridPaper {
   template <class V>
   QueryCost for_each_pair(V&& visitor) const;
 
-  std::size_t size() const { return store_.size(); }
   /// The store, the per-object entries and remembered buckets, the bucket
   /// heads and the oversize list, by capacity.
   std::size_t memory_bytes() const;
-  bool contains(Handle h) const { return store_.contains(h); }
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
 
   /// Checks that every live object is in exactly one list (its bucket's
   /// chain or the oversize list), at the level and cell its shape
@@ -172,7 +169,6 @@ class HGridPaper {
   template <class F>
   bool probe_forward(std::uint32_t i, const CellBox& box, F& f) const;
 
-  ObjectStore store_;
   std::vector<Entry> entry_;         // by slot index
   std::vector<std::uint32_t> slot_;  // by slot index: its bucket, or its place in oversize_
   std::vector<std::uint32_t> prev_;  // by slot index: the previous object of its bucket, or kNull

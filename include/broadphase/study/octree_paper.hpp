@@ -22,6 +22,7 @@
 #include <algorithm>
 #include <array>
 #include <broadphase/config_error.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
 #include <span>
@@ -52,7 +53,7 @@ struct OctreePaperOptions {
 /// the descendants they overlap.
 /// Handles stay valid until their object is removed. Not thread-safe for
 /// writers; const members may run concurrently.
-class OctreePaper {
+class OctreePaper : public detail::StoreBase<OctreePaper> {
  public:
   /// Levels 0 (the root) to 3.
   static constexpr int kDepth = 4;
@@ -91,13 +92,9 @@ class OctreePaper {
   template <class V>
   QueryCost for_each_pair(V&& visitor) const;
 
-  std::size_t size() const { return store_.size(); }
   /// The store (shapes, user data, generations), the node lists' capacities
   /// and the fixed node arrays.
   std::size_t memory_bytes() const;
-  bool contains(Handle h) const { return store_.contains(h); }
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
 
   /// Checks that every live object is in exactly one node list, the one its
   /// bounds prescribe, and that the subtree counts agree with the lists.
@@ -139,7 +136,6 @@ class OctreePaper {
   template <class F>
   bool visit_descendants(std::uint32_t at, const NodeCell& cell, const CellRange& r, F& f) const;
 
-  ObjectStore store_;
   std::array<std::vector<std::uint32_t>, kNodeCount> lists_;  // slot indices per node
   std::array<std::uint32_t, kNodeCount> subtree_count_{};     // objects in each subtree
   Vec3 origin_;
