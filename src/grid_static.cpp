@@ -141,11 +141,7 @@ void GridStatic::attach(std::uint32_t i, bool patch) {
 
 void GridStatic::detach(std::uint32_t i, bool patch) {
   if (where_[i] != kNone) {
-    const std::uint32_t p = where_[i];
-    overflow_[p] = overflow_.back();
-    where_[overflow_[p]] = p;
-    overflow_.pop_back();
-    where_[i] = kNone;
+    detail::leave_list(overflow_, where_, i);
     return;
   }
   entries_total_ -= cell_count(range_[i]);

@@ -105,11 +105,7 @@ void HGrid::place(std::uint32_t i) {
 
 void HGrid::lift(std::uint32_t i) {
   if (where_[i] != kNone) {
-    const std::uint32_t p = where_[i];
-    overflow_[p] = overflow_.back();
-    where_[overflow_[p]] = p;
-    overflow_.pop_back();
-    where_[i] = kNone;
+    detail::leave_list(overflow_, where_, i);
     return;
   }
   const int level = level_[i];

@@ -59,14 +59,7 @@ KdTree::KdTree(const Config& c, const KdTreeOptions& o) {
 }
 
 std::uint32_t KdTree::new_node(std::uint32_t parent) {
-  std::uint32_t n;
-  if (!free_.empty()) {
-    n = free_.back();
-    free_.pop_back();
-  } else {
-    n = static_cast<std::uint32_t>(nodes_.size());
-    nodes_.emplace_back();
-  }
+  const std::uint32_t n = detail::take_nodes(nodes_, free_);
   Node& node = nodes_[n];
   node.box = kEmpty;
   node.items.clear();

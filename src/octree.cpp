@@ -60,14 +60,7 @@ void Octree::add_count(std::uint32_t node, int delta) {
 }
 
 std::uint32_t Octree::allocate_children(std::uint32_t parent) {
-  std::uint32_t first;
-  if (!free_blocks_.empty()) {
-    first = free_blocks_.back();
-    free_blocks_.pop_back();
-  } else {
-    first = static_cast<std::uint32_t>(nodes_.size());
-    nodes_.resize(nodes_.size() + 8);
-  }
+  const std::uint32_t first = detail::take_nodes(nodes_, free_blocks_, 8);
   const Node& p = nodes_[parent];
   const int depth = p.depth + 1;
   const std::uint32_t px = p.ix, py = p.iy, pz = p.iz;

@@ -39,14 +39,7 @@ std::uint32_t LinearOctree::node_at(std::uint64_t key) {
   const std::uint32_t found = table_.find(key);
   if (found != kNoNode) return found;
   const std::uint32_t parent = node_at(key >> 3);
-  std::uint32_t n;
-  if (!free_.empty()) {
-    n = free_.back();
-    free_.pop_back();
-  } else {
-    n = static_cast<std::uint32_t>(nodes_.size());
-    nodes_.emplace_back();
-  }
+  const std::uint32_t n = detail::take_nodes(nodes_, free_);
   Node& node = nodes_[n];
   const int depth = (std::bit_width(key) - 1) / 3;
   node.items.clear();

@@ -67,14 +67,7 @@ std::uint32_t LooseOctree::node_at(const Place& p) {
   if (found != kNoNode) return found;
   // Create the missing ancestors first, so that every node hangs from the root.
   const std::uint32_t parent = node_at({p.depth - 1, p.ix >> 1, p.iy >> 1, p.iz >> 1});
-  std::uint32_t n;
-  if (!free_.empty()) {
-    n = free_.back();
-    free_.pop_back();
-  } else {
-    n = static_cast<std::uint32_t>(nodes_.size());
-    nodes_.emplace_back();
-  }
+  const std::uint32_t n = detail::take_nodes(nodes_, free_);
   Node& node = nodes_[n];
   node.loose = loose_box(p.depth, p.ix, p.iy, p.iz);
   node.items.clear();

@@ -28,6 +28,18 @@ namespace broadphase::detail {
 
 inline constexpr std::uint32_t kNone = 0xffffffffu;
 
+/// Takes object `i` off an overflow list: `list` holds the objects in no
+/// order, `where[o]` is o's position in it (kNone when absent). The last
+/// object takes i's place; O(1). `i` must be on the list.
+inline void leave_list(std::vector<std::uint32_t>& list, std::vector<std::uint32_t>& where,
+                       std::uint32_t i) {
+  const std::uint32_t p = where[i];
+  list[p] = list.back();
+  where[list[p]] = p;
+  list.pop_back();
+  where[i] = kNone;
+}
+
 /// Integer coordinates of one cell.
 struct CellKey {
   std::int32_t c[3];

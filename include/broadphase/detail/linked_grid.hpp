@@ -428,11 +428,7 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
 
   void lift(std::uint32_t i) {
     if (where_[i] != kNone) {
-      const std::uint32_t p = where_[i];
-      overflow_[p] = overflow_.back();
-      where_[overflow_[p]] = p;
-      overflow_.pop_back();
-      where_[i] = kNone;
+      leave_list(overflow_, where_, i);
       return;
     }
     const unsigned mask = kmask_[i];

@@ -11,6 +11,23 @@
 
 namespace broadphase::detail {
 
+/// A node of a pool: the last of `free` (the first indices of freed blocks
+/// of `block` consecutive nodes) or, when none is free, `block` new default
+/// nodes at the end of `nodes`. Returns the first index; the caller sets the
+/// node's fields (a reused node keeps its old ones, and its items' capacity).
+template <class Node>
+std::uint32_t take_nodes(std::vector<Node>& nodes, std::vector<std::uint32_t>& free,
+                         std::size_t block = 1) {
+  if (!free.empty()) {
+    const std::uint32_t n = free.back();
+    free.pop_back();
+    return n;
+  }
+  const auto n = static_cast<std::uint32_t>(nodes.size());
+  nodes.resize(nodes.size() + block);
+  return n;
+}
+
 /// An object as a node stores it: its conservative float box beside its
 /// slot, so that the scans over a node's objects read one contiguous array.
 struct OctItem {
