@@ -24,7 +24,7 @@ struct Loaded {
           grid.insert(scene.objects[i], i, scene.is_moving(i) ? Motion::dynamic : Motion::fixed));
       if (scene.is_moving(i)) moving.push_back(i);
     }
-    grid.update(std::span<const Move>{});
+    grid.settle();
   }
   void step_scene() {
     step(scene);

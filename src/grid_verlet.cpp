@@ -645,6 +645,13 @@ void GridVerlet::visit_cells(CellVisitor visitor) const {
       }
     }
   }
+  // The loose objects, in no grid until the next rebuild: each its own box.
+  for (const AabbF& b : loose_bounds_) {
+    const Aabb box{{b.lo[0], b.lo[1], b.lo[2]}, {b.hi[0], b.hi[1], b.hi[2]}};
+    if (std::isfinite(box.lo.x) && std::isfinite(box.lo.y) && std::isfinite(box.lo.z) &&
+        std::isfinite(box.hi.x) && std::isfinite(box.hi.y) && std::isfinite(box.hi.z))
+      visitor(box, level, 1);
+  }
 }
 
 }  // namespace broadphase

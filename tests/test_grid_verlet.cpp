@@ -112,7 +112,7 @@ TEST(GridVerlet, CachedFixedPairsFollowRemovalAndUpdate) {
   const Handle a = g.insert(Shape::sphere({0, 0, 0}, 1), 0, Motion::fixed);
   const Handle b = g.insert(Shape::sphere({1.5, 0, 0}, 1), 1, Motion::fixed);
   const Handle c = g.insert(Shape::sphere({3, 0, 0}, 1), 2, Motion::fixed);
-  g.update(std::span<const Move>{});  // folds the fixed objects into the cache
+  g.settle();  // folds the fixed objects into the cache
   g.validate();
   EXPECT_EQ(pairs_of(g), (IdPairs{{0, 1}, {1, 2}}));
   g.update(b, Shape::sphere({100, 0, 0}, 1));  // a fixed object moved: its cached pairs go
@@ -126,7 +126,7 @@ TEST(GridVerlet, CachedFixedPairsFollowRemovalAndUpdate) {
   EXPECT_THROW(g.remove(a), InvalidHandle);
   EXPECT_THROW(g.update(a, Shape::sphere({0, 0, 0}, 1)), InvalidHandle);
   g.update(b, Shape::sphere({2, 0, 0}, 1));
-  g.update(std::span<const Move>{});
+  g.settle();
   g.validate();
   EXPECT_EQ(pairs_of(g), (IdPairs{{1, 2}}));
   EXPECT_TRUE(g.contains(c));
@@ -137,7 +137,7 @@ TEST(GridVerlet, HeldSlotsAreNotReusedBeforeARebuild) {
   std::vector<Handle> h;
   for (int i = 0; i < 10; ++i)
     h.push_back(g.insert(Shape::sphere({i * 10.0, 0, 0}, 6), static_cast<std::uint64_t>(i)));
-  g.update(std::span<const Move>{});  // all in the moving grid now
+  g.settle();  // all in the moving grid now
   g.remove(h[3]);
   const Handle fresh = g.insert(Shape::sphere({30, 0, 0}, 6), 99);
   EXPECT_NE(fresh.index, h[3].index) << "a slot still named by a grid entry was handed out";
@@ -536,7 +536,7 @@ TEST(GridVerlet, UnboundedAndHugeObjects) {
   g.insert(Shape::sphere({-big, 0, 0}, big), 2);
   g.insert(Shape::sphere({500, 500, 500}, 1e6), 3);
   g.insert(Shape::box({0, 0, 0}, {0, 0, 0}), 4, Motion::fixed);
-  g.update(std::span<const Move>{});
+  g.settle();
   g.validate();
   Naive n;
   n.insert(Shape::sphere({big, 0, 0}, 1), 0);
@@ -583,9 +583,9 @@ TEST(GridVerlet, MemoryAfterABuildDoesNotDependOnHowTheObjectsCameIn) {
     GridVerlet g;
     for (std::size_t i = 0; i < scene.size(); ++i) {
       g.insert(scene.objects[i], i, Motion::fixed);
-      if ((i + 1) % batch == 0) g.update(std::span<const Move>{});
+      if ((i + 1) % batch == 0) g.settle();
     }
-    g.update(std::span<const Move>{});
+    g.settle();
     return g.memory_bytes();
   };
   const double one_go = static_cast<double>(held_after(scene.size()));

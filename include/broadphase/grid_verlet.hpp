@@ -173,9 +173,11 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   /// it holds (a moving object's is the corner of its fat box, a little
   /// below its own); an object reaches up to its level's reach beyond its
   /// cell, and an object whose corner lies beyond the world hint sits in a
-  /// border cell, outside its box. Objects on the list of those inserted or
-  /// moved one at a time since the last rebuild (settle() ends it) and
-  /// unbounded objects are in no cell. O(cells + entries), for pictures.
+  /// border cell, outside its box. Objects on the loose list (inserted or
+  /// moved one at a time since the last rebuild; settle() empties it) come
+  /// last, each as its own box on one more level after the moving grid's,
+  /// holding 1. Unbounded objects are in no cell. O(cells + entries), for
+  /// pictures.
   void visit_cells(CellVisitor visitor) const;
 
  private:

@@ -107,6 +107,10 @@ inline bool visit(V& v, Args&&... args) {
 /// given to insert, update or query must be valid (`is_valid`), or the call
 /// throws InvalidShape and changes nothing; a stale handle throws
 /// InvalidHandle.
+///
+/// Optional members, used when present (Erased and the callers below check
+/// with `requires`): a bulk `update(std::span<const Move>)`, `find_pairs`,
+/// `visit_cells`, and `settle()` (HasSettle).
 template <class S>
 concept Structure = requires(S& s, const S& cs, const Shape& shape, Handle h, std::uint64_t user,
                              bool (*qv)(Handle), bool (*pv)(Handle, Handle)) {
@@ -122,6 +126,24 @@ concept Structure = requires(S& s, const S& cs, const Shape& shape, Handle h, st
   { cs.user_data(h) } -> std::same_as<std::uint64_t>;
   cs.validate();
 };
+
+/// A structure with a commit step: `settle()` ends a batch of single
+/// inserts and updates (after a scene is loaded, or after a frame's moves)
+/// and puts the structure in the state a frame is fastest in. Optional: a
+/// structure whose mutations leave nothing to commit need not have it (the
+/// library's structures inherit a no-op from detail::StructureBase), and
+/// callers use settle_structure(), which does nothing for them. Results
+/// never depend on it: every query is exact before and after.
+template <class S>
+concept HasSettle = requires(S& s) {
+  s.settle();
+};
+
+/// Calls `s.settle()` when S has it; otherwise does nothing.
+template <class S>
+void settle_structure(S& s) {
+  if constexpr (HasSettle<S>) s.settle();
+}
 
 /// A non-owning reference to a callable, cheaper than std::function: one
 /// indirect call, no allocation. The referenced callable must outlive it.
@@ -172,6 +194,10 @@ class AnyBroadPhase {
   /// All-or-nothing: throws InvalidHandle or InvalidShape, changing nothing,
   /// when any move is bad; a handle named twice takes its last move (Move).
   virtual void update(std::span<const Move> moves) = 0;
+  /// Commits a batch of single inserts and updates, after a scene is loaded
+  /// or after a frame's moves (HasSettle); a no-op for structures without
+  /// a commit step. Call it instead of an empty bulk update.
+  virtual void settle() {}
   /// Visits every object whose shape overlaps `s` exactly.
   virtual QueryCost query(const Shape& s, FunctionRef<bool(Handle)> visitor) const = 0;
   /// Visits every overlapping pair once.
@@ -216,6 +242,7 @@ class Erased final : public AnyBroadPhase {
       for (const Move& m : moves) s_.update(m.handle, m.shape);
     }
   }
+  void settle() override { settle_structure(s_); }
   QueryCost query(const Shape& s, FunctionRef<bool(Handle)> v) const override {
     return s_.query(s, v);
   }

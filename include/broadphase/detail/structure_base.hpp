@@ -59,6 +59,11 @@ class InvariantFailure {
 template <class S>
 class StructureBase {
  public:
+  /// Commits a batch of updates (Structure, structure.hpp). A no-op here:
+  /// mutations are complete when they return; a structure that defers work
+  /// (GridVerlet) hides this with its own.
+  void settle() {}
+
  protected:
   const S& self() const { return static_cast<const S&>(*this); }
   S& self() { return static_cast<S&>(*this); }
