@@ -52,10 +52,8 @@ struct AabbTreeOptions {
   AabbTreeFront front = AabbTreeFront::off;
   /// Throws InvalidConfig for a value out of range.
   void check() const;
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static AabbTreeOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static AabbTreeOptions from(const OptionText& text);
 };
 
 /// A dynamic AABB tree (BVH).
@@ -103,7 +101,7 @@ class AabbTree : public detail::StoreBase<AabbTree> {
   /// Reads the deprecated Config::options map into AabbTreeOptions.
   /// Throws InvalidConfig.
   explicit AabbTree(const Config& c = {})
-      : AabbTree(without_options(c), AabbTreeOptions::from(c)) {}
+      : AabbTree(without_options(c), AabbTreeOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o` (AabbTreeOptions::check).
   AabbTree(const Config& c, const AabbTreeOptions& o);
   AabbTree(const AabbTree&) = delete;

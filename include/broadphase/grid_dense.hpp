@@ -29,13 +29,10 @@ struct GridDenseOptions {
   /// Cell edge in world units, in [1e-300, 1e300]; 0 (default): chosen from
   /// the world and the population, and re-chosen as it changes.
   double cell = 0;
-  /// Throws InvalidConfig for a value out of range (NaN, infinite and
-  /// subnormal values are out of range).
+  /// Throws InvalidConfig for a value out of range (detail/structure_base.hpp).
   void check() const { detail::check_number("grid-dense", "cell", cell, 1e-300, 1e300, true); }
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static GridDenseOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static GridDenseOptions from(const OptionText& text);
 };
 
 /// A dense array of cells over Config::world with linked lists of objects.
@@ -51,7 +48,7 @@ class GridDense : public detail::LinkedGrid<false> {
   /// Reads the deprecated Config::options map into GridDenseOptions.
   /// Throws InvalidConfig.
   explicit GridDense(const Config& c = {})
-      : GridDense(without_options(c), GridDenseOptions::from(c)) {}
+      : GridDense(without_options(c), GridDenseOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o`.
   GridDense(const Config& c, const GridDenseOptions& o)
       : LinkedGrid(c, "grid-dense", (o.check(), o.cell), 0) {}

@@ -26,16 +26,13 @@ struct GridHashedOptions {
   /// handle can name needs (the automatic table holds about one bucket per
   /// object), and a larger table is a typo, not a tuning.
   static constexpr std::size_t kMaxBuckets = std::size_t{1} << 26;
-  /// Throws InvalidConfig for a value out of range (NaN, infinite and
-  /// subnormal values are out of range).
+  /// Throws InvalidConfig for a value out of range (detail/structure_base.hpp).
   void check() const {
     detail::check_number("grid-hashed", "cell", cell, 1e-300, 1e300, true);
     detail::check_integer("grid-hashed", "buckets", buckets, 0, kMaxBuckets);
   }
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static GridHashedOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static GridHashedOptions from(const OptionText& text);
 };
 
 /// A hashed uniform grid. insert, remove, update: O(1) amortised (the table
@@ -52,7 +49,7 @@ class GridHashed : public detail::LinkedGrid<true> {
   /// Reads the deprecated Config::options map into GridHashedOptions.
   /// Throws InvalidConfig.
   explicit GridHashed(const Config& c = {})
-      : GridHashed(without_options(c), GridHashedOptions::from(c)) {}
+      : GridHashed(without_options(c), GridHashedOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o`.
   GridHashed(const Config& c, const GridHashedOptions& o)
       : LinkedGrid(c, "grid-hashed", (o.check(), o.cell), o.buckets) {}

@@ -35,16 +35,13 @@ struct GridHybridOptions {
   /// handle can name needs (the automatic table holds about one bucket per
   /// object), and a larger table is a typo, not a tuning.
   static constexpr std::size_t kMaxBuckets = std::size_t{1} << 26;
-  /// Throws InvalidConfig for a value out of range (NaN, infinite and
-  /// subnormal values are out of range).
+  /// Throws InvalidConfig for a value out of range (detail/structure_base.hpp).
   void check() const {
     detail::check_number("grid-hybrid", "cell", cell, 1e-300, 1e300, true);
     detail::check_integer("grid-hybrid", "buckets", buckets, 0, kMaxBuckets);
   }
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static GridHybridOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static GridHybridOptions from(const OptionText& text);
 };
 
 /// A coarse hashed grid with x-sorted cell lists.
@@ -63,7 +60,7 @@ class GridHybrid : public detail::LinkedGrid<true, true> {
   /// Reads the deprecated Config::options map into GridHybridOptions.
   /// Throws InvalidConfig.
   explicit GridHybrid(const Config& c = {})
-      : GridHybrid(without_options(c), GridHybridOptions::from(c)) {}
+      : GridHybrid(without_options(c), GridHybridOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o`.
   GridHybrid(const Config& c, const GridHybridOptions& o)
       : LinkedGrid(c, "grid-hybrid", (o.check(), o.cell), o.buckets, kCoarseness) {}

@@ -32,13 +32,10 @@ struct GridImplicitOptions {
   /// Cell edge in world units, in [1e-300, 1e300]; 0 (default): chosen from
   /// the world and the population.
   double cell = 0;
-  /// Throws InvalidConfig for a value out of range (NaN, infinite and
-  /// subnormal values are out of range).
+  /// Throws InvalidConfig for a value out of range (detail/structure_base.hpp).
   void check() const;
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static GridImplicitOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static GridImplicitOptions from(const OptionText& text);
 };
 
 /// A uniform grid stored as per-axis slab bit arrays.
@@ -58,7 +55,7 @@ class GridImplicit : public detail::StoreBase<GridImplicit> {
   /// Reads the deprecated Config::options map into GridImplicitOptions.
   /// Throws InvalidConfig.
   explicit GridImplicit(const Config& c = {})
-      : GridImplicit(without_options(c), GridImplicitOptions::from(c)) {}
+      : GridImplicit(without_options(c), GridImplicitOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o` (GridImplicitOptions::check).
   GridImplicit(const Config& c, const GridImplicitOptions& o);
 

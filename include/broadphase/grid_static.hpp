@@ -48,13 +48,10 @@ struct GridStaticOptions {
   /// Whether the pairs among fixed objects are cached (`fixed=cache`,
   /// default) or found each pass (`fixed=plain`).
   bool cache_fixed = true;
-  /// Throws InvalidConfig for a value out of range (NaN, infinite and
-  /// subnormal values are out of range).
+  /// Throws InvalidConfig for a value out of range (detail/structure_base.hpp).
   void check() const;
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static GridStaticOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static GridStaticOptions from(const OptionText& text);
 };
 
 /// A uniform grid with contiguous cell contents.
@@ -76,7 +73,7 @@ class GridStatic : public detail::StoreBase<GridStatic> {
   /// Reads the deprecated Config::options map into GridStaticOptions.
   /// Throws InvalidConfig.
   explicit GridStatic(const Config& c = {})
-      : GridStatic(without_options(c), GridStaticOptions::from(c)) {}
+      : GridStatic(without_options(c), GridStaticOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o` (GridStaticOptions::check).
   GridStatic(const Config& c, const GridStaticOptions& o);
 

@@ -94,13 +94,10 @@ struct GridVerletOptions {
   /// in [1, 2^24]. Default 2048 (1: every thread takes part from two movers
   /// on, which tests use to run the threaded paths on small scenes).
   std::size_t grain = 2048;
-  /// Throws InvalidConfig for a value out of range (NaN, infinite and
-  /// subnormal values are out of range).
+  /// Throws InvalidConfig for a value out of range (detail/structure_base.hpp).
   void check() const;
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static GridVerletOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static GridVerletOptions from(const OptionText& text);
 };
 
 /// Hierarchical cell grid with a fixed/moving split and cached fixed pairs.
@@ -115,7 +112,7 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   /// Reads the deprecated Config::options map into GridVerletOptions.
   /// Throws InvalidConfig.
   explicit GridVerlet(const Config& c = {})
-      : GridVerlet(without_options(c), GridVerletOptions::from(c)) {}
+      : GridVerlet(without_options(c), GridVerletOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o` (GridVerletOptions::check).
   GridVerlet(const Config& c, const GridVerletOptions& o);
   ~GridVerlet();

@@ -38,9 +38,8 @@ namespace broadphase {
 struct HGridOptions {
   /// Nothing to check.
   void check() const {}
-  /// Reads Config::options (deprecated): refuses every key. Defined with the
-  /// registry (src/registry/). Throws InvalidConfig.
-  static HGridOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static HGridOptions from(const OptionText& text);
 };
 
 /// A hierarchical grid of power-of-two levels in one hash table.
@@ -54,7 +53,7 @@ class HGrid : public detail::StoreBase<HGrid> {
  public:
   using Options = HGridOptions;
   /// Reads the deprecated Config::options (none accepted). Throws InvalidConfig.
-  explicit HGrid(const Config& c = {}) : HGrid(without_options(c), HGridOptions::from(c)) {}
+  explicit HGrid(const Config& c = {}) : HGrid(without_options(c), HGridOptions::from(c.options)) {}
   /// Checks `c` (check_config). Throws InvalidConfig.
   HGrid(const Config& c, const HGridOptions& o);
 

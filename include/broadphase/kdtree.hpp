@@ -32,10 +32,8 @@ struct KdTreeOptions {
   std::size_t leaf = 8;
   /// Throws InvalidConfig for a value out of range.
   void check() const;
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static KdTreeOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static KdTreeOptions from(const OptionText& text);
 };
 
 /// A k-d tree with refitted bounds and a rebuild policy.
@@ -67,7 +65,8 @@ class KdTree : public detail::StoreBase<KdTree> {
   using Options = KdTreeOptions;
   /// Reads the deprecated Config::options map into KdTreeOptions.
   /// Throws InvalidConfig.
-  explicit KdTree(const Config& c = {}) : KdTree(without_options(c), KdTreeOptions::from(c)) {}
+  explicit KdTree(const Config& c = {})
+      : KdTree(without_options(c), KdTreeOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o` (KdTreeOptions::check).
   KdTree(const Config& c, const KdTreeOptions& o);
 

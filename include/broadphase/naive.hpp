@@ -14,9 +14,8 @@ namespace broadphase {
 struct NaiveOptions {
   /// Nothing to check.
   void check() const {}
-  /// Reads Config::options (deprecated): refuses every key. Defined with the
-  /// registry (src/registry/). Throws InvalidConfig.
-  static NaiveOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static NaiveOptions from(const OptionText& text);
 };
 
 /// Keeps objects in a dense array and tests every pair.
@@ -26,7 +25,7 @@ class Naive : public detail::StoreBase<Naive> {
  public:
   using Options = NaiveOptions;
   /// Reads the deprecated Config::options (none accepted). Throws InvalidConfig.
-  explicit Naive(const Config& c = {}) : Naive(without_options(c), NaiveOptions::from(c)) {}
+  explicit Naive(const Config& c = {}) : Naive(without_options(c), NaiveOptions::from(c.options)) {}
   /// Checks `c` (check_config). Throws InvalidConfig.
   Naive(const Config& c, const NaiveOptions& o) {
     check_config(c, "naive");

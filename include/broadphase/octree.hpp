@@ -31,10 +31,8 @@ struct OctreeOptions {
   std::size_t split = 32;
   /// Throws InvalidConfig for a value out of range.
   void check() const;
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static OctreeOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static OctreeOptions from(const OptionText& text);
 };
 
 /// An adaptive octree with objects at the smallest cell that holds them.
@@ -60,7 +58,8 @@ class Octree : public detail::StoreBase<Octree> {
   using Options = OctreeOptions;
   /// Reads the deprecated Config::options map into OctreeOptions.
   /// Throws InvalidConfig.
-  explicit Octree(const Config& c = {}) : Octree(without_options(c), OctreeOptions::from(c)) {}
+  explicit Octree(const Config& c = {})
+      : Octree(without_options(c), OctreeOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o` (OctreeOptions::check).
   Octree(const Config& c, const OctreeOptions& o);
 

@@ -27,10 +27,8 @@ struct LinearOctreeOptions {
   int depth = 4;
   /// Throws InvalidConfig for a value out of range.
   void check() const;
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static LinearOctreeOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static LinearOctreeOptions from(const OptionText& text);
 };
 
 /// A pointerless octree with objects at the smallest cell (down to a fixed
@@ -49,7 +47,7 @@ class LinearOctree : public detail::StoreBase<LinearOctree> {
   /// Reads the deprecated Config::options map into LinearOctreeOptions.
   /// Throws InvalidConfig.
   explicit LinearOctree(const Config& c = {})
-      : LinearOctree(without_options(c), LinearOctreeOptions::from(c)) {}
+      : LinearOctree(without_options(c), LinearOctreeOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o` (LinearOctreeOptions::check).
   LinearOctree(const Config& c, const LinearOctreeOptions& o);
 

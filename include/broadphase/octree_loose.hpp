@@ -22,13 +22,10 @@ struct LooseOctreeOptions {
   /// Deepest level, in [0, 20]. Default 4: deeper levels cost more traversal
   /// than they save (docs/octrees.md).
   int depth = 4;
-  /// Throws InvalidConfig for a value out of range (NaN, infinite and
-  /// subnormal values are out of range).
+  /// Throws InvalidConfig for a value out of range (detail/structure_base.hpp).
   void check() const;
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static LooseOctreeOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static LooseOctreeOptions from(const OptionText& text);
 };
 
 /// A sparse loose octree with objects placed by size and centre.
@@ -53,7 +50,7 @@ class LooseOctree : public detail::StoreBase<LooseOctree> {
   /// Reads the deprecated Config::options map into LooseOctreeOptions.
   /// Throws InvalidConfig.
   explicit LooseOctree(const Config& c = {})
-      : LooseOctree(without_options(c), LooseOctreeOptions::from(c)) {}
+      : LooseOctree(without_options(c), LooseOctreeOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o` (LooseOctreeOptions::check).
   LooseOctree(const Config& c, const LooseOctreeOptions& o);
 

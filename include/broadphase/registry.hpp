@@ -2,9 +2,12 @@
 /// Structures by name: what `broadphase list` prints and `--algo` selects.
 ///
 /// A name may carry options after a colon, `grid-dense:cell=25,storage=x`;
-/// each structure's entry reads the keys it knows into its typed options
-/// (src/registry/: the only place option strings are parsed) and rejects
-/// any other.
+/// the registry splits the spec into OptionText and each structure's entry
+/// reads the keys it knows straight into its typed options
+/// (`Options::from`, src/registry/: the only place option strings are
+/// parsed), rejects any other, and calls the typed constructor
+/// `S(config, options)`. Config::options (deprecated) is merged into the
+/// spec's text once, the spec winning for a key given in both.
 #pragma once
 
 #include <broadphase/config_error.hpp>
@@ -34,7 +37,13 @@ struct StructureInfo {
   std::string name;
   std::string description;
   bool peer = false;  ///< another library's broad phase, run for comparison
+  /// Makes the structure from a Config whose `options` hold its options as
+  /// text (the form a peer's adapter takes).
   std::function<std::unique_ptr<AnyBroadPhase>(const Config&)> make;
+  /// Makes the structure from a Config without options and its options as
+  /// text, read straight into its typed options (detail::add_structure);
+  /// empty for entries that only have `make`.
+  std::function<std::unique_ptr<AnyBroadPhase>(const Config&, const OptionText&)> build = {};
 };
 
 /// An older name still accepted for a structure.
@@ -43,13 +52,14 @@ struct StructureAlias {
   std::string name;   ///< the entry it stands for
 };
 
-/// Reads a structure's options from Config::options (strings) into typed
-/// values and rejects unknown keys. Ranges are not checked here but by the
-/// options struct's check(), which the structure's constructor calls, so
-/// that a value given in C++ and one given as text meet the same rule.
-/// Throws InvalidConfig.
+/// Reads a structure's options from text (OptionText: a spec's, or the
+/// deprecated Config::options) into typed values and rejects unknown keys. Ranges are not checked
+/// here but by the options struct's check(), which the structure's constructor calls, so that a
+/// value given in C++ and one given as text meet the same rule. Throws InvalidConfig.
 class OptionReader {
  public:
+  OptionReader(const OptionText& text, std::string structure);
+  /// Reads `c.options` (for adapters built from a Config).
   OptionReader(const Config& c, std::string structure);
   /// A finite number, or `fallback` when absent.
   double number(const std::string& key, double fallback);
@@ -66,7 +76,7 @@ class OptionReader {
   void finish() const;
 
  private:
-  const Config& config_;
+  const OptionText& text_;
   std::string structure_;
   std::vector<std::string> read_;
 };

@@ -22,9 +22,8 @@ namespace broadphase {
 struct SapOptions {
   /// Nothing to check.
   void check() const {}
-  /// Reads Config::options (deprecated): refuses every key. Defined with the
-  /// registry (src/registry/). Throws InvalidConfig.
-  static SapOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static SapOptions from(const OptionText& text);
 };
 
 /// Incremental sweep-and-prune over float endpoints (rounded outwards from
@@ -44,7 +43,7 @@ class Sap : public detail::StoreBase<Sap> {
  public:
   using Options = SapOptions;
   /// Reads the deprecated Config::options (none accepted). Throws InvalidConfig.
-  explicit Sap(const Config& c = {}) : Sap(without_options(c), SapOptions::from(c)) {}
+  explicit Sap(const Config& c = {}) : Sap(without_options(c), SapOptions::from(c.options)) {}
   /// Checks `c` (check_config). Throws InvalidConfig.
   Sap(const Config& c, const SapOptions& o);
 

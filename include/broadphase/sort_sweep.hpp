@@ -18,9 +18,8 @@ namespace broadphase {
 struct SortSweepOptions {
   /// Nothing to check.
   void check() const {}
-  /// Reads Config::options (deprecated): refuses every key. Defined with the
-  /// registry (src/registry/). Throws InvalidConfig.
-  static SortSweepOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static SortSweepOptions from(const OptionText& text);
 };
 
 /// Batch sort-and-sweep over float boxes rounded outwards from the
@@ -38,7 +37,7 @@ class SortSweep : public detail::StoreBase<SortSweep> {
   using Options = SortSweepOptions;
   /// Reads the deprecated Config::options (none accepted). Throws InvalidConfig.
   explicit SortSweep(const Config& c = {})
-      : SortSweep(without_options(c), SortSweepOptions::from(c)) {}
+      : SortSweep(without_options(c), SortSweepOptions::from(c.options)) {}
   /// Checks `c` (check_config). Throws InvalidConfig.
   SortSweep(const Config& c, const SortSweepOptions& o);
 

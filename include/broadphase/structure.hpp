@@ -72,6 +72,11 @@ void check_moves(const S& s, std::span<const Move> moves) {
   }
 }
 
+/// A structure's options as text, `key` -> `value`: what a registry spec
+/// (`octree:split=16`) or the deprecated Config::options gives; each
+/// structure's `Options::from` reads it into its typed options struct.
+using OptionText = std::map<std::string, std::string>;
+
 /// Options common to all structures. Every field has a sensible default.
 struct Config {
   /// The region most objects live in. A hint for structures that subdivide
@@ -83,11 +88,12 @@ struct Config {
   std::size_t expected_objects = 0;
   /// Deprecated: give a structure's options typed instead, as its options
   /// struct (`Octree(config, OctreeOptions{.split = 16})`), or by name
-  /// through the registry (`make_structure("octree:split=16")`). Still read,
-  /// as `key=value` text, by the registry and by every constructor that
-  /// takes a Config alone; each rejects keys it does not know
-  /// (InvalidConfig).
-  std::map<std::string, std::string> options;
+  /// through the registry (`make_structure("octree:split=16")`, which parses
+  /// the spec straight into the options struct). Still accepted from old
+  /// callers, as `key=value` text, by the registry and by every constructor
+  /// that takes a Config alone: read once into the typed options, rejecting
+  /// keys the structure does not know (InvalidConfig).
+  OptionText options;
 };
 
 /// Calls a visitor and tells whether to continue: a visitor may return bool

@@ -4,8 +4,8 @@
 
 namespace broadphase {
 
-GridVerletOptions GridVerletOptions::from(const Config& c) {
-  OptionReader r(c, "grid-verlet");
+GridVerletOptions GridVerletOptions::from(const OptionText& text) {
+  OptionReader r(text, "grid-verlet");
   GridVerletOptions o;
   o.threads = detail::narrow<unsigned>(r.integer("threads", o.threads));
   o.cell = r.number("cell", o.cell);

@@ -9,8 +9,8 @@
 
 namespace broadphase {
 
-GridDenseOptions GridDenseOptions::from(const Config& c) {
-  OptionReader r(c, "grid-dense");
+GridDenseOptions GridDenseOptions::from(const OptionText& text) {
+  OptionReader r(text, "grid-dense");
   GridDenseOptions o;
   o.cell = r.number("cell", o.cell);
   r.finish();
@@ -20,8 +20,8 @@ GridDenseOptions GridDenseOptions::from(const Config& c) {
 namespace {
 // grid-hashed and grid-hybrid take the same keys.
 template <class O>
-O read_hashed(const Config& c, const char* name) {
-  OptionReader r(c, name);
+O read_hashed(const OptionText& text, const char* name) {
+  OptionReader r(text, name);
   O o;
   o.cell = r.number("cell", o.cell);
   o.buckets = detail::narrow<std::size_t>(r.integer("buckets", o.buckets));
@@ -30,16 +30,16 @@ O read_hashed(const Config& c, const char* name) {
 }
 }  // namespace
 
-GridHashedOptions GridHashedOptions::from(const Config& c) {
-  return read_hashed<GridHashedOptions>(c, "grid-hashed");
+GridHashedOptions GridHashedOptions::from(const OptionText& text) {
+  return read_hashed<GridHashedOptions>(text, "grid-hashed");
 }
 
-GridHybridOptions GridHybridOptions::from(const Config& c) {
-  return read_hashed<GridHybridOptions>(c, "grid-hybrid");
+GridHybridOptions GridHybridOptions::from(const OptionText& text) {
+  return read_hashed<GridHybridOptions>(text, "grid-hybrid");
 }
 
-GridStaticOptions GridStaticOptions::from(const Config& c) {
-  OptionReader r(c, "grid-static");
+GridStaticOptions GridStaticOptions::from(const OptionText& text) {
+  OptionReader r(text, "grid-static");
   GridStaticOptions o;
   o.cell = r.number("cell", o.cell);
   const std::string policy = r.choice("policy", "auto", {"rebuild", "patch", "auto"});
@@ -51,16 +51,16 @@ GridStaticOptions GridStaticOptions::from(const Config& c) {
   return o;
 }
 
-GridImplicitOptions GridImplicitOptions::from(const Config& c) {
-  OptionReader r(c, "grid-implicit");
+GridImplicitOptions GridImplicitOptions::from(const OptionText& text) {
+  OptionReader r(text, "grid-implicit");
   GridImplicitOptions o;
   o.cell = r.number("cell", o.cell);
   r.finish();
   return o;
 }
 
-HGridOptions HGridOptions::from(const Config& c) {
-  OptionReader(c, "hgrid").finish();
+HGridOptions HGridOptions::from(const OptionText& text) {
+  OptionReader(text, "hgrid").finish();
   return {};
 }
 

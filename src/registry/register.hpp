@@ -15,15 +15,21 @@ void register_grids(Registry& r);  // src/grids: the uniform and hierarchical gr
 void register_trees(Registry& r);  // src/trees: octrees, k-d tree, sweeps, AABB tree
 void register_fast(Registry& r);   // src/fast: the performance-tuned structures
 
-/// Registers a structure type S: its entry reads Config::options into
-/// S::Options (S::Options::from, defined beside the registration) and
-/// builds S from the Config without them and the typed options.
+/// Makes S from a Config without options and its options as text, read
+/// into S::Options (S::Options::from, defined beside the registration):
+/// the typed constructor S(config, options).
+template <class S>
+std::unique_ptr<AnyBroadPhase> build_structure(const Config& c, const OptionText& text) {
+  return std::make_unique<Erased<S>>(c, S::Options::from(text));
+}
+
+/// Registers a structure type S (build_structure; `make`, for callers that
+/// hold a Config with options, reads them the same way).
 template <class S>
 void add_structure(Registry& r, std::string name, std::string description) {
   r.add({std::move(name), std::move(description), false,
-         [](const Config& c) -> std::unique_ptr<AnyBroadPhase> {
-           return std::make_unique<Erased<S>>(without_options(c), S::Options::from(c));
-         }});
+         [](const Config& c) { return build_structure<S>(without_options(c), c.options); },
+         &build_structure<S>});
 }
 
 /// A whole number read as text, narrowed to the option's type; a value too

@@ -9,8 +9,11 @@
 
 namespace broadphase {
 
+OptionReader::OptionReader(const OptionText& text, std::string structure)
+    : text_(text), structure_(std::move(structure)) {}
+
 OptionReader::OptionReader(const Config& c, std::string structure)
-    : config_(c), structure_(std::move(structure)) {}
+    : OptionReader(c.options, std::move(structure)) {}
 
 namespace {
 // The number `text` reads as, whole when `whole`; otherwise throws, naming
@@ -31,29 +34,29 @@ double parse_number(const std::string& structure, const std::string& key, const 
 
 double OptionReader::number(const std::string& key, double fallback) {
   read_.push_back(key);
-  const auto it = config_.options.find(key);
-  if (it == config_.options.end()) return fallback;
+  const auto it = text_.find(key);
+  if (it == text_.end()) return fallback;
   return parse_number(structure_, key, it->second, false);
 }
 
 double OptionReader::number(const std::string& key, double fallback, double lo, double hi) {
   const double v = number(key, fallback);
-  if (config_.options.count(key) != 0) detail::check_number(structure_, key, v, lo, hi);
+  if (text_.count(key) != 0) detail::check_number(structure_, key, v, lo, hi);
   return v;
 }
 
 std::uint64_t OptionReader::integer(const std::string& key, std::uint64_t fallback) {
   read_.push_back(key);
-  const auto it = config_.options.find(key);
-  if (it == config_.options.end()) return fallback;
+  const auto it = text_.find(key);
+  if (it == text_.end()) return fallback;
   return static_cast<std::uint64_t>(parse_number(structure_, key, it->second, true));
 }
 
 std::string OptionReader::choice(const std::string& key, const std::string& fallback,
                                  std::initializer_list<std::string_view> allowed) {
   read_.push_back(key);
-  const auto it = config_.options.find(key);
-  if (it == config_.options.end()) return fallback;
+  const auto it = text_.find(key);
+  if (it == text_.end()) return fallback;
   for (std::string_view a : allowed)
     if (a == it->second) return it->second;
   std::string list;
@@ -63,7 +66,7 @@ std::string OptionReader::choice(const std::string& key, const std::string& fall
 }
 
 void OptionReader::finish() const {
-  for (const auto& [key, value] : config_.options) {
+  for (const auto& [key, value] : text_) {
     if (std::find(read_.begin(), read_.end(), key) == read_.end()) {
       std::string known;
       for (const std::string& k : read_) known += (known.empty() ? "" : ", ") + k;
@@ -116,6 +119,9 @@ std::unique_ptr<AnyBroadPhase> Registry::make(std::string_view spec, Config conf
   const StructureInfo* info = find(name);
   if (info == nullptr)
     throw UnknownStructure("unknown structure '" + std::string(name) + "'; valid: " + names());
+  // The deprecated Config::options, read once with the spec's options.
+  OptionText text = std::move(config.options);
+  config.options.clear();
   if (colon != std::string_view::npos) {
     std::string_view rest = spec.substr(colon + 1);
     std::vector<std::string_view> given;
@@ -131,13 +137,15 @@ std::unique_ptr<AnyBroadPhase> Registry::make(std::string_view spec, Config conf
         throw InvalidConfig(std::string(name) + ": option '" + std::string(key) +
                             "' is given twice");
       given.push_back(key);
-      config.options[std::string(key)] = std::string(item.substr(eq + 1));
+      text[std::string(key)] = std::string(item.substr(eq + 1));
       rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
     }
   }
   // The Config and the option values are checked by the structure's
   // constructor (check_config, Options::check), the same way as for a
   // structure built directly.
+  if (info->build) return info->build(config, text);
+  config.options = std::move(text);  // an entry that reads its options from the Config
   return info->make(config);
 }
 

@@ -6,21 +6,21 @@
 
 namespace broadphase {
 
-NaiveOptions NaiveOptions::from(const Config& c) {
-  OptionReader(c, "naive").finish();
+NaiveOptions NaiveOptions::from(const OptionText& text) {
+  OptionReader(text, "naive").finish();
   return {};
 }
 
-OctreePaperOptions OctreePaperOptions::from(const Config& c) {
-  OptionReader r(c, "octree-paper");
+OctreePaperOptions OctreePaperOptions::from(const OptionText& text) {
+  OptionReader r(text, "octree-paper");
   OctreePaperOptions o;
   o.clamp_outside = r.choice("outside", "root", {"root", "clamp"}) == "clamp";
   r.finish();
   return o;
 }
 
-HGridPaperOptions HGridPaperOptions::from(const Config& c) {
-  OptionReader r(c, "hgrid-paper");
+HGridPaperOptions HGridPaperOptions::from(const OptionText& text) {
+  OptionReader r(text, "hgrid-paper");
   HGridPaperOptions o;
   o.levels = detail::narrow<int>(r.integer("levels", static_cast<std::uint64_t>(o.levels)));
   r.finish();

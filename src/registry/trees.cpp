@@ -10,16 +10,16 @@
 
 namespace broadphase {
 
-OctreeOptions OctreeOptions::from(const Config& c) {
-  OptionReader r(c, "octree");
+OctreeOptions OctreeOptions::from(const OptionText& text) {
+  OptionReader r(text, "octree");
   OctreeOptions o;
   o.split = detail::narrow<std::size_t>(r.integer("split", o.split));
   r.finish();
   return o;
 }
 
-LooseOctreeOptions LooseOctreeOptions::from(const Config& c) {
-  OptionReader r(c, "octree-loose");
+LooseOctreeOptions LooseOctreeOptions::from(const OptionText& text) {
+  OptionReader r(text, "octree-loose");
   LooseOctreeOptions o;
   o.k = r.number("k", o.k);
   o.depth = detail::narrow<int>(r.integer("depth", static_cast<std::uint64_t>(o.depth)));
@@ -27,16 +27,16 @@ LooseOctreeOptions LooseOctreeOptions::from(const Config& c) {
   return o;
 }
 
-LinearOctreeOptions LinearOctreeOptions::from(const Config& c) {
-  OptionReader r(c, "octree-linear");
+LinearOctreeOptions LinearOctreeOptions::from(const OptionText& text) {
+  OptionReader r(text, "octree-linear");
   LinearOctreeOptions o;
   o.depth = detail::narrow<int>(r.integer("depth", static_cast<std::uint64_t>(o.depth)));
   r.finish();
   return o;
 }
 
-KdTreeOptions KdTreeOptions::from(const Config& c) {
-  OptionReader r(c, "kdtree");
+KdTreeOptions KdTreeOptions::from(const OptionText& text) {
+  OptionReader r(text, "kdtree");
   KdTreeOptions o;
   const std::string p = r.choice("rebuild", "decay", {"refit", "decay", "always"});
   o.rebuild = p == "refit"    ? KdTreePolicy::refit
@@ -48,21 +48,21 @@ KdTreeOptions KdTreeOptions::from(const Config& c) {
   return o;
 }
 
-SapOptions SapOptions::from(const Config& c) {
-  OptionReader(c, "sap").finish();
+SapOptions SapOptions::from(const OptionText& text) {
+  OptionReader(text, "sap").finish();
   return {};
 }
 
-SortSweepOptions SortSweepOptions::from(const Config& c) {
-  OptionReader(c, "sort-sweep").finish();
+SortSweepOptions SortSweepOptions::from(const OptionText& text) {
+  OptionReader(text, "sort-sweep").finish();
   return {};
 }
 
-AabbTreeOptions AabbTreeOptions::from(const Config& c) {
-  OptionReader r(c, "aabb-tree");
+AabbTreeOptions AabbTreeOptions::from(const OptionText& text) {
+  OptionReader r(text, "aabb-tree");
   AabbTreeOptions o;
   const double margin = r.number("margin", 0);
-  if (c.options.count("margin") != 0) o.margin = margin;  // absent: from the world
+  if (text.count("margin") != 0) o.margin = margin;  // absent: from the world
   const std::string order = r.choice(
       "order", "leaves-first", {"leaves-first", "smaller-first", "hit-ratio", "near-far", "none"});
   o.order = order == "none"            ? AabbTreeOrder::none
@@ -102,14 +102,15 @@ void register_trees(Registry& r) {
   add_structure<AabbTree>(r, "aabb-tree",
                           "dynamic AABB tree: fat leaves, surface-area insertion, rotations, "
                           "self-traversal (options margin, order, max_depth, front)");
+  // aabb-tree with front=basic unless the options say otherwise.
+  constexpr auto front = [](const Config& c, const OptionText& text) {
+    OptionText with_front = text;
+    with_front.try_emplace("front", "basic");
+    return build_structure<AabbTree>(c, with_front);
+  };
   r.add({"aabb-tree-front",
          "aabb-tree keeping the traversal front between frames (front=basic; also deferred)", false,
-         [](const Config& c) -> std::unique_ptr<AnyBroadPhase> {
-           Config with_front = c;
-           with_front.options.try_emplace("front", "basic");
-           return std::make_unique<Erased<AabbTree>>(without_options(c),
-                                                     AabbTreeOptions::from(with_front));
-         }});
+         [front](const Config& c) { return front(without_options(c), c.options); }, front});
 }
 
 }  // namespace broadphase::detail

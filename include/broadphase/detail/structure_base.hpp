@@ -20,10 +20,11 @@
 ///   - `S::Options`, an aggregate with a default for every field;
 ///     `Options::check()` throws InvalidConfig for a value out of its
 ///     documented range (NaN, infinite and subnormal values included);
-///     `Options::from(const Config&)` reads the deprecated Config::options
-///     (`key=value` text) into the fields, throwing InvalidConfig for an
-///     unknown key or a value that is not a number or not one of the
-///     choices; ranges are left to check(). `from` is defined with the registry (src/registry/), the
+///     `Options::from(const OptionText&)` reads options given as text
+///     (`key=value`, from a registry spec or the deprecated Config::options)
+///     into the fields, throwing InvalidConfig for an unknown key or a value
+///     that is not a number or not one of the choices; ranges are left to
+///     check(). `from` is defined with the registry (src/registry/), the
 ///     only place option text is parsed.
 ///   - `S(const Config& c, const Options& o)`, the typed constructor: throws
 ///     InvalidConfig for a bad `c` (check_config) or `o` (Options::check).

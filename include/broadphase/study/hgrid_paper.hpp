@@ -44,10 +44,8 @@ struct HGridPaperOptions {
   int levels = 10;
   /// Throws InvalidConfig for a value out of range.
   void check() const;
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static HGridPaperOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static HGridPaperOptions from(const OptionText& text);
 };
 
 /// The study's hierarchical hashed grid.
@@ -73,7 +71,7 @@ class HGridPaper : public detail::StoreBase<HGridPaper> {
   /// Reads the deprecated Config::options map into HGridPaperOptions.
   /// Throws InvalidConfig.
   explicit HGridPaper(const Config& c = {})
-      : HGridPaper(without_options(c), HGridPaperOptions::from(c)) {}
+      : HGridPaper(without_options(c), HGridPaperOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o` (HGridPaperOptions::check).
   HGridPaper(const Config& c, const HGridPaperOptions& o);
 

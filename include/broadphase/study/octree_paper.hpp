@@ -38,10 +38,8 @@ struct OctreePaperOptions {
   bool clamp_outside = false;
   /// Nothing to check (every value is valid).
   void check() const {}
-  /// Reads Config::options (deprecated) into the fields above; ranges are
-  /// left to check(). Defined with the registry (src/registry/). Throws
-  /// InvalidConfig for an unknown key or a value that is not a number.
-  static OctreePaperOptions from(const Config& c);
+  /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
+  static OctreePaperOptions from(const OptionText& text);
 };
 
 /// The study's fixed-depth octree.
@@ -70,7 +68,7 @@ class OctreePaper : public detail::StoreBase<OctreePaper> {
   /// Reads the deprecated Config::options map into OctreePaperOptions.
   /// Throws InvalidConfig.
   explicit OctreePaper(const Config& c = {})
-      : OctreePaper(without_options(c), OctreePaperOptions::from(c)) {}
+      : OctreePaper(without_options(c), OctreePaperOptions::from(c.options)) {}
   /// Throws InvalidConfig for a bad `c` (check_config) or `o` (OctreePaperOptions::check).
   OctreePaper(const Config& c, const OctreePaperOptions& o);
 
