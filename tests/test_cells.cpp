@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <broadphase/broadphase.hpp>
+#include <broadphase/grid_verlet.hpp>
 #include <broadphase/octree.hpp>
 #include <cstdint>
 #include <ostream>
@@ -207,6 +208,38 @@ TEST(Cells, StructuresWithoutCellsSaySo) {
     EXPECT_FALSE(s->visit_cells([&](const Aabb&, int, std::size_t) { ++visits; })) << spec;
     EXPECT_EQ(visits, 0) << spec;
   }
+}
+
+TEST(Cells, GridVerletReportsItsLooseObjectsUntilSettled) {
+  // Inserted one at a time, a few objects wait on the loose list (below
+  // the rebuild threshold): each is reported as its own box, on the level
+  // after the grids'; settle() puts them into the grids.
+  GridVerlet g;
+  std::vector<Aabb> boxes;
+  for (int i = 0; i < 20; ++i) {
+    const Shape s = Shape::sphere({50.0 * i + 10, 20, 30}, 2);
+    g.insert(s, static_cast<std::uint64_t>(i));
+    boxes.push_back(bounds(s));
+  }
+  auto objects_in_cells = [&g] {
+    std::size_t held = 0;
+    g.visit_cells([&](const Aabb&, int, std::size_t n) { held += n; });
+    return held;
+  };
+  std::size_t loose = 0;
+  g.visit_cells([&](const Aabb& box, int, std::size_t n) {
+    EXPECT_EQ(n, 1u);
+    bool covers = false;
+    for (const Aabb& b : boxes)
+      covers = covers || (box.lo.x <= b.lo.x && b.hi.x <= box.hi.x && box.lo.y <= b.lo.y &&
+                          b.hi.y <= box.hi.y && box.lo.z <= b.lo.z && b.hi.z <= box.hi.z);
+    EXPECT_TRUE(covers) << "a loose object's cell is its own box, rounded outwards";
+    ++loose;
+  });
+  EXPECT_EQ(loose, boxes.size());
+  g.settle();
+  g.validate();
+  EXPECT_EQ(objects_in_cells(), boxes.size());
 }
 
 TEST(Cells, TheOptionsShapeTheCells) {

@@ -194,6 +194,50 @@ TEST(Options, TypedOptionsTakeEffect) {
   EXPECT_EQ(make_structure("fast-grid")->size(), 0u);
 }
 
+TEST(Options, TheRegistryReadsASpecStraightIntoTheTypedOptions) {
+  // Every library entry builds from a Config without options and the
+  // spec's text (StructureInfo::build); `make`, for callers holding a
+  // Config with options, reads them the same way.
+  const Registry r = Registry::library();
+  for (const StructureInfo& e : r.entries()) EXPECT_TRUE(static_cast<bool>(e.build)) << e.name;
+  auto via_spec = make_structure("octree:split=2");
+  Config c;
+  c.options["split"] = "2";
+  auto via_map = make_structure("octree", c);  // the deprecated map
+  auto via_make = r.find("octree")->make(c);   // the entry's Config path
+  auto via_build = r.find("octree")->build(Config{}, {{"split", "2"}});
+  for (AnyBroadPhase* t : {via_spec.get(), via_map.get(), via_make.get(), via_build.get()})
+    for (int i = 0; i < 9; ++i) t->insert(Shape::sphere({100.0 + 10 * i, 100, 100}, 1), 0);
+  auto nodes = [](const AnyBroadPhase& t) {
+    return dynamic_cast<const Erased<Octree>&>(t).get().node_count();
+  };
+  EXPECT_GT(nodes(*via_spec), 1u);
+  for (const AnyBroadPhase* t : {via_map.get(), via_make.get(), via_build.get()})
+    EXPECT_EQ(nodes(*t), nodes(*via_spec));
+  // A key of the spec wins over the same key of the map; unknown keys of
+  // either are refused.
+  c.options["split"] = "0";
+  EXPECT_NO_THROW(make_structure("octree:split=2", c));
+  c.options = {{"nope", "1"}};
+  EXPECT_THROW(make_structure("octree", c), InvalidConfig);
+  EXPECT_THROW(r.find("octree")->make(c), InvalidConfig);
+  EXPECT_THROW(r.find("octree")->build(Config{}, {{"nope", "1"}}), InvalidConfig);
+}
+
+TEST(Options, SettleIsANoOpWhereThereIsNothingToCommit) {
+  for (const std::string& name : testing::library_structures()) {
+    auto s = make_structure(name);
+    for (int i = 0; i < 40; ++i) s->insert(Shape::sphere({10.0 * i, 10, 10}, 6), i);
+    std::vector<HandlePair> before, after;
+    s->find_pairs(before);
+    s->settle();
+    s->validate();
+    s->find_pairs(after);
+    EXPECT_EQ(before.size(), after.size()) << name;
+    EXPECT_EQ(s->size(), 40u) << name;
+  }
+}
+
 TEST(Options, SettleBuildsTheFixedPairCacheAsAnEmptyBulkUpdateDoes) {
   GridVerlet a, b;
   for (GridVerlet* g : {&a, &b}) {
