@@ -54,6 +54,7 @@ Json cells_for(const Scene& s, const std::string& spec) {
   }
   for (std::uint32_t i = 0; i < s.size(); ++i)
     bp->insert(s.objects[i], i, s.is_moving(i) ? Motion::dynamic : Motion::fixed);
+  bp->settle();  // the cells a frame reads (grid-verlet: the loose objects into its grids)
 
   constexpr std::size_t kMaxBoxes = 200000;  // what matplotlib draws in a few seconds
   Json rows = Json::array();
