@@ -1,4 +1,4 @@
-// fast-grid's kernels in isolation: a frame of the study (bulk update plus
+// grid-verlet's kernels in isolation: a frame of the study (bulk update plus
 // all pairs), one query, one insert/remove, at one and two threads.
 #include <benchmark/benchmark.h>
 
@@ -40,7 +40,7 @@ Config threads(int t) {
 }
 
 // Arguments: distribution, objects, threads.
-void BM_FastGridFrame(benchmark::State& state) {
+void BM_GridVerletFrame(benchmark::State& state) {
   Loaded l(static_cast<Distribution>(state.range(0)), static_cast<std::size_t>(state.range(1)),
            threads(static_cast<int>(state.range(2))));
   std::vector<HandlePair> pairs;
@@ -54,7 +54,7 @@ void BM_FastGridFrame(benchmark::State& state) {
   }
   state.counters["pairs"] = static_cast<double>(pairs.size());
 }
-BENCHMARK(BM_FastGridFrame)
+BENCHMARK(BM_GridVerletFrame)
     ->Args({static_cast<int>(Distribution::even), 6400, 1})
     ->Args({static_cast<int>(Distribution::uneven), 6400, 1})
     ->Args({static_cast<int>(Distribution::scaled_even), 102400, 1})
@@ -63,7 +63,7 @@ BENCHMARK(BM_FastGridFrame)
     ->UseRealTime();
 
 // Argument: the row cell size over the level's reach (option `cell`).
-void BM_FastGridQuery(benchmark::State& state) {
+void BM_GridVerletQuery(benchmark::State& state) {
   Config c;
   c.options["cell"] = std::to_string(state.range(0));
   Loaded l(Distribution::uneven, 6400, c);
@@ -73,9 +73,9 @@ void BM_FastGridQuery(benchmark::State& state) {
   }
   benchmark::DoNotOptimize(hits);
 }
-BENCHMARK(BM_FastGridQuery)->Arg(1)->Arg(2)->Arg(4)->Arg(8);
+BENCHMARK(BM_GridVerletQuery)->Arg(1)->Arg(2)->Arg(4)->Arg(8);
 
-void BM_FastGridInsertRemove(benchmark::State& state) {
+void BM_GridVerletInsertRemove(benchmark::State& state) {
   Loaded l(Distribution::uneven, 6400, {});
   std::size_t i = 0;
   for (auto _ : state) {
@@ -83,6 +83,6 @@ void BM_FastGridInsertRemove(benchmark::State& state) {
     l.grid.remove(h);
   }
 }
-BENCHMARK(BM_FastGridInsertRemove);
+BENCHMARK(BM_GridVerletInsertRemove);
 
 }  // namespace

@@ -1,7 +1,7 @@
 // What the second core can give on this machine, whatever the structure:
 // one pass over the same data done by one thread, then split in halves
 // over two that start together and wait for each other (as the passes of
-// fast-grid's worker pool do), for a pass bound by arithmetic, by streaming
+// grid-verlet's worker pool do), for a pass bound by arithmetic, by streaming
 // memory and by scattered writes. The ratio of the times between the
 // /1 and /2 variants is the ceiling for a pass of that kind here
 // (docs/performance.md).

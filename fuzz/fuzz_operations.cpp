@@ -27,7 +27,7 @@ const std::vector<std::string>& specs() {
   static const std::vector<std::string> s = [] {
     std::vector<std::string> out;
     for (const auto& e : registry().entries()) out.push_back(e.name);
-    out.push_back("fast-grid:threads=2,grain=1");
+    out.push_back("grid-verlet:threads=2,grain=1");
     return out;
   }();
   return s;

@@ -63,15 +63,15 @@ bad "unknown kind" "bad.scene:4:.*'cone'" "broadphase-scene 2\nworld 10\nobjects
 expect_error "missing file" "cannot open" run --scene "$tmp/none.scene" --algo naive
 expect_error "unknown algorithm" "valid: naive" run --scene "$data/scenes/single.scene" --algo nope
 expect_error "unknown option" "unknown option" run --scene "$data/scenes/single.scene" --algo naive:foo=1
-expect_error "option without a value" "not of the form key=value" run --scene "$data/scenes/single.scene" --algo fast-grid:threads
-expect_error "option given twice" "option 'threads' is given twice" run --scene "$data/scenes/single.scene" --algo fast-grid:threads=2,threads=1
+expect_error "option without a value" "not of the form key=value" run --scene "$data/scenes/single.scene" --algo grid-verlet:threads
+expect_error "option given twice" "option 'threads' is given twice" run --scene "$data/scenes/single.scene" --algo grid-verlet:threads=2,threads=1
 expect_error "bad frames" "frames" run --scene "$data/scenes/single.scene" --algo naive --frames 0
 expect_error "bad dist" "dist" gen --dist lumpy --n 10 --out "$tmp/x.scene"
 
 # A motion that overflows the doubles: the frames before it are printed,
 # then an error naming the frame and the object.
 printf 'broadphase-scene 1\nworld 1e300\nobjects 2\n0 0 0 1 0 0 0\n1.79e308 0 0 1 1e306 0 0\n' >"$tmp/overflow.scene"
-"$cli" run --scene "$tmp/overflow.scene" --algo fast-grid --frames 3 >"$tmp/out" 2>"$tmp/err"
+"$cli" run --scene "$tmp/overflow.scene" --algo grid-verlet --frames 3 >"$tmp/out" 2>"$tmp/err"
 rc=$?
 check "overflowing motion: exit" test "$rc" -eq 1
 check "overflowing motion: frame 0 printed" test "$(cat "$tmp/out")" = "0 0 0000000000000000"
@@ -92,13 +92,13 @@ check "json has the fields" python3 -c "import json,sys; j=json.load(open('$tmp/
 
 # advise: times the structures named, checks their pairs against each other
 # and recommends one of those that agree.
-"$cli" advise --scene "$tmp/a.scene" --algos naive,grid-hashed,fast-grid --frames 6 --seconds 3 \
+"$cli" advise --scene "$tmp/a.scene" --algos naive,grid-hashed,grid-verlet --frames 6 --seconds 3 \
   --json >"$tmp/adv" 2>/dev/null
 check "advise recommends an agreeing structure" python3 -c "
 import json, sys
 j = json.load(open('$tmp/adv'))
 s = {x['structure']: x for x in j['structures']}
-ok = sorted(s) == ['fast-grid', 'grid-hashed', 'naive'] and all(x['pairs_agree'] for x in s.values())
+ok = sorted(s) == ['grid-hashed', 'grid-verlet', 'naive'] and all(x['pairs_agree'] for x in s.values())
 ok = ok and j['recommended'] in s and all(x['frames'] >= 1 and x['mean_frame_ms'] > 0 for x in s.values())
 sys.exit(0 if ok else 1)"
 check "advise times a query, an insert and a remove of every structure" python3 -c "

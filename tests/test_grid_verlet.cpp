@@ -596,7 +596,7 @@ TEST(GridVerlet, MemoryAfterABuildDoesNotDependOnHowTheObjectsCameIn) {
 TEST(GridVerlet, ConstCallsRunConcurrentlyOnThreads) {
   // Enough movers for the pair pass to split over the pool, whose buffers
   // two concurrent calls must not share (run under ThreadSanitizer in CI).
-  broadphase::testing::const_calls_on_two_threads("fast-grid:threads=2",
+  broadphase::testing::const_calls_on_two_threads("grid-verlet:threads=2",
                                                   generate(Distribution::all_moving, 6000, 3));
 }
 

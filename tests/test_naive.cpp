@@ -101,12 +101,12 @@ TEST(Options, WholeNumberOptionsRefuseFractions) {
   for (const char* spec :
        {"kdtree:leaf=2.5", "octree:split=40.5", "octree-loose:depth=3.5", "octree-linear:depth=3.5",
         "aabb-tree:max_depth=7.5", "grid-hashed:buckets=100.5", "hgrid-paper:levels=2.5",
-        "fast-grid:threads=1.5", "fast-grid:grain=2.5"})
+        "grid-verlet:threads=1.5", "grid-verlet:grain=2.5"})
     EXPECT_THROW(make_structure(spec), InvalidConfig) << spec;
   for (const char* spec :
        {"kdtree:leaf=2", "octree:split=40", "octree-loose:depth=3", "octree-linear:depth=3",
         "aabb-tree:max_depth=7", "grid-hashed:buckets=100", "hgrid-paper:levels=2",
-        "fast-grid:threads=1", "fast-grid:grain=2"})
+        "grid-verlet:threads=1", "grid-verlet:grain=2"})
     EXPECT_NO_THROW(make_structure(spec)) << spec;
 }
 

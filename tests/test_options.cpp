@@ -72,10 +72,10 @@ std::vector<DirectCase> bad_direct_options() {
       {"grid-implicit cell=-inf", [c] { GridImplicit(c, {.cell = -kInf}); }},
       {"hgrid-paper levels=0", [c] { HGridPaper(c, {.levels = 0}); }},
       {"hgrid-paper levels=31", [c] { HGridPaper(c, {.levels = 31}); }},
-      {"fast-grid threads=65", [c] { GridVerlet(c, {.threads = 65}); }},
-      {"fast-grid cell=0.25", [c] { GridVerlet(c, {.cell = 0.25}); }},
-      {"fast-grid cell=NaN", [c] { GridVerlet(c, {.cell = kNan}); }},
-      {"fast-grid grain=0", [c] { GridVerlet(c, {.grain = 0}); }},
+      {"grid-verlet threads=65", [c] { GridVerlet(c, {.threads = 65}); }},
+      {"grid-verlet cell=0.25", [c] { GridVerlet(c, {.cell = 0.25}); }},
+      {"grid-verlet cell=NaN", [c] { GridVerlet(c, {.cell = kNan}); }},
+      {"grid-verlet grain=0", [c] { GridVerlet(c, {.grain = 0}); }},
   };
 }
 
@@ -102,10 +102,10 @@ TEST(Options, TheRegistryRefusesTheSameValuesWithTheSameType) {
                            "hgrid-paper:levels=0",
                            "hgrid-paper:levels=4294967300",
                            "octree-loose:depth=4294967300",
-                           "fast-grid:threads=65",
-                           "fast-grid:cell=0.25",
-                           "fast-grid:grain=0",
-                           "fast-grid:grain=-1",
+                           "grid-verlet:threads=65",
+                           "grid-verlet:cell=0.25",
+                           "grid-verlet:grain=0",
+                           "grid-verlet:grain=-1",
                            "naive:cell=1",
                            "sap:x=1",
                            "grid-hashed:cell",
@@ -191,7 +191,7 @@ TEST(Options, TypedOptionsTakeEffect) {
   EXPECT_EQ(typed.node_count(), mapped.node_count());
   EXPECT_GT(typed.node_count(), 1u);
   // The registry's entries take the map's defaults from the structs.
-  EXPECT_EQ(make_structure("fast-grid")->size(), 0u);
+  EXPECT_EQ(make_structure("grid-verlet")->size(), 0u);
 }
 
 TEST(Options, TheRegistryReadsASpecStraightIntoTheTypedOptions) {

@@ -30,7 +30,7 @@ std::vector<std::string> split_list(const std::string& list) {
   std::istringstream in(list);
   while (std::getline(in, item, ';')) {
     // Commas separate structures, except inside one structure's options
-    // (`fast-grid:threads=2,cell=3`): a piece with '=' and no ':' continues
+    // (`grid-verlet:threads=2,cell=3`): a piece with '=' and no ':' continues
     // the previous structure.
     std::string cur;
     std::istringstream parts(item);

@@ -10,7 +10,7 @@
 // exact tests made, own bytes per object; then the medians, the tracker's
 // own bytes per object, and the process's VmRSS and VmHWM (kB, from
 // /proc/self/status). `--compare ALGO` replays the same scene through a
-// handle structure (e.g. fast-grid) in the same process, checks that every
+// handle structure (e.g. grid-verlet) in the same process, checks that every
 // frame's count and hash agree, and prints its median.
 // `--all` tells the tracker that everything may have changed (it then
 // finds the movers itself) instead of passing the movers' indices.

@@ -86,7 +86,7 @@ struct Options {
   /// scaled-even objects on one rank took 0.63x grid-hashed's time
   /// (medians of three alternated runs, 0.87-0.92 s against 1.35-1.43 s,
   /// 2-core VM at a load of 6), the fastest of the structures before it
-  /// (at 64 000: grid-hashed 0.79 s, fast-grid 0.82, hgrid 1.12,
+  /// (at 64 000: grid-hashed 0.79 s, grid-verlet 0.82, hgrid 1.12,
   /// sort-sweep 1.80).
   std::string algo = kLeanPath;
   Decomposition decomposition = Decomposition::grid;

@@ -230,7 +230,7 @@ def structures() -> list:
     """The library's structures by name: a list of (name, description).
 
     Any of these names, with options after a colon
-    (``"fast-grid:threads=2"``), can back an :class:`Index`.
+    (``"grid-verlet:threads=2"``), can back an :class:`Index`.
     """
     return list(_broadphase.structures())
 
@@ -290,7 +290,7 @@ class Index:
       on your arrays are no longer read. :attr:`borrowing` tells which.
 
     With a structure name (any of :func:`structures`, options after a colon,
-    e.g. ``"fast-grid:threads=2"``), the structure always owns copies.
+    e.g. ``"grid-verlet:threads=2"``), the structure always owns copies.
 
     The pairs are found when the index changes (lean path) or at the first
     query after a change (named structures), then kept: :meth:`pairs`,

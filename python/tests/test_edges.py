@@ -14,7 +14,7 @@ from conftest import as_set, oracle_pairs
 EMPTY = np.zeros((0, 2), np.int64)
 
 
-@pytest.mark.parametrize("structure", [None, "naive", "fast-grid"])
+@pytest.mark.parametrize("structure", [None, "naive", "grid-verlet"])
 def test_zero_and_one_object(structure):
     for n in (0, 1):
         c = np.zeros((n, 3))
@@ -119,7 +119,7 @@ def test_other_types_are_converted(rng):
     (lambda: broadphase.box_pairs(np.zeros((2, 3)), -np.ones((2, 3))), "hi[0, 0] < lo[0, 0]"),
     (lambda: broadphase.sphere_pairs([["a", "b", "c"]], 1.0), "centers"),
     (lambda: broadphase.Index(np.zeros((2, 3)), 1.0, structure="no-such"), "unknown structure 'no-such'"),
-    (lambda: broadphase.Index(np.zeros((2, 3)), 1.0, structure="fast-grid:nope=1"), "nope"),
+    (lambda: broadphase.Index(np.zeros((2, 3)), 1.0, structure="grid-verlet:nope=1"), "nope"),
     (lambda: broadphase.Index(np.zeros((2, 3)), 1.0).update(np.zeros((3, 3))), "keeps its object count"),
     (lambda: broadphase.Index(np.zeros((2, 3)), 1.0).remove([5]), "ids[0] is 5"),
     (lambda: broadphase.Index(np.zeros((2, 3)), 1.0).update([0], [[0, 0, np.nan]]), "centers[0, 2] is nan"),

@@ -8,7 +8,7 @@ import pytest
 import broadphase
 from conftest import QUICK, as_set, oracle_pairs
 
-STRUCTURES = [None] + [name for name, _ in broadphase.structures()] + ["fast-grid:threads=3,grain=1"]
+STRUCTURES = [None] + [name for name, _ in broadphase.structures()] + ["grid-verlet:threads=3,grain=1"]
 
 
 class Model:
@@ -92,7 +92,7 @@ def test_random_operations_match_the_model(rng, structure, mixed):
     ix.validate()
 
 
-@pytest.mark.parametrize("structure", [None, "fast-grid", "aabb-tree"])
+@pytest.mark.parametrize("structure", [None, "grid-verlet", "aabb-tree"])
 def test_update_equals_rebuild(rng, structure):
     c = rng.random((800, 3))
     r = rng.random(800) * 0.04

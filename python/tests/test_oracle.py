@@ -82,7 +82,7 @@ def test_bipartite_matches_oracle(rng):
     assert len(got) == len(want)
 
 
-@pytest.mark.parametrize("structure", [None, "naive", "fast-grid:threads=2"])
+@pytest.mark.parametrize("structure", [None, "naive", "grid-verlet:threads=2"])
 def test_index_query_matches_oracle(rng, structure):
     a = random_set(rng, 250, "spheres")
     q = random_set(rng, 60, "spheres")

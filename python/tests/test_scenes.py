@@ -58,7 +58,7 @@ def test_one_shot_and_new_arrays(path):
         check(expected, frame, ix.pairs(sorted=True))
 
 
-STRUCTURES = [name for name, _ in broadphase.structures()] + ["fast-grid:threads=3,grain=1"]
+STRUCTURES = [name for name, _ in broadphase.structures()] + ["grid-verlet:threads=3,grain=1"]
 
 
 @pytest.mark.parametrize("structure", STRUCTURES)

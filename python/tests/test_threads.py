@@ -61,7 +61,7 @@ def test_a_python_thread_runs_during_a_long_call(rng):
 
 def test_queries_run_concurrently_with_the_same_answers(rng):
     c = rng.random((5000, 3))
-    for structure in (None, "fast-grid", "naive"):
+    for structure in (None, "grid-verlet", "naive"):
         ix = broadphase.Index(c, 0.02, structure=structure)
         q = rng.random((300, 3))
         want_pairs = ix.pairs(sorted=True)

@@ -23,7 +23,7 @@ mpi() {  # mpi RANKS ARGS...: bounded, so a hang fails instead of blocking
 # The same lines as one process, on several ranks and structures.
 s=$data/scenes/mixed-400.scene
 "$cli" run --scene "$s" --frames 25 >"$tmp/one"
-for cfg in "2 --bisect --algo fast-grid" "3 --grid 3x1x1 --algo grid-hashed" "4 --grid 2x2x1 --algo naive"; do
+for cfg in "2 --bisect --algo grid-verlet" "3 --grid 3x1x1 --algo grid-hashed" "4 --grid 2x2x1 --algo naive"; do
   set -- $cfg
   p=$1; shift
   mpi "$p" run --scene "$s" --frames 25 "$@" >"$tmp/many" 2>"$tmp/err"

@@ -48,7 +48,7 @@ std::vector<std::string> library_structures() {
 
 std::vector<std::string> structure_specs() {
   std::vector<std::string> specs = library_structures();
-  specs.push_back("fast-grid:threads=3,grain=1");
+  specs.push_back("grid-verlet:threads=3,grain=1");
   return specs;
 }
 

@@ -61,7 +61,7 @@ std::vector<ReferenceScene> reference_scenes();
 std::vector<std::string> library_structures();
 
 /// Every library structure, plus variants whose options take other code
-/// paths: fast-grid on three threads with every pass split from two movers
+/// paths: grid-verlet on three threads with every pass split from two movers
 /// on (grain=1), so that small scenes run its threaded update and pairs.
 std::vector<std::string> structure_specs();
 

@@ -2,13 +2,13 @@
 # Frame-interleaved A/B of the library at a past commit (A) against the
 # working tree (B), in one process (see ab.cpp):
 #   tools/ab/ab.sh COMMIT SCENE [FRAMES] [SPEC1] [SPEC2] [BLOCK]
-# e.g. tools/ab/ab.sh HEAD~3 /tmp/se102k.scene 100 fast-grid fast-grid:threads=2
+# e.g. tools/ab/ab.sh HEAD~3 /tmp/se102k.scene 100 grid-verlet grid-verlet:threads=2
 # Both sides are compiled here with g++ (-O3, as the Release build), each
 # with its namespace renamed, into a work directory under /tmp.
 set -euo pipefail
 [ $# -ge 2 ] || { sed -n '2,7p' "$0"; exit 2; }
 root="$(cd "$(dirname "$0")/../.." && pwd)"
-commit=$1 scene=$2 frames=${3:-100} spec1=${4:-fast-grid} spec2=${5:-fast-grid:threads=2} block=${6:-5}
+commit=$1 scene=$2 frames=${3:-100} spec1=${4:-grid-verlet} spec2=${5:-grid-verlet:threads=2} block=${6:-5}
 work=$(mktemp -d /tmp/broadphase-ab.XXXXXX)
 trap 'rm -rf "$work"' EXIT
 mkdir -p "$work/A"
