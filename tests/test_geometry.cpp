@@ -1,4 +1,4 @@
-// The exact predicates of SCENE-FORMAT.md on exact touching, zero-size and
+// The exact predicates of docs/scene-format.md on exact touching, zero-size and
 // box cases, and the promise every structure relies on: whenever two shapes
 // overlap, their conservative bounds (double and float) overlap too.
 #include <gtest/gtest.h>

@@ -144,7 +144,7 @@ void add_advise_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "advise", "Time the structures briefly on a scene and recommend the fastest exact one");
   auto o = std::make_shared<AdviseOptions>();
-  cmd->add_option("--scene", o->scene, "Scene file (SCENE-FORMAT.md)")->required();
+  cmd->add_option("--scene", o->scene, "Scene file (docs/scene-format.md)")->required();
   cmd->add_option("--frames", o->frames, "Frames per structure at most")
       ->default_val(100)
       ->check(CLI::Range(1, 100000000));

@@ -240,7 +240,7 @@ void add_draw_command(CLI::App& app) {
       "draw",
       "Draw a scene, a structure's cells, or a simulation (PNG, SVG or GIF via matplotlib)");
   auto o = std::make_shared<DrawOptions>();
-  cmd->add_option("--scene", o->scene, "Scene file (SCENE-FORMAT.md)")->required();
+  cmd->add_option("--scene", o->scene, "Scene file (docs/scene-format.md)")->required();
   cmd->add_option("--out", o->out, "Picture to write: .png or .svg (.gif with --gif)")->required();
   cmd->add_option("--view", o->view, "side (x, y: y is up) | top (x, z) | 3d")->default_val("side");
   cmd->add_option("--algo", o->algo,

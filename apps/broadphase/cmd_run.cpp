@@ -113,7 +113,7 @@ void add_run_command(CLI::App& app) {
   auto* cmd =
       app.add_subcommand("run", "Replay a scene and print each frame's pair count and hash");
   auto o = std::make_shared<RunOptions>();
-  cmd->add_option("--scene", o->scene, "Scene file (SCENE-FORMAT.md)")->required();
+  cmd->add_option("--scene", o->scene, "Scene file (docs/scene-format.md)")->required();
   cmd->add_option("--algo", o->algo, "Structure name, optionally with options: name:key=value,...")
       ->default_val("naive");
   cmd->add_option("--frames", o->frames, "Number of frames to evaluate")

@@ -154,7 +154,7 @@ void add_sim_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "sim", "Step a scene with collision response (bounces off walls and each other)");
   auto o = std::make_shared<SimOptions>();
-  cmd->add_option("--scene", o->scene, "Scene file (SCENE-FORMAT.md)");
+  cmd->add_option("--scene", o->scene, "Scene file (docs/scene-format.md)");
   cmd->add_option("--algo", o->algo, "Broad phase: name or name:key=value,...")
       ->default_val("naive");
   cmd->add_option("--frames", o->frames, "Number of steps")

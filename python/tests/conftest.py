@@ -1,5 +1,5 @@
 """Shared helpers of the broadphase Python tests: the O(N^2) oracle, the
-scene reader and replay of SCENE-FORMAT.md, the pair hash."""
+scene reader and replay of docs/scene-format.md, the pair hash."""
 
 import os
 import pathlib
@@ -73,7 +73,7 @@ def splitmix64(x):
 
 
 def pair_hash(p):
-    """The frame hash of SCENE-FORMAT.md: the sum mod 2^64 of splitmix64(i << 32 | j)."""
+    """The frame hash of docs/scene-format.md: the sum mod 2^64 of splitmix64(i << 32 | j)."""
     p = np.asarray(p, dtype=np.uint64).reshape(-1, 2)
     keys = (p[:, 0] << np.uint64(32)) | p[:, 1]
     with np.errstate(over="ignore"):

@@ -300,7 +300,7 @@ std::vector<char> choose(std::size_t n, std::size_t k, Rng& rng) {
 
 namespace {
 
-// The study's workloads (SCENE-FORMAT.md).
+// The study's workloads (docs/scene-format.md).
 Scene generate_study(Distribution d, std::size_t n, Rng& rng) {
   Scene s;
   const bool scaled = d == Distribution::scaled_even || d == Distribution::scaled_uneven;

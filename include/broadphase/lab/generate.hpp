@@ -3,7 +3,7 @@
 /// so any range of a scene of N objects can be generated on its own (each
 /// MPI rank its share, without a file), and object i is the same object
 /// whatever the number of ranks. The workloads follow the study's kinds
-/// (SCENE-FORMAT.md) by expectation: each object is moving with
+/// (docs/scene-format.md) by expectation: each object is moving with
 /// probability 0.2 (uneven: near the ground with probability 0.8) instead
 /// of exactly 20% (80%), so these scenes differ from `generate()`'s.
 #pragma once

@@ -1,5 +1,5 @@
 /// \file lab/scene.hpp
-/// Scene files (SCENE-FORMAT.md, versions 1 and 2), the replay motion, the
+/// Scene files (docs/scene-format.md, versions 1 and 2), the replay motion, the
 /// pair hash, and the study's workload generator.
 #pragma once
 
@@ -89,7 +89,7 @@ struct FrameDigest {
 /// 16 lowercase hex digits.
 std::string hex16(std::uint64_t v);
 
-/// The study's workloads (SCENE-FORMAT.md, "The paper's workloads"), and
+/// The study's workloads (docs/scene-format.md, "The paper's workloads"), and
 /// the stress kinds the performance work is measured on.
 enum class Distribution {
   even,           ///< the study: centres uniform in the 1 km cube
