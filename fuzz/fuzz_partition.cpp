@@ -1,4 +1,4 @@
-// The geometry of the MPI path (distributed.hpp, src/distributed/
+// The geometry of the MPI path (mpi.hpp, src/mpi/
 // partition.cpp), which decides on which rank each pair is reported: a
 // fuzzed tree of cuts (a grid over a fuzzed world, or any tree of cuts at
 // nasty coordinates, as the bisection builds) and fuzzed spheres and boxes.
@@ -16,7 +16,7 @@
 // drive.
 #include <algorithm>
 #include <array>
-#include <broadphase/distributed.hpp>
+#include <broadphase/mpi.hpp>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>

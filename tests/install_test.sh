@@ -13,7 +13,7 @@ trap 'rm -rf "$tmp"' EXIT
 cmake --install "$build" --prefix "$tmp/prefix" >/dev/null
 cmake -S "$src/tests/install" -B "$tmp/consumer" -DCMAKE_PREFIX_PATH="$tmp/prefix" \
   -DEXAMPLE_SOURCE="$src/examples/quickstart.cpp" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS="$flags" \
-  -DWITH_MPI="$mpi" -DMPI_EXAMPLE_SOURCE="$src/examples/distributed.cpp" >/dev/null
+  -DWITH_MPI="$mpi" -DMPI_EXAMPLE_SOURCE="$src/examples/mpi.cpp" >/dev/null
 cmake --build "$tmp/consumer" >/dev/null
 out=$("$tmp/consumer/quickstart")
 echo "$out"
@@ -25,7 +25,7 @@ if [ "$out" != "$expected" ]; then echo "0 passed, 1 failed"; exit 1; fi
 if [ "$mpi" = ON ]; then
   # Bounded: an MPI program that hangs fails the test instead.
   out=$(OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 timeout 120 \
-    mpirun --oversubscribe -np 2 "$tmp/consumer/distributed")
+    mpirun --oversubscribe -np 2 "$tmp/consumer/mpi_example")
   echo "$out"
   first=$(echo "$out" | head -1)
   second=$(echo "$out" | sed -n 2p)

@@ -14,7 +14,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <broadphase/distributed.hpp>
+#include <broadphase/mpi.hpp>
 #include <broadphase/lab/generate.hpp>
 #include <broadphase/lab/replay.hpp>
 #include <broadphase/lab/scene.hpp>

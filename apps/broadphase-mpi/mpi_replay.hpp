@@ -4,7 +4,7 @@
 // frame digest reduced over the ranks.
 #pragma once
 
-#include <broadphase/distributed.hpp>
+#include <broadphase/mpi.hpp>
 #include <broadphase/lab/scene.hpp>
 #include <cstdint>
 #include <memory>

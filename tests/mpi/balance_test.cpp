@@ -4,7 +4,7 @@
 // bad weights must be refused on every rank. Exits non-zero on a failure.
 #include <mpi.h>
 
-#include <broadphase/distributed.hpp>
+#include <broadphase/mpi.hpp>
 #include <cmath>
 #include <cstdio>
 #include <string>

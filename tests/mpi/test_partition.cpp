@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <broadphase/distributed.hpp>
+#include <broadphase/mpi.hpp>
 #include <vector>
 
 namespace broadphase::distributed {

@@ -1,10 +1,10 @@
-// The rule that gives each pair one rank (distributed.hpp), applied to a
+// The rule that gives each pair one rank (mpi.hpp), applied to a
 // pair of a rank's local objects: shared by Domain::find_pairs and
 // PairTracker.
 #pragma once
 
 #include <algorithm>
-#include <broadphase/distributed.hpp>
+#include <broadphase/mpi.hpp>
 #include <cstddef>
 #include <cstdint>
 #include <string>

@@ -1,12 +1,12 @@
-// Pair finding over MPI ranks with broadphase::mpi (docs/distributed.md):
+// Pair finding over MPI ranks with broadphase::mpi (docs/mpi.md):
 // each rank owns a block of a row of spheres, every overlapping pair of the
 // whole row is reported once, on one rank, with the global ids.
 // Then ten frames of motion through a PairTracker with a skin.
-//   mpirun -np 2 ./distributed      (prints: pairs 99, on 2 ranks, then
+//   mpirun -np 2 ./mpi_example      (prints: pairs 99, on 2 ranks, then
 //                                    10 frames, 99 to 99 pairs, ghost lists built 3 times)
 #include <mpi.h>
 
-#include <broadphase/distributed.hpp>
+#include <broadphase/mpi.hpp>
 #include <cstdint>
 #include <cstdio>
 #include <vector>

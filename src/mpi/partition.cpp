@@ -1,7 +1,7 @@
 // The subdomains as a tree of cuts: the grid, and the queries both
 // decompositions share (the bisection's cuts are found in domain.cpp).
 #include <algorithm>
-#include <broadphase/distributed.hpp>
+#include <broadphase/mpi.hpp>
 #include <limits>
 #include <stdexcept>
 #include <string>

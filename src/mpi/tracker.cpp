@@ -1,7 +1,7 @@
 // Pairs over frames with a skin: the ghost lists and the shared list are
-// kept between rebuilds (distributed.hpp, PairTracker).
+// kept between rebuilds (mpi.hpp, PairTracker).
 #include <algorithm>
-#include <broadphase/distributed.hpp>
+#include <broadphase/mpi.hpp>
 #include <chrono>
 #include <climits>
 #include <cmath>

@@ -1,7 +1,7 @@
 // The collective calls: agreement on errors, the all-to-all exchange, the
 // weighted bisection, and pair finding with ghosts and the ownership rule.
 #include <algorithm>
-#include <broadphase/distributed.hpp>
+#include <broadphase/mpi.hpp>
 #include <broadphase/registry.hpp>
 #include <chrono>
 #include <climits>
@@ -133,7 +133,7 @@ void Domain::exchange_bytes(const void* data, std::size_t size, std::size_t coun
   if (total > INT_MAX) error = "rank " + std::to_string(rank_) + ": more than 2 GB to receive";
   agree(error);
   // Kept between calls and never shrunk: fresh pages cost a fault each
-  // on the machines measured (docs/distributed.md).
+  // on the machines measured (docs/mpi.md).
   if (send_buffer_.size() < static_cast<std::size_t>(at))
     send_buffer_.resize(static_cast<std::size_t>(at));
   std::byte* send = send_buffer_.data();
