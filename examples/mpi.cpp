@@ -13,7 +13,7 @@
 
 int main(int argc, char** argv) {
   MPI_Init(&argc, &argv);
-  namespace bd = broadphase::distributed;
+  namespace bd = broadphase::mpi;
   int rank = 0, size = 1;
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   MPI_Comm_size(MPI_COMM_WORLD, &size);
@@ -53,7 +53,7 @@ int main(int argc, char** argv) {
     if (rank == 0)
       std::printf("10 frames, %llu to %llu pairs, ghost lists built %llu times\n", fewest, most,
                   static_cast<unsigned long long>(tracker.rebuilds()));
-  } catch (const bd::DistributedError& e) {  // thrown on every rank at once
+  } catch (const bd::MpiError& e) {  // thrown on every rank at once
     if (rank == 0) std::fprintf(stderr, "error: %s\n", e.what());
     status = 1;
   }

@@ -29,7 +29,7 @@
 namespace {
 
 using namespace broadphase;
-namespace bd = broadphase::distributed;
+namespace bd = broadphase::mpi;
 
 // A tree of cuts over `ranks` leaves [first, first + ranks): returns the
 // child reference (node index, or -1 - rank for a leaf).

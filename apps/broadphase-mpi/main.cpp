@@ -14,10 +14,10 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <broadphase/mpi.hpp>
 #include <broadphase/lab/generate.hpp>
 #include <broadphase/lab/replay.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/mpi.hpp>
 #include <broadphase/registry.hpp>
 #include <chrono>
 #include <cstdio>
@@ -35,8 +35,8 @@ namespace {
 using broadphase::Distribution;
 using broadphase::FrameDigest;
 using broadphase::hex16;
-using broadphase::distributed::DistributedError;
-namespace dist = broadphase::distributed;
+using broadphase::mpi::MpiError;
+namespace dist = broadphase::mpi;
 namespace mpi_app = broadphase::mpi_app;
 
 int world_rank() {
@@ -56,7 +56,7 @@ struct Common {
   std::uint64_t n = 0;
   std::uint64_t per_rank = 0;
   std::uint64_t seed = 1;
-  std::string algo = broadphase::distributed::kLeanPath;
+  std::string algo = broadphase::mpi::kLeanPath;
   int frames = 100;
   std::string grid;
   bool bisect = false;
@@ -73,7 +73,7 @@ void add_common(CLI::App* cmd, Common& o) {
   cmd->add_option(
          "--algo", o.algo,
          "Local pairs: a structure by name (name:key=value,...), or 'arrays' for the lean path")
-      ->default_val(broadphase::distributed::kLeanPath);
+      ->default_val(broadphase::mpi::kLeanPath);
   cmd->add_option("--frames", o.frames, "Number of frames")
       ->default_val(100)
       ->check(CLI::Range(1, 100000000));
@@ -112,13 +112,13 @@ dist::Options domain_options(const Common& o) {
   d.max_ghost_ranks = o.max_ghost_ranks;
   d.local_pairs = !o.skip_local;
   if (o.bisect) {
-    if (!o.grid.empty()) throw DistributedError("--grid and --bisect exclude each other");
+    if (!o.grid.empty()) throw broadphase::InvalidConfig("--grid and --bisect exclude each other");
     d.decomposition = dist::Decomposition::bisection;
   } else if (!o.grid.empty()) {
     try {
       d.dims = dist::parse_dims(o.grid);
-    } catch (const std::invalid_argument& e) {
-      throw DistributedError(std::string("--grid: ") + e.what());
+    } catch (const broadphase::InvalidConfig& e) {
+      throw broadphase::InvalidConfig(std::string("--grid: ") + e.what());
     }
   }
   // The structure name is checked here, on every rank alike, before any data moves.
@@ -133,13 +133,13 @@ Distribution parse_kind(const std::string& kind) {
       throw std::invalid_argument("'" + kind + "' is not available in counter generation");
     return d;
   } catch (const std::invalid_argument& e) {
-    throw DistributedError(std::string("--gen: ") + e.what());
+    throw MpiError(std::string("--gen: ") + e.what());
   }
 }
 
 mpi_app::Share load(const Common& o) {
   if (o.scene.empty() == o.gen.empty())
-    throw DistributedError("give either --scene FILE or --gen KIND (with --n or --per-rank)");
+    throw MpiError("give either --scene FILE or --gen KIND (with --n or --per-rank)");
   if (!o.scene.empty()) return mpi_app::read_share(MPI_COMM_WORLD, o.scene);
   const Distribution d = parse_kind(o.gen);
   const std::uint64_t n =
@@ -434,8 +434,12 @@ int main(int argc, char** argv) {
     if (check_cmd->parsed()) check(o, c);
     if (gen_cmd->parsed() && rank == 0)
       broadphase::write_scene(out, broadphase::generate_counter(parse_kind(o.gen), o.n, o.seed));
-  } catch (const DistributedError& e) {
+  } catch (const MpiError& e) {
     // Every rank has it: rank 0 prints, all exit non-zero.
+    if (rank == 0) std::fprintf(stderr, "broadphase-mpi: error: %s\n", e.what());
+    status = 1;
+  } catch (const broadphase::InvalidConfig& e) {
+    // Bad options: every rank read the same ones and threw the same.
     if (rank == 0) std::fprintf(stderr, "broadphase-mpi: error: %s\n", e.what());
     status = 1;
   } catch (const std::exception& e) {

@@ -10,8 +10,8 @@
 
 namespace broadphase::mpi_app {
 
-using distributed::agree;
-using distributed::DistributedError;
+using mpi::agree;
+using mpi::MpiError;
 
 namespace {
 
@@ -109,17 +109,17 @@ Share generate_share(MPI_Comm comm, Distribution d, std::uint64_t n, std::uint64
   return s;
 }
 
-MpiReplay::MpiReplay(MPI_Comm comm, Share share, const distributed::Options& options, double skin)
+MpiReplay::MpiReplay(MPI_Comm comm, Share share, const mpi::Options& options, double skin)
     : n_(share.n),
       world_(share.world),
       domain_(comm, Aabb{{0, 0, 0}, {share.world, share.world, share.world}}, options),
       skin_(skin),
       bodies_(std::move(share.bodies)) {
   if (skin > 0) {
-    agree(comm, options.algo != distributed::kLeanPath
+    agree(comm, options.algo != mpi::kLeanPath
                     ? "a skin works with the lean path (--algo arrays) only"
                     : "");
-    tracker_ = std::make_unique<distributed::PairTracker>(domain_, skin);
+    tracker_ = std::make_unique<mpi::PairTracker>(domain_, skin);
   }
   // A test hook: BROADPHASE_MPI_FAIL=RANK:FRAME[:abort] makes that rank
   // throw at that frame, inside an agreed phase or (abort) outside one.
@@ -148,12 +148,12 @@ MpiReplay::MpiReplay(MPI_Comm comm, Share share, const distributed::Options& opt
 }
 
 Objects MpiReplay::view() const {
-  return distributed::shapes_view(bodies_.empty() ? nullptr : &bodies_[0].shape, bodies_.size(),
-                                  static_cast<std::ptrdiff_t>(sizeof(Body)));
+  return mpi::shapes_view(bodies_.empty() ? nullptr : &bodies_[0].shape, bodies_.size(),
+                          static_cast<std::ptrdiff_t>(sizeof(Body)));
 }
 
 void MpiReplay::migrate(FrameReport& r) {
-  const distributed::Stats before = domain_.stats();
+  const mpi::Stats before = domain_.stats();
   domain_.migrate(bodies_, [](const Body& b) { return b.shape.center; });
   r.stats.bytes_sent += domain_.stats().bytes_sent - before.bytes_sent;
   r.stats.messages_sent += domain_.stats().messages_sent - before.messages_sent;
@@ -188,8 +188,8 @@ FrameReport MpiReplay::next() {
   std::uint64_t first = overflow;
   MPI_Allreduce(&overflow, &first, 1, MPI_UINT64_T, MPI_MIN, comm);
   if (first != std::numeric_limits<std::uint64_t>::max())
-    throw DistributedError("frame " + std::to_string(frame_) + ": object " + std::to_string(first) +
-                           " moves beyond the range of doubles (its motion overflows)");
+    throw MpiError("frame " + std::to_string(frame_) + ": object " + std::to_string(first) +
+                   " moves beyond the range of doubles (its motion overflows)");
   r.phases.step = since(t);
 
   // Migration to the owner of the new centre: an all-to-all, so an object
@@ -251,9 +251,9 @@ FrameReport MpiReplay::next() {
   }
   if (n_ == 0) want_xor = 0;
   if (global[0] != n_ || global[1] != want_sum || gx != want_xor || global[2] != 0)
-    throw DistributedError("frame " + std::to_string(frame_) + ": ownership check failed (" +
-                           std::to_string(global[0]) + " owned of " + std::to_string(n_) + ", " +
-                           std::to_string(global[2]) + " outside their owner's subdomain)");
+    throw MpiError("frame " + std::to_string(frame_) + ": ownership check failed (" +
+                   std::to_string(global[0]) + " owned of " + std::to_string(n_) + ", " +
+                   std::to_string(global[2]) + " outside their owner's subdomain)");
   r.owned = local[0];
   r.max_owned = most;
   r.phases.reduction = since(t);
@@ -263,7 +263,7 @@ FrameReport MpiReplay::next() {
     tracker_->find_pairs(ids_, view(), pairs_);
   else
     domain_.find_pairs(ids_, view(), pairs_);
-  const distributed::Stats& s = tracker_ ? tracker_->stats() : domain_.stats();
+  const mpi::Stats& s = tracker_ ? tracker_->stats() : domain_.stats();
   r.stats.owned = s.owned;
   r.stats.ghosts = s.ghosts;
   r.stats.shared = s.shared;
@@ -275,7 +275,7 @@ FrameReport MpiReplay::next() {
 
   t = std::chrono::steady_clock::now();
   FrameDigest mine;
-  for (const distributed::IdPair& p : pairs_) mine.add(p.a, p.b);
+  for (const mpi::IdPair& p : pairs_) mine.add(p.a, p.b);
   std::uint64_t d[2] = {mine.pairs, mine.hash}, sum[2];
   MPI_Allreduce(d, sum, 2, MPI_UINT64_T, MPI_SUM, comm);
   r.digest.pairs = sum[0];
@@ -313,10 +313,10 @@ FrameDigest MpiReplay::digest_through_arrays() {
   o.half_y = Column::of(hy.data());
   o.half_z = Column::of(hz.data());
   o.kind = kind.data();
-  std::vector<distributed::IdPair> pairs;
+  std::vector<mpi::IdPair> pairs;
   domain_.find_pairs(ids, o, pairs);
   FrameDigest mine;
-  for (const distributed::IdPair& p : pairs) mine.add(p.a, p.b);
+  for (const mpi::IdPair& p : pairs) mine.add(p.a, p.b);
   std::uint64_t d[2] = {mine.pairs, mine.hash}, sum[2];
   MPI_Allreduce(d, sum, 2, MPI_UINT64_T, MPI_SUM, domain_.comm());
   return {sum[0], sum[1]};

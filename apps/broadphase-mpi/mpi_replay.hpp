@@ -4,8 +4,8 @@
 // frame digest reduced over the ranks.
 #pragma once
 
-#include <broadphase/mpi.hpp>
 #include <broadphase/lab/scene.hpp>
+#include <broadphase/mpi.hpp>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -28,7 +28,7 @@ struct Share {
 };
 
 /// Collective. Rank 0 reads `path` and scatters it in blocks of ids; a bad
-/// file throws DistributedError (the reader's message) on every rank.
+/// file throws MpiError (the reader's message) on every rank.
 Share read_share(MPI_Comm comm, const std::string& path);
 /// Collective. Rank 0's `scene` scattered in blocks of ids (other ranks'
 /// argument is ignored).
@@ -46,7 +46,7 @@ struct Phases {
 struct FrameReport {
   FrameDigest digest;
   Phases phases;
-  distributed::Stats stats;  ///< the pair finding's, plus migration traffic
+  mpi::Stats stats;  ///< the pair finding's, plus migration traffic
   std::uint64_t owned = 0;
   std::uint64_t max_owned = 0;  ///< over the ranks
   bool rebalanced = false;
@@ -57,14 +57,14 @@ struct FrameReport {
 class MpiReplay {
  public:
   /// Collective. Balances (bisection) and sends every object to its owner.
-  /// `skin` > 0: frames go through distributed::PairTracker with that skin
+  /// `skin` > 0: frames go through mpi::PairTracker with that skin
   /// (world units), and objects migrate only on the frames it rebuilds.
-  MpiReplay(MPI_Comm comm, Share share, const distributed::Options& options, double skin = 0);
+  MpiReplay(MPI_Comm comm, Share share, const mpi::Options& options, double skin = 0);
 
   /// Collective. Evaluates the next frame: the pair count and hash of the
   /// whole world on every rank. Checks that every object is owned by
   /// exactly one rank (count, sum and xor of ids) and lies in its owner's
-  /// subdomain. Throws DistributedError on every rank on any failure.
+  /// subdomain. Throws MpiError on every rank on any failure.
   FrameReport next();
 
   /// Collective. The current frame's pairs found again through the
@@ -72,7 +72,7 @@ class MpiReplay {
   /// bodies), reduced over the ranks: a check of that entry point.
   FrameDigest digest_through_arrays();
 
-  const distributed::Domain& domain() const { return domain_; }
+  const mpi::Domain& domain() const { return domain_; }
   std::uint64_t size() const { return n_; }
   int frames_done() const { return frame_; }
 
@@ -82,12 +82,12 @@ class MpiReplay {
   Objects view() const;
   std::uint64_t n_;
   double world_;
-  distributed::Domain domain_;
+  mpi::Domain domain_;
   double skin_ = 0;
-  std::unique_ptr<distributed::PairTracker> tracker_;
+  std::unique_ptr<mpi::PairTracker> tracker_;
   std::vector<Body> bodies_;
   std::vector<std::uint32_t> ids_;
-  std::vector<distributed::IdPair> pairs_;
+  std::vector<mpi::IdPair> pairs_;
   int frame_ = 0;
   int fail_rank_ = -1, fail_frame_ = -1;
   bool fail_abort_ = false;

@@ -32,6 +32,7 @@
 
 #include <array>
 #include <broadphase/arrays/arrays.hpp>
+#include <broadphase/config_error.hpp>
 #include <broadphase/geometry.hpp>
 #include <cstddef>
 #include <cstdint>
@@ -43,16 +44,22 @@
 #include <type_traits>
 #include <vector>
 
-namespace broadphase::distributed {
+namespace broadphase::mpi {
 
 /// Thrown on every rank of the communicator at once, with the same message,
 /// when any rank failed during a collective call (bad input, a structure
-/// that threw, a grid thinner than the margin). Never one rank alone, so a
-/// caller that catches it can go on to MPI_Finalize without a hang.
-class DistributedError : public std::runtime_error {
+/// that threw). Never one rank alone, so a caller that catches it can go on
+/// to MPI_Finalize without a hang. Bad options (Options, the skin, the grid
+/// text of parse_dims) are InvalidConfig (config_error.hpp), as for every
+/// structure of the library.
+class MpiError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+/// The error's former name, kept so that existing code builds.
+using DistributedError [[deprecated("DistributedError is now broadphase::mpi::MpiError")]] =
+    MpiError;
 
 /// Two global ids whose objects overlap, a < b.
 struct IdPair {
@@ -191,7 +198,10 @@ class Domain {
  public:
   /// Collective. `world` is the box most objects live in (finite,
   /// non-empty); objects outside it are still handled exactly. Throws
-  /// DistributedError on every rank for bad dims or options.
+  /// InvalidConfig for a bad world box, bad dims or options (on every rank
+  /// given them: the checks read nothing but the arguments and the
+  /// communicator's size), among them a grid that does not fit the ranks
+  /// or makes subdomains thinner than the margin.
   Domain(MPI_Comm comm, const Aabb& world, Options options = {});
 
   int rank() const { return rank_; }
@@ -267,7 +277,7 @@ class Domain {
   /// Collective. Every overlapping pair among the objects of all ranks,
   /// the ones this rank is responsible for appended to `out` (a < b).
   /// Each pair of the world is reported on exactly one rank. Throws
-  /// DistributedError on every rank when any rank's input is invalid (the
+  /// MpiError on every rank when any rank's input is invalid (the
   /// message names the rank and the id) or any rank failed.
   void find_pairs(std::span<const std::uint32_t> ids, std::span<const Shape> shapes,
                   std::vector<IdPair>& out);
@@ -279,7 +289,7 @@ class Domain {
   /// What the last find_pairs did on this rank.
   const Stats& stats() const { return stats_; }
 
-  /// Collective. Throws DistributedError on every rank when any rank passes
+  /// Collective. Throws MpiError on every rank when any rank passes
   /// a non-empty `error`; the message is the lowest failing rank's, which
   /// names that rank. Returns normally when every `error` is empty.
   void agree(const std::string& error) const;
@@ -360,8 +370,8 @@ class Domain {
 class PairTracker {
  public:
   /// `skin` in world units, finite and >= 0 (0: a rebuild whenever an
-  /// object moves). Throws DistributedError otherwise (local, no message:
-  /// every rank passes the same value).
+  /// object moves). Throws InvalidConfig otherwise (local, no collective
+  /// call: every rank passes the same value).
   PairTracker(Domain& domain, double skin);
   ~PairTracker();
   PairTracker(const PairTracker&) = delete;
@@ -372,7 +382,7 @@ class PairTracker {
   /// beyond its skin on some rank, or new cuts.
   bool rebuild_due(const Objects& objects);
   /// Collective. As Domain::find_pairs: every overlapping pair of the
-  /// world once, on one rank; DistributedError on every rank for bad input.
+  /// world once, on one rank; MpiError on every rank for bad input.
   void find_pairs(std::span<const std::uint32_t> ids, const Objects& objects,
                   std::vector<IdPair>& out);
   /// What the last find_pairs did on this rank.
@@ -397,11 +407,16 @@ class PairTracker {
   std::unique_ptr<State> state_;
 };
 
-/// Collective over `comm`: throws DistributedError on every rank when any
+/// Collective over `comm`: throws MpiError on every rank when any
 /// rank passes a non-empty `error` (the lowest failing rank's message).
 void agree(MPI_Comm comm, const std::string& error);
 
-/// Parses "2x2x1" into grid dims (each >= 1). Throws std::invalid_argument.
+/// Parses "2x2x1" into grid dims (each >= 1). Throws InvalidConfig.
 std::array<int, 3> parse_dims(const std::string& text);
 
-}  // namespace broadphase::distributed
+}  // namespace broadphase::mpi
+
+namespace broadphase {
+/// The MPI part's former namespace, kept so that existing code builds.
+namespace distributed = mpi;
+}  // namespace broadphase

@@ -12,7 +12,7 @@
 
 #include "pair_rule.hpp"
 
-namespace broadphase::distributed {
+namespace broadphase::mpi {
 
 namespace {
 
@@ -46,10 +46,10 @@ void agree(MPI_Comm comm, const std::string& error) {
   MPI_Bcast(&length, 1, MPI_INT, lowest, comm);
   std::string message = rank == lowest ? error : std::string(static_cast<std::size_t>(length), ' ');
   MPI_Bcast(message.data(), length, MPI_CHAR, lowest, comm);
-  throw DistributedError(message);
+  throw MpiError(message);
 }
 
-void Domain::agree(const std::string& error) const { distributed::agree(comm_, error); }
+void Domain::agree(const std::string& error) const { mpi::agree(comm_, error); }
 
 Domain::Domain(MPI_Comm comm, const Aabb& world, Options options)
     : comm_(comm), world_(world), options_(std::move(options)) {
@@ -57,32 +57,32 @@ Domain::Domain(MPI_Comm comm, const Aabb& world, Options options)
   MPI_Comm_size(comm_, &size_);
   for (int a = 0; a < 3; ++a)
     if (!std::isfinite(world.lo[a]) || !std::isfinite(world.hi[a]) || !(world.lo[a] < world.hi[a]))
-      throw DistributedError("the world box must be finite and non-empty");
+      throw InvalidConfig("the world box must be finite and non-empty");
   if (!(options_.margin >= 0) || !std::isfinite(options_.margin))
-    throw DistributedError("the margin must be finite and >= 0");
+    throw InvalidConfig("the margin must be finite and >= 0");
   if (!(options_.rebalance_threshold >= 1))
-    throw DistributedError("the rebalance threshold must be >= 1");
-  if (options_.max_ghost_ranks < 1) throw DistributedError("max_ghost_ranks must be >= 1");
+    throw InvalidConfig("the rebalance threshold must be >= 1");
+  if (options_.max_ghost_ranks < 1) throw InvalidConfig("max_ghost_ranks must be >= 1");
   std::array<int, 3> dims = options_.dims;
   if (options_.decomposition == Decomposition::bisection) dims = {0, 0, 0};
   long given = 1;
   for (int d : dims) {
-    if (d < 0) throw DistributedError("grid dims must be >= 0");
+    if (d < 0) throw InvalidConfig("grid dims must be >= 0");
     if (d > 0) given *= d;
   }
   const bool free_dims = std::count(dims.begin(), dims.end(), 0) > 0;
   if ((free_dims && size_ % given != 0) || (!free_dims && given != size_))
-    throw DistributedError("a grid of " + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) +
-                           "x" + std::to_string(dims[2]) + " does not fit " +
-                           std::to_string(size_) + " ranks");
+    throw InvalidConfig("a grid of " + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) +
+                        "x" + std::to_string(dims[2]) + " does not fit " + std::to_string(size_) +
+                        " ranks");
   MPI_Dims_create(size_, 3, dims.data());
   for (int a = 0; a < 3; ++a) {
     const double width = (world.hi[a] - world.lo[a]) / dims[static_cast<std::size_t>(a)];
     if (width < options_.margin)
-      throw DistributedError("a grid of " + std::to_string(dims[0]) + "x" +
-                             std::to_string(dims[1]) + "x" + std::to_string(dims[2]) +
-                             " makes subdomains thinner than the margin " +
-                             std::to_string(options_.margin));
+      throw InvalidConfig("a grid of " + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) +
+                          "x" + std::to_string(dims[2]) +
+                          " makes subdomains thinner than the margin " +
+                          std::to_string(options_.margin));
   }
   options_.dims = dims;
   partition_ = Partition::grid(world_, dims);
@@ -246,7 +246,7 @@ void Domain::cut(std::span<const Shape> shapes, const std::vector<double>& w) {
                 " wide without a subdomain thinner than the margin " +
                 std::to_string(options_.margin);
     }
-    if (!error.empty()) throw DistributedError(error);  // the same on every rank
+    if (!error.empty()) throw MpiError(error);  // the same on every rank
     // Each round: per item, how many centres lie below a, in each bin of
     // [a, b), and at or above b; summed over the ranks.
     const std::size_t width = kBins + 2;
@@ -568,4 +568,4 @@ void Domain::find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count
   agree(error);
 }
 
-}  // namespace broadphase::distributed
+}  // namespace broadphase::mpi

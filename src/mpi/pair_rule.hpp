@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-namespace broadphase::distributed::detail {
+namespace broadphase::mpi::detail {
 
 // Appends pair (i, j) of `local` (ids apart in `ids`) to `out` when rank
 // `rank`'s subdomain holds max(lo_i, lo_j); `inside` says so without a
@@ -34,4 +34,4 @@ inline bool keep_pair(const Partition& partition, int rank, const GhostRecord* l
   return true;
 }
 
-}  // namespace broadphase::distributed::detail
+}  // namespace broadphase::mpi::detail

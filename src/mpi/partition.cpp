@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace broadphase::distributed {
+namespace broadphase::mpi {
 
 namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -133,18 +133,18 @@ std::array<int, 3> parse_dims(const std::string& text) {
       used = 0;
     }
     if (used == 0 || v < 1 || v > 1 << 20 || text[pos] == '+' || text[pos] == '-')
-      throw std::invalid_argument("grid '" + text + "': expected AxBxC with whole numbers >= 1");
+      throw InvalidConfig("grid '" + text + "': expected AxBxC with whole numbers >= 1");
     d[static_cast<std::size_t>(a)] = static_cast<int>(v);
     pos += used;
     if (a < 2) {
       if (pos >= text.size() || text[pos] != 'x')
-        throw std::invalid_argument("grid '" + text + "': expected AxBxC with whole numbers >= 1");
+        throw InvalidConfig("grid '" + text + "': expected AxBxC with whole numbers >= 1");
       ++pos;
     }
   }
   if (pos != text.size())
-    throw std::invalid_argument("grid '" + text + "': expected AxBxC with whole numbers >= 1");
+    throw InvalidConfig("grid '" + text + "': expected AxBxC with whole numbers >= 1");
   return d;
 }
 
-}  // namespace broadphase::distributed
+}  // namespace broadphase::mpi

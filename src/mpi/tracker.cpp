@@ -9,7 +9,7 @@
 
 #include "pair_rule.hpp"
 
-namespace broadphase::distributed {
+namespace broadphase::mpi {
 
 namespace {
 
@@ -67,8 +67,7 @@ struct PairTracker::State {
 
 PairTracker::PairTracker(Domain& domain, double skin)
     : domain_(domain), skin_(skin), state_(std::make_unique<State>()) {
-  if (!(skin >= 0) || !std::isfinite(skin))
-    throw DistributedError("the skin must be finite and >= 0");
+  if (!(skin >= 0) || !std::isfinite(skin)) throw InvalidConfig("the skin must be finite and >= 0");
 }
 
 PairTracker::~PairTracker() = default;
@@ -323,4 +322,4 @@ void PairTracker::refresh() {
   st.valid = true;
 }
 
-}  // namespace broadphase::distributed
+}  // namespace broadphase::mpi

@@ -1,16 +1,18 @@
 // Weighted bisection over 2 ranks (run under mpiexec -np 2): objects spread
 // evenly along x over [0, 100], weighing 3 below x = 50 and 1 above, must be
 // cut at x = 100/3 (half the weight on each side), at x = 50 by counts, and
-// bad weights must be refused on every rank. Exits non-zero on a failure.
+// bad weights must be refused on every rank; bad options are refused as
+// InvalidConfig on every rank. Exits non-zero on a failure.
 #include <mpi.h>
 
+#include <broadphase/config_error.hpp>
 #include <broadphase/mpi.hpp>
 #include <cmath>
 #include <cstdio>
 #include <string>
 #include <vector>
 
-namespace dist = broadphase::distributed;
+namespace dist = broadphase::mpi;
 using broadphase::Shape;
 
 namespace {
@@ -69,7 +71,7 @@ int main(int argc, char** argv) {
     try {
       d.balance(shapes, bad);
       expect(false, "a negative weight was accepted", rank);
-    } catch (const dist::DistributedError& e) {
+    } catch (const dist::MpiError& e) {
       const std::string m = e.what();
       expect(m.find("rank " + std::to_string(size - 1)) != std::string::npos &&
                  m.find("weight") != std::string::npos,
@@ -78,10 +80,40 @@ int main(int argc, char** argv) {
     try {
       d.balance(shapes, std::span<const double>(weights.data(), rank == 0 ? 1 : weights.size()));
       expect(false, "weights of the wrong count were accepted", rank);
-    } catch (const dist::DistributedError& e) {
+    } catch (const dist::MpiError& e) {
       expect(std::string(e.what()).find("weights for") != std::string::npos,
              std::string("message names the count: ") + e.what(), rank);
     }
+  }
+  {
+    // Bad options are an InvalidConfig, on every rank, with their message.
+    auto refused = [&](const std::string& what, const std::string& message, auto make) {
+      try {
+        make();
+        expect(false, what + ": accepted", rank);
+      } catch (const broadphase::InvalidConfig& e) {
+        expect(std::string(e.what()).find(message) != std::string::npos,
+               what + ": message " + e.what(), rank);
+      } catch (const std::exception& e) {
+        expect(false, what + ": not an InvalidConfig: " + e.what(), rank);
+      }
+    };
+    const broadphase::Aabb world{{0, 0, 0}, {100, 100, 100}};
+    dist::Options o;
+    o.margin = std::nan("");
+    refused("a NaN margin", "the margin must be finite and >= 0",
+            [&] { dist::Domain bad(MPI_COMM_WORLD, world, o); });
+    o = {};
+    o.dims = {size + 1, 1, 1};
+    refused("a grid that does not fit", "does not fit",
+            [&] { dist::Domain bad(MPI_COMM_WORLD, world, o); });
+    o = {};
+    o.max_ghost_ranks = 0;
+    refused("no ghost rank", "max_ghost_ranks must be >= 1",
+            [&] { dist::Domain bad(MPI_COMM_WORLD, world, o); });
+    dist::Domain d(MPI_COMM_WORLD, world);
+    refused("a negative skin", "the skin must be finite and >= 0",
+            [&] { dist::PairTracker bad(d, -1); });
   }
   int all = 0;
   MPI_Allreduce(&failures, &all, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);

@@ -3,10 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <broadphase/config_error.hpp>
 #include <broadphase/mpi.hpp>
+#include <string>
 #include <vector>
 
-namespace broadphase::distributed {
+namespace broadphase::mpi {
 namespace {
 
 TEST(Partition, RegionsHoldExactlyThePointsTheirOwnerIsGiven) {
@@ -40,5 +42,20 @@ TEST(Partition, AnObjectReachesTheOwnerOfItsCentreAndOfAnyPairPoint) {
   EXPECT_NE(std::find(ra.begin(), ra.end(), p.owner(a.center)), ra.end());
 }
 
+TEST(Partition, GridTextIsParsedAndABadOneIsAnInvalidConfig) {
+  EXPECT_EQ(parse_dims("2x3x1"), (std::array<int, 3>{2, 3, 1}));
+  for (const char* bad : {"", "2x2", "2x2x0", "2x-1x1", "2x2x1x", "axbxc", "2x2x1 "}) {
+    try {
+      parse_dims(bad);
+      ADD_FAILURE() << "'" << bad << "' was accepted";
+    } catch (const InvalidConfig& e) {
+      EXPECT_EQ(std::string(e.what()),
+                "grid '" + std::string(bad) + "': expected AxBxC with whole numbers >= 1");
+    }
+  }
+  // The former namespace still names the same functions.
+  EXPECT_EQ(broadphase::distributed::parse_dims("1x1x4"), (std::array<int, 3>{1, 1, 4}));
+}
+
 }  // namespace
-}  // namespace broadphase::distributed
+}  // namespace broadphase::mpi
