@@ -3,7 +3,7 @@
 #include <benchmark/benchmark.h>
 
 #include <broadphase/grid_verlet.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <string>
 #include <vector>
 

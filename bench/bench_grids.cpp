@@ -4,9 +4,9 @@
 //   broadphase_bench --benchmark_filter='Frame.*even' --benchmark_repetitions=5
 #include <benchmark/benchmark.h>
 
-#include <broadphase/lab/replay.hpp>
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/replay.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <memory>
 #include <string>
 

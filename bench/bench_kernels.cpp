@@ -2,9 +2,9 @@
 #include <benchmark/benchmark.h>
 
 #include <broadphase/geometry.hpp>
-#include <broadphase/lab/replay.hpp>
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/naive.hpp>
+#include <broadphase/scenes/replay.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <vector>
 
 namespace {

@@ -3,10 +3,10 @@
 #include <benchmark/benchmark.h>
 
 #include <broadphase/kdtree.hpp>
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/octree.hpp>
 #include <broadphase/octree_linear.hpp>
 #include <broadphase/octree_loose.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cstdint>
 #include <vector>
 

@@ -3,8 +3,8 @@
 // structure on the study's 6400-object uneven scene.
 #include <benchmark/benchmark.h>
 
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/naive.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <broadphase/study/hgrid_paper.hpp>
 #include <broadphase/study/octree_paper.hpp>
 #include <vector>

@@ -3,8 +3,8 @@
 #include <benchmark/benchmark.h>
 
 #include <broadphase/detail/pair_table.hpp>
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <string>
 #include <vector>
 

@@ -2,7 +2,7 @@
 // SceneError, never crash or hang; a scene that parses is written and read
 // back to the same doubles (the format's exact round trip), and names its
 // objects' shapes validly.
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>

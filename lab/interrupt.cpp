@@ -8,7 +8,7 @@
 #include <unistd.h>
 
 #include <atomic>
-#include <broadphase/lab/output_file.hpp>
+#include <broadphase/scenes/output_file.hpp>
 #include <cerrno>
 #include <cstring>
 #include <ctime>

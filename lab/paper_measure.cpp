@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <broadphase/arrays/arrays.hpp>
-#include <broadphase/lab/array_caller.hpp>
-#include <broadphase/lab/replay.hpp>
+#include <broadphase/scenes/array_caller.hpp>
+#include <broadphase/scenes/replay.hpp>
 #include <chrono>
 #include <numeric>
 #include <stdexcept>

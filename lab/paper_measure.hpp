@@ -2,8 +2,8 @@
 // memory, and the frame an engine runs, with the pair hash of every frame.
 #pragma once
 
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cstdint>
 #include <functional>
 #include <string>

@@ -3,7 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <broadphase/lab/output_file.hpp>
+#include <broadphase/scenes/output_file.hpp>
 #include <cmath>
 #include <cstdio>
 #include <ctime>

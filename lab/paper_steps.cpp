@@ -1,6 +1,6 @@
 #include "paper_steps.hpp"
 
-#include <broadphase/lab/output_file.hpp>
+#include <broadphase/scenes/output_file.hpp>
 #include <fstream>
 #include <stdexcept>
 

@@ -2,10 +2,10 @@
 // contacts that the exact swept-sphere ground truth finds; `swept` misses none.
 #include <gtest/gtest.h>
 
-#include <broadphase/lab/ccd.hpp>
-#include <broadphase/lab/sim.hpp>
 #include <broadphase/naive.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/ccd.hpp>
+#include <broadphase/scenes/sim.hpp>
 #include <cmath>
 
 #include "testing.hpp"

@@ -4,8 +4,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <broadphase/lab/excerpt.hpp>
-#include <broadphase/lab/output_file.hpp>
+#include <broadphase/scenes/excerpt.hpp>
+#include <broadphase/scenes/output_file.hpp>
 #include <broadphase/version.hpp>
 #include <filesystem>
 #include <fstream>

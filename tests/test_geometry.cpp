@@ -4,7 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <broadphase/geometry.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cmath>
 #include <limits>
 #include <random>

@@ -3,7 +3,7 @@
 
 #include <algorithm>
 #include <broadphase/grid_hashed.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <vector>
 
 #include "structure_testing.hpp"

@@ -4,7 +4,7 @@
 
 #include <algorithm>
 #include <broadphase/grid_implicit.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <vector>
 
 #include "structure_testing.hpp"

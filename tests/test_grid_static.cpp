@@ -4,7 +4,7 @@
 
 #include <algorithm>
 #include <broadphase/grid_static.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <string>
 #include <vector>
 

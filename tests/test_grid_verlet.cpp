@@ -7,9 +7,9 @@
 #include <algorithm>
 #include <broadphase/fast_grid.hpp>  // the deprecated names, tested below
 #include <broadphase/grid_verlet.hpp>
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/naive.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <broadphase/sort_sweep.hpp>
 #include <cmath>
 #include <cstdint>

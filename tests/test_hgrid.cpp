@@ -4,7 +4,7 @@
 
 #include <algorithm>
 #include <broadphase/hgrid.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cmath>
 #include <vector>
 

@@ -2,9 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/naive.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <utility>
 #include <vector>
 

@@ -3,8 +3,8 @@
 
 #include <algorithm>
 #include <broadphase/detail/pair_table.hpp>
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/pair_cache.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <set>
 
 namespace broadphase {

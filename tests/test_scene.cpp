@@ -2,7 +2,7 @@
 // contract's motion step, the pair hash, and the study's generator.
 #include <gtest/gtest.h>
 
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cstring>
 #include <limits>
 #include <sstream>

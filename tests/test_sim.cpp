@@ -3,9 +3,9 @@
 // structure.
 #include <gtest/gtest.h>
 
-#include <broadphase/lab/ccd.hpp>
-#include <broadphase/lab/sim.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/ccd.hpp>
+#include <broadphase/scenes/sim.hpp>
 #include <cmath>
 
 #include "testing.hpp"

@@ -1,8 +1,8 @@
 // WitnessCache: exact yes/no answers, and hits under coherent motion.
 #include <gtest/gtest.h>
 
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/naive.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <broadphase/witness_cache.hpp>
 
 #include "testing.hpp"

@@ -14,11 +14,11 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <broadphase/lab/generate.hpp>
-#include <broadphase/lab/replay.hpp>
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/mpi.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/generate.hpp>
+#include <broadphase/scenes/replay.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>

@@ -1,6 +1,6 @@
 #include "mpi_replay.hpp"
 
-#include <broadphase/lab/generate.hpp>
+#include <broadphase/scenes/generate.hpp>
 #include <chrono>
 #include <cstdlib>
 #include <exception>

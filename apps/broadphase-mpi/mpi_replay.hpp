@@ -4,8 +4,8 @@
 // frame digest reduced over the ranks.
 #pragma once
 
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/mpi.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cstdint>
 #include <memory>
 #include <string>

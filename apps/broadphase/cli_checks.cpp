@@ -1,6 +1,6 @@
 #include "cli_checks.hpp"
 
-#include <broadphase/lab/excerpt.hpp>
+#include <broadphase/scenes/excerpt.hpp>
 #include <charconv>
 #include <cmath>
 #include <cstdint>

@@ -1,7 +1,7 @@
 // `advise`: times the candidate structures briefly on the user's scene and
 // recommends the fastest one whose pairs agree with the others.
 #include <CLI/CLI.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>

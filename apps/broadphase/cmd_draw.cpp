@@ -7,9 +7,9 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <array>
-#include <broadphase/lab/output_file.hpp>
-#include <broadphase/lab/scene.hpp>
-#include <broadphase/lab/sim.hpp>
+#include <broadphase/scenes/output_file.hpp>
+#include <broadphase/scenes/scene.hpp>
+#include <broadphase/scenes/sim.hpp>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>

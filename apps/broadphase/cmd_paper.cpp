@@ -5,7 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <broadphase/lab/output_file.hpp>
+#include <broadphase/scenes/output_file.hpp>
 #include <chrono>
 #include <cmath>
 #include <cstdio>

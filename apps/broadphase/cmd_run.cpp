@@ -1,8 +1,8 @@
 // `list`, `run` and `gen`: the structures, the replay contract, and scenes.
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <broadphase/lab/replay.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/replay.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>

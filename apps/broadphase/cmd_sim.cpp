@@ -2,8 +2,8 @@
 // measures the contacts a discrete step misses.
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <broadphase/lab/scene.hpp>
-#include <broadphase/lab/sim.hpp>
+#include <broadphase/scenes/scene.hpp>
+#include <broadphase/scenes/sim.hpp>
 #include <cmath>
 #include <cstdio>
 #include <memory>

@@ -1,6 +1,6 @@
 // broadphase: the command line of the library and its lab.
 #include <CLI/CLI.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <broadphase/version.hpp>
 #include <cstdio>
 #include <exception>

@@ -2,8 +2,8 @@
 // (PairTracker over the scene's objects held as the caller's arrays),
 // printing the same `frame pairs hash` lines as any structure.
 #include <broadphase/arrays/arrays.hpp>
-#include <broadphase/lab/array_caller.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/array_caller.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <chrono>
 #include <cstdint>
 #include <cstdio>

@@ -16,10 +16,10 @@
 // finds the movers itself) instead of passing the movers' indices.
 #include <algorithm>
 #include <broadphase/arrays/arrays.hpp>
-#include <broadphase/lab/array_caller.hpp>
-#include <broadphase/lab/replay.hpp>
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/array_caller.hpp>
+#include <broadphase/scenes/replay.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>

@@ -5,8 +5,8 @@
 
 #include <broadphase/geometry.hpp>
 #include <broadphase/handle.hpp>
-#include <broadphase/lab/replay.hpp>
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/naive.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/replay.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <broadphase/structure.hpp>

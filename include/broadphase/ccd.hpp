@@ -1,9 +1,9 @@
 /// \file ccd.hpp
 /// Deprecated forwarding header, kept so that existing code builds: include
-/// <broadphase/lab/ccd.hpp> instead. Define BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
+/// <broadphase/scenes/ccd.hpp> instead. Define BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
 /// to silence the warning.
 #pragma once
 #ifndef BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
-#pragma GCC warning "<broadphase/ccd.hpp> is deprecated: include <broadphase/lab/ccd.hpp>"
+#pragma GCC warning "<broadphase/ccd.hpp> is deprecated: include <broadphase/scenes/ccd.hpp>"
 #endif
-#include <broadphase/lab/ccd.hpp>
+#include <broadphase/scenes/ccd.hpp>

@@ -1,9 +1,9 @@
 /// \file replay.hpp
 /// Deprecated forwarding header, kept so that existing code builds: include
-/// <broadphase/lab/replay.hpp> instead. Define BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
+/// <broadphase/scenes/replay.hpp> instead. Define BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
 /// to silence the warning.
 #pragma once
 #ifndef BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
-#pragma GCC warning "<broadphase/replay.hpp> is deprecated: include <broadphase/lab/replay.hpp>"
+#pragma GCC warning "<broadphase/replay.hpp> is deprecated: include <broadphase/scenes/replay.hpp>"
 #endif
-#include <broadphase/lab/replay.hpp>
+#include <broadphase/scenes/replay.hpp>

@@ -1,9 +1,9 @@
 /// \file scene.hpp
 /// Deprecated forwarding header, kept so that existing code builds: include
-/// <broadphase/lab/scene.hpp> instead. Define BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
+/// <broadphase/scenes/scene.hpp> instead. Define BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
 /// to silence the warning.
 #pragma once
 #ifndef BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
-#pragma GCC warning "<broadphase/scene.hpp> is deprecated: include <broadphase/lab/scene.hpp>"
+#pragma GCC warning "<broadphase/scene.hpp> is deprecated: include <broadphase/scenes/scene.hpp>"
 #endif
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>

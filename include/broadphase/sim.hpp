@@ -1,9 +1,9 @@
 /// \file sim.hpp
 /// Deprecated forwarding header, kept so that existing code builds: include
-/// <broadphase/lab/sim.hpp> instead. Define BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
+/// <broadphase/scenes/sim.hpp> instead. Define BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
 /// to silence the warning.
 #pragma once
 #ifndef BROADPHASE_NO_DEPRECATED_HEADER_WARNINGS
-#pragma GCC warning "<broadphase/sim.hpp> is deprecated: include <broadphase/lab/sim.hpp>"
+#pragma GCC warning "<broadphase/sim.hpp> is deprecated: include <broadphase/scenes/sim.hpp>"
 #endif
-#include <broadphase/lab/sim.hpp>
+#include <broadphase/scenes/sim.hpp>

@@ -2,7 +2,7 @@
 // peer adapter in the build, on the targets of the performance work, plus
 // one thread against two and the query/insert/remove micro-timings.
 #include <algorithm>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cmath>
 #include <cstdio>
 #include <fstream>

@@ -3,8 +3,8 @@
 // with the automatic choice marked.
 #include <algorithm>
 #include <broadphase/grid_hashed.hpp>
-#include <broadphase/lab/replay.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/replay.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <chrono>
 #include <cmath>
 #include <cstdio>

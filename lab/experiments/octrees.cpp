@@ -4,9 +4,9 @@
 // the machine's noise hits them alike.
 #include <algorithm>
 #include <broadphase/kdtree.hpp>
-#include <broadphase/lab/replay.hpp>
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/replay.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <chrono>
 #include <cstdio>
 #include <fstream>

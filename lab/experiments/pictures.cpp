@@ -1,6 +1,6 @@
 // Lab section: pictures of the study's two placements (its figures 2.8 and
 // 2.9: side and 3D views) and of how the study's structures divide them.
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <filesystem>
 #include <string>
 #include <vector>

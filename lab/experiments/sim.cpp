@@ -2,8 +2,8 @@
 // frames, and the cost of a frame, for the three ways of finding contacts,
 // on a scene made to tunnel and on the study's workload.
 #include <algorithm>
-#include <broadphase/lab/scene.hpp>
-#include <broadphase/lab/sim.hpp>
+#include <broadphase/scenes/scene.hpp>
+#include <broadphase/scenes/sim.hpp>
 #include <chrono>
 #include <cmath>
 #include <cstdio>

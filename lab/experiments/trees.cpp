@@ -3,8 +3,8 @@
 // sweep-and-prune under coherent and incoherent motion.
 #include <algorithm>
 #include <broadphase/aabb_tree.hpp>
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <broadphase/witness_cache.hpp>
 #include <cstdio>
 #include <ctime>

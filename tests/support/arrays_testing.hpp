@@ -5,7 +5,7 @@
 
 #include <algorithm>
 #include <broadphase/arrays/arrays.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cmath>
 #include <cstdint>
 #include <vector>

@@ -4,8 +4,8 @@
 
 #include <algorithm>
 #include <barrier>
-#include <broadphase/lab/replay.hpp>
 #include <broadphase/naive.hpp>
+#include <broadphase/scenes/replay.hpp>
 #include <cctype>
 #include <cmath>
 #include <filesystem>

@@ -2,8 +2,8 @@
 // harness that drives any structure and the naive oracle side by side.
 #pragma once
 
-#include <broadphase/lab/scene.hpp>
 #include <broadphase/registry.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
 #include <functional>

@@ -4,9 +4,9 @@
 
 #include <broadphase/registry.hpp>
 // A commit from before the lab headers moved has them at the top level.
-#if __has_include(<broadphase/lab/replay.hpp>)
-#include <broadphase/lab/replay.hpp>
-#include <broadphase/lab/scene.hpp>
+#if __has_include(<broadphase/scenes/replay.hpp>)
+#include <broadphase/scenes/replay.hpp>
+#include <broadphase/scenes/scene.hpp>
 #else
 #include <broadphase/replay.hpp>
 #include <broadphase/scene.hpp>

@@ -3,7 +3,7 @@
 /// says: frame 0 at the file's positions, then move, update, find pairs.
 #pragma once
 
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
 #include <vector>

@@ -1,4 +1,4 @@
-#include <broadphase/lab/array_caller.hpp>
+#include <broadphase/scenes/array_caller.hpp>
 #include <cmath>
 #include <cstdint>
 

@@ -1,4 +1,4 @@
-#include <broadphase/lab/replay.hpp>
+#include <broadphase/scenes/replay.hpp>
 #include <chrono>
 #include <string>
 

@@ -1,8 +1,8 @@
 #include <sys/stat.h>
 
-#include <broadphase/lab/excerpt.hpp>
-#include <broadphase/lab/output_file.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/excerpt.hpp>
+#include <broadphase/scenes/output_file.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cerrno>
 #include <charconv>
 #include <cmath>

@@ -7,7 +7,7 @@
 #pragma once
 
 #include <broadphase/arrays/arrays.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cstddef>
 #include <cstdint>
 #include <vector>

@@ -1,4 +1,4 @@
-#include <broadphase/lab/ccd.hpp>
+#include <broadphase/scenes/ccd.hpp>
 #include <cmath>
 
 namespace broadphase {

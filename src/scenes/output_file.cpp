@@ -4,7 +4,7 @@
 
 #include <array>
 #include <atomic>
-#include <broadphase/lab/output_file.hpp>
+#include <broadphase/scenes/output_file.hpp>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>

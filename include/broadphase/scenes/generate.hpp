@@ -9,7 +9,7 @@
 #pragma once
 
 #include <broadphase/geometry.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <cstdint>
 #include <vector>
 

@@ -1,6 +1,6 @@
 #include <algorithm>
-#include <broadphase/lab/ccd.hpp>
-#include <broadphase/lab/sim.hpp>
+#include <broadphase/scenes/ccd.hpp>
+#include <broadphase/scenes/sim.hpp>
 #include <chrono>
 #include <cmath>
 #include <limits>

@@ -1,6 +1,6 @@
 // Counter-based generation: one short splitmix64 stream per object, seeded
 // by the scene's seed and the object's index.
-#include <broadphase/lab/generate.hpp>
+#include <broadphase/scenes/generate.hpp>
 #include <cmath>
 #include <stdexcept>
 #include <string>

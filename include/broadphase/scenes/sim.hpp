@@ -20,7 +20,7 @@
 #pragma once
 
 #include <broadphase/geometry.hpp>
-#include <broadphase/lab/scene.hpp>
+#include <broadphase/scenes/scene.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
 #include <memory>
