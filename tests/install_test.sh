@@ -22,6 +22,10 @@ touches 2
 touches 3
 3 narrow-phase tests'
 if [ "$out" != "$expected" ]; then echo "0 passed, 1 failed"; exit 1; fi
+if [ "$("$tmp/consumer/quickstart_old_names")" != "$expected" ]; then
+  echo "broadphase::lab (the former name of broadphase::scenes) no longer links"
+  echo "0 passed, 1 failed"; exit 1
+fi
 if [ "$mpi" = ON ]; then
   # Bounded: an MPI program that hangs fails the test instead.
   out=$(OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 timeout 120 \
