@@ -3,7 +3,7 @@
 
 Usage: draw.py DATA.json
 
-The JSON (written by apps/broadphase/cmd_draw.cpp) holds the scene's
+The JSON (written by lab/draw.cpp) holds the scene's
 objects, optionally the cells of a structure, optionally recorded
 simulation runs, and where to write the picture (.png, .svg or .gif).
 """

@@ -44,14 +44,14 @@ struct DrawOptions {
 
 /// Renders one picture through tools/draw.py. Throws UsageError for bad
 /// options and std::runtime_error when no picture could be written.
-void draw(const DrawOptions& o);  // cmd_draw.cpp
+void draw(const DrawOptions& o);  // lab/draw.cpp
 
 void add_list_command(CLI::App& app);    // cmd_run.cpp
 void add_run_command(CLI::App& app);     // cmd_run.cpp
 void add_gen_command(CLI::App& app);     // cmd_run.cpp
-void add_paper_command(CLI::App& app);   // cmd_paper.cpp (the lab)
+void add_paper_command(CLI::App& app);   // lab/paper.cpp (the lab)
 void add_sim_command(CLI::App& app);     // cmd_sim.cpp
-void add_draw_command(CLI::App& app);    // cmd_draw.cpp
+void add_draw_command(CLI::App& app);    // lab/draw.cpp
 void add_advise_command(CLI::App& app);  // cmd_advise.cpp
 
 /// `run --arrays`: replays a scene through PairTracker (arrays.hpp) and
