@@ -1,9 +1,10 @@
-// `paper`: the lab. Runs the study's six tests, memory and the engine frame
-// on every structure, checks that all of them agree on every pair, and
-// writes CSV, JSON, figures and REPORT.md.
+// The lab's main job, `broadphase paper` (paper.hpp): runs the study's six
+// tests, memory and the engine frame on every structure, checks that all of
+// them agree on every pair, and writes CSV, JSON, figures and REPORT.md.
+#include "paper.hpp"
+
 #include <unistd.h>
 
-#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <broadphase/scenes/output_file.hpp>
 #include <chrono>
@@ -14,8 +15,6 @@
 #include <map>
 #include <optional>
 
-#include "cli_checks.hpp"
-#include "commands.hpp"
 #include "experiment.hpp"
 #include "interrupt.hpp"
 #include "lab.hpp"
@@ -23,6 +22,8 @@
 #include "paper_report.hpp"
 #include "paper_steps.hpp"
 #include "progress.hpp"
+#include "structures.hpp"
+#include "usage_error.hpp"
 
 namespace broadphase::app {
 
@@ -30,18 +31,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-struct PaperOptions {
-  bool quick = false;
-  std::string out;
-  std::vector<std::string> algos;
-  std::size_t max_n = 0;
-  bool max_n_given = false;
-  std::uint64_t seed = 1;
-  double budget = 0;
-  bool peers = true;
-  std::string resume;  ///< --resume DIR: the other options come from DIR's state
-};
 
 // The options a resumed run reads back from its state file.
 nlohmann::json options_json(const PaperOptions& o) {
@@ -53,21 +42,6 @@ nlohmann::json options_json(const PaperOptions& o) {
           {"seed", o.seed},
           {"budget", o.budget},
           {"peers", o.peers}};
-}
-
-void apply_recorded_options(PaperOptions& o, const nlohmann::json& j) {
-  try {
-    j.at("quick").get_to(o.quick);
-    j.at("algos").get_to(o.algos);
-    j.at("max_n").get_to(o.max_n);
-    j.at("max_n_given").get_to(o.max_n_given);
-    j.at("seed").get_to(o.seed);
-    j.at("budget").get_to(o.budget);
-    j.at("peers").get_to(o.peers);
-  } catch (const nlohmann::json::exception& e) {
-    throw std::runtime_error(o.resume + ": the recorded options are damaged (" + e.what() + ")");
-  }
-  o.out = o.resume;
 }
 
 struct Selected {
@@ -631,6 +605,23 @@ void finish(Run& run) {
   if (run.experiment_failed) throw std::runtime_error("an experiment failed (see REPORT.md)");
 }
 
+}  // namespace
+
+void apply_recorded_options(PaperOptions& o, const nlohmann::json& j) {
+  try {
+    j.at("quick").get_to(o.quick);
+    j.at("algos").get_to(o.algos);
+    j.at("max_n").get_to(o.max_n);
+    j.at("max_n_given").get_to(o.max_n_given);
+    j.at("seed").get_to(o.seed);
+    j.at("budget").get_to(o.budget);
+    j.at("peers").get_to(o.peers);
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error(o.resume + ": the recorded options are damaged (" + e.what() + ")");
+  }
+  o.out = o.resume;
+}
+
 // The lab, step by step: each step runs in one place, here.
 void run_paper(const PaperOptions& o) {
   Run run(o);
@@ -644,44 +635,6 @@ void run_paper(const PaperOptions& o) {
   draw_figures(run);
   write_report(run);
   finish(run);
-}
-
-}  // namespace
-
-void add_paper_command(CLI::App& app) {
-  auto* cmd = app.add_subcommand(
-      "paper", "Run the study's tests on every structure and write results, figures and REPORT.md");
-  auto o = std::make_shared<PaperOptions>();
-  auto* quick = cmd->add_flag("--quick", o->quick,
-                              "Small sizes and few repetitions: under a minute (what CI runs)");
-  auto* out = cmd->add_option("--out", o->out, "Output directory (default results/<date>-<host>/)");
-  auto* algos =
-      cmd->add_option("--algos", o->algos,
-                      "Structures to run, comma-separated, with options as name:key=value,... "
-                      "(default: every registered structure, and `arrays`, the lean path over "
-                      "the caller's arrays, in the frame time and memory)");
-  auto* max_n =
-      cmd->add_option("--max-n", o->max_n, "Largest number of objects to run (at least 50)")
-          ->check(whole_number());
-  auto* seed = cmd->add_option("--seed", o->seed, "Random seed of the scenes")
-                   ->default_val(1)
-                   ->check(whole_number());
-  auto* budget =
-      cmd->add_option("--budget", o->budget,
-                      "Seconds the whole run should take at most (default 1200, 35 with --quick); "
-                      "structures whose projected time does not fit are skipped at large sizes");
-  auto* peers =
-      cmd->add_flag("--peers,!--no-peers", o->peers, "Include the peer libraries (default: yes)");
-  cmd->add_option("--resume", o->resume,
-                  "Finish the interrupted run in DIR with its options, without redoing the steps "
-                  "it has done (paper-state.json and RUN-INCOMPLETE in DIR say which)")
-      ->type_name("DIR")
-      ->excludes(quick, out, algos, max_n, seed, budget, peers);
-  cmd->callback([o, max_n] {
-    o->max_n_given = max_n->count() > 0;
-    if (!o->resume.empty()) apply_recorded_options(*o, PaperSteps::recorded_options(o->resume));
-    run_paper(*o);
-  });
 }
 
 }  // namespace broadphase::app

@@ -5,10 +5,10 @@
 #include <broadphase/naive.hpp>
 #include <broadphase/registry.hpp>
 
-#include "commands.hpp"
 #include "paper_measure.hpp"
 #include "paper_report.hpp"
 #include "progress.hpp"
+#include "structures.hpp"
 
 namespace broadphase::app {
 namespace {

@@ -10,18 +10,8 @@
 
 #include "cli_checks.hpp"
 #include "commands.hpp"
-#include "peers/peers.hpp"
 
 namespace broadphase::app {
-
-const Registry& registry() {
-  static const Registry r = [] {
-    Registry reg = Registry::library();
-    register_peers(reg);
-    return reg;
-  }();
-  return r;
-}
 
 void add_list_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("list", "List the structures (name, then a one-line description)");

@@ -12,9 +12,9 @@
 #include <thread>
 #include <vector>
 
-#include "commands.hpp"
 #include "experiment.hpp"
 #include "lab_data.hpp"
+#include "structures.hpp"
 #include "timing.hpp"
 
 namespace broadphase::app {

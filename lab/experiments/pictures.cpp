@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "commands.hpp"
+#include "draw.hpp"
 #include "experiment.hpp"
 
 namespace broadphase::app {

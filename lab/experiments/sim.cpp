@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "commands.hpp"
 #include "experiment.hpp"
+#include "structures.hpp"
 
 namespace broadphase::app {
 

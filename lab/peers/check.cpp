@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "commands.hpp"
+#include "structures.hpp"
 #include "testing.hpp"
 
 int main(int argc, char** argv) {

@@ -1,5 +1,5 @@
 # Adapters for the peer libraries. Each is compiled only when its library is
-# found; the library target never depends on them, only the CLI does.
+# found; the library target never depends on them, only the lab does.
 set(BROADPHASE_PEERS_FOUND "")
 
 find_package(PkgConfig QUIET)
@@ -10,13 +10,13 @@ endif()
 find_package(fcl QUIET)
 find_package(CGAL QUIET)
 
-# broadphase_add_peer(NAME SOURCE TARGET...): builds one adapter into
-# broadphase_app. Each adapter is an object library of its own so that its
+# broadphase_add_peer(NAME SOURCE TARGET...): builds one adapter into the
+# lab (broadphase_lab_program). Each adapter is an object library of its own so that its
 # library's compile flags (CGAL adds -frounding-math) stay on its own file.
 function(broadphase_add_peer name source)
   add_library(broadphase_peer_${name} OBJECT ${CMAKE_CURRENT_LIST_DIR}/${source})
   target_link_libraries(broadphase_peer_${name} PRIVATE broadphase broadphase_warnings ${ARGN})
-  target_link_libraries(broadphase_app PRIVATE broadphase_peer_${name})
+  target_link_libraries(broadphase_lab_program PRIVATE broadphase_peer_${name})
   string(TOUPPER ${name} upper)
   set_property(SOURCE ${CMAKE_CURRENT_LIST_DIR}/register.cpp APPEND PROPERTY
                COMPILE_DEFINITIONS BROADPHASE_HAVE_${upper})
@@ -41,5 +41,5 @@ message(STATUS "broadphase: peer adapters:${BROADPHASE_PEERS_FOUND}")
 # operations, validate() after each), run by tests/peers_test.sh.
 if(BROADPHASE_BUILD_TESTS)
   add_executable(peers_check ${CMAKE_CURRENT_LIST_DIR}/check.cpp)
-  target_link_libraries(peers_check PRIVATE broadphase_app broadphase_testing broadphase_warnings)
+  target_link_libraries(peers_check PRIVATE broadphase_lab_program broadphase_testing broadphase_warnings)
 endif()
