@@ -15,6 +15,7 @@
 #include <map>
 #include <optional>
 
+#include "budget.hpp"
 #include "experiment.hpp"
 #include "interrupt.hpp"
 #include "lab.hpp"
@@ -266,12 +267,20 @@ struct Run {
   ProgressBar bar;
   Clock::time_point t_start = Clock::now();
   PaperResults res;
+  // The time spent, measured as the run goes, against the budget (budget.hpp).
+  std::optional<RunBudget> budget;
   double experiment_seconds = 0;  // each registered experiment's share of the budget
   bool experiment_failed = false;
   // The steps done, recorded in out_dir so that --resume can finish the run.
   std::optional<PaperSteps> steps;
   bool study_done = false;  // --resume: the study's tables were read back
-  double elapsed() const { return std::chrono::duration<double>(Clock::now() - t_start).count(); }
+  // Lab seconds since the run began (budget.hpp: wall seconds unless scaled).
+  double elapsed() const { return lab_seconds_since(t_start); }
+  // Records what the run cut or overran, for REPORT.md, and says it now.
+  void note(const std::string& text) {
+    res.info.budget_notes.push_back(text);
+    bar.message(text);
+  }
 };
 
 // Step 1: checks everything the user asked for before any work; chooses the
@@ -336,7 +345,11 @@ void prepare(Run& run) {
     info.peers.push_back(s.peer);
   }
   for (const StructureInfo& e : registry().entries()) info.registered.push_back(e.name);
-  run.experiment_seconds = (info.budget_seconds - info.study_budget_seconds) /
+  info.time_scale = lab_time_scale();
+  // The figures and the report come last, in a planned tail of their own.
+  const double tail = o.quick ? 15 : 60;
+  run.budget.emplace(info.budget_seconds, tail);
+  run.experiment_seconds = std::max(0.0, info.budget_seconds - info.study_budget_seconds - tail) /
                            static_cast<double>(std::max<std::size_t>(experiments().size(), 1));
 }
 
@@ -351,13 +364,18 @@ void run_study(Run& run) {
   ProgressBar& bar = run.bar;
   PaperResults& res = run.res;
   RunInfo& info = res.info;
-  auto elapsed = [&run] { return run.elapsed(); };
+  RunBudget& budget = *run.budget;
   MeasureOptions mo;
   mo.seed = o.seed;
   mo.min_rep_seconds = o.quick ? 5e-4 : 4e-3;
   mo.cell_cap_seconds = info.cell_cap_seconds;
   info.min_rep_seconds = mo.min_rep_seconds;
-  auto reps_at = [&](std::size_t n) { return o.quick ? 3 : (n > 102400 ? 3 : 5); };
+  // Repetitions at N: at most `reps_cap`, which the budget lowers when the
+  // run falls behind.
+  int reps_cap = 5;
+  auto reps_at = [&](std::size_t n) {
+    return std::min(reps_cap, o.quick ? 3 : (n > 102400 ? 3 : 5));
+  };
   info.reps_rule = o.quick ? "3 per measurement" : "5 per measurement up to N = 102 400, 3 above";
 
   std::vector<std::size_t> sizes = study_sizes;
@@ -365,6 +383,15 @@ void run_study(Run& run) {
   std::vector<History> hist(structures.size());
   if (!scaled_sizes.empty())
     for (History& h : hist) h.first_scaled = scaled_sizes.front();
+
+  // How much slower than projected the cells measured so far ran, on the
+  // lab's clock: their seconds over their projections (at least 1). The
+  // projections come from the costs measured, which a busy machine or a
+  // scaled clock (budget.hpp) leaves behind the time actually spent.
+  double projected_sum = 0, actual_sum = 0;
+  auto slowness = [&] {
+    return projected_sum > 0 ? std::max(1.0, actual_sum / projected_sum) : 1.0;
+  };
 
   // Seconds left in the six tests: every structure's projected time at the
   // sizes still to come, up to the first it will be skipped at.
@@ -382,18 +409,46 @@ void run_study(Run& run) {
   };
 
   const auto t_study = Clock::now();
-  auto study_elapsed = [&] {
-    return std::chrono::duration<double>(Clock::now() - t_study).count();
-  };
+  auto study_elapsed = [&] { return lab_seconds_since(t_study); };
   run.study_done = run.steps->load_study(res);  // --resume: the study's tables
+  budget.begin("study", run.study_done ? 0 : info.study_budget_seconds);
   for (std::size_t ni = 0; ni < sizes.size() && !run.study_done; ++ni) {
     const std::size_t n = sizes[ni];
     const bool scaled = ni >= study_sizes.size();
+    // Behind the plan: when the rest, projected at the pace measured so
+    // far, does not fit what is left of the six tests' budget, fewer
+    // repetitions from this size on (5 to 3, then 3 to 2), said in REPORT.md.
+    if (ni > 0 && reps_at(n) > 2) {
+      const double rest = study_left(ni, 0) * slowness();
+      const double left = info.study_budget_seconds - study_elapsed();
+      if (rest > left) {
+        const int from = reps_at(n), to = from > 3 ? 3 : 2;
+        reps_cap = to;
+        char why[512];
+        std::snprintf(why, sizeof why,
+                      "budget: cut repetitions from %d to %d for N >= %zu: after N = %zu the six "
+                      "tests had spent %s of their %s, and the rest was projected at %s (the "
+                      "cells so far ran %s)",
+                      from, to, n, sizes[ni - 1], seconds_text(study_elapsed()).c_str(),
+                      seconds_text(info.study_budget_seconds).c_str(), seconds_text(rest).c_str(),
+                      over_text(slowness(), "their projections").c_str());
+        run.note(why);
+        info.reps_rule +=
+            "; cut to " + std::to_string(to) + " from N = " + std::to_string(n) + " on (budget)";
+      }
+    }
     const int reps = reps_at(n);
     mo.reps = reps;
     const double hooks_left = run.experiment_seconds * static_cast<double>(experiments().size());
-    auto show = [&](const std::string& what, double left) {
-      const double e = elapsed();
+    // The time left: the study's rest at the pace measured (never more
+    // than its budget left, which skips enforce, unless the cell under way
+    // is over), then the experiments and the tail at the run's pace.
+    auto show = [&](const std::string& what, double cell_left, double rest) {
+      const double study =
+          cell_left + std::min(rest * slowness(), std::max(0.0, info.study_budget_seconds -
+                                                                    study_elapsed() - cell_left));
+      const double left = budget.estimate_left(study, hooks_left, slowness(), "experiment");
+      const double e = run.elapsed();
       bar.update(what, e / (e + left), left);
     };
     // Decide who is over the cap before generating the scenes: a million
@@ -423,7 +478,7 @@ void run_study(Run& run) {
       anyone = true;
     }
     if (!anyone) continue;
-    show("study: generating the scenes of N=" + std::to_string(n), study_left(ni, 0) + hooks_left);
+    show("study: generating the scenes of N=" + std::to_string(n), 0, study_left(ni, 0));
     const PaperScene scenes[2] = {make_paper_scene(n, false, scaled, o.seed),
                                   make_paper_scene(n, true, scaled, o.seed)};
     std::vector<std::vector<FrameDigest>> digests[2];
@@ -432,22 +487,30 @@ void run_study(Run& run) {
       digests[p].resize(structures.size());
       hits[p].resize(structures.size());
     }
+    std::vector<std::string> budget_skips;  // left out here for the budget
     for (std::size_t si = 0; si < structures.size(); ++si) {
       const Selected& sel = structures[si];
       History& h = hist[si];
       if (h.skipped) continue;  // over the cap, or before this size: recorded above
       const double projected = project(h, n, reps, mo.min_rep_seconds);
+      // At the pace measured: a cell projected at 10 s takes 14 where the
+      // cells so far ran 40% over their projections.
+      const double paced = projected * slowness();
       const double budget_left = info.study_budget_seconds - study_elapsed();
-      if (!h.points.empty() && projected > budget_left) {
+      if (!h.points.empty() && paced > budget_left) {
         h.skipped = true;
-        const std::string why = "projected " + seconds_text(projected) + " exceeds the " +
-                                seconds_text(std::max(0.0, budget_left)) +
-                                " left of the study's budget";
-        res.skips.push_back({sel.spec, n, projected, info.cell_cap_seconds, why});
+        const std::string why =
+            "projected " + seconds_text(paced) +
+            (paced > projected ? " (" + seconds_text(projected) + " at the pace of the model)"
+                               : std::string()) +
+            " exceeds the " + seconds_text(std::max(0.0, budget_left)) +
+            " left of the study's budget";
+        res.skips.push_back({sel.spec, n, paced, info.cell_cap_seconds, why});
         bar.message("skipping " + sel.spec + " at N=" + std::to_string(n) + ": " + why);
+        budget_skips.push_back(sel.spec);
         continue;
       }
-      const double rest = study_left(ni, si + 1) + hooks_left;
+      const double rest = study_left(ni, si + 1);
       const auto t_cell = Clock::now();
       CellCosts costs;
       for (int p = 0; p < 2; ++p) {
@@ -458,11 +521,15 @@ void run_study(Run& run) {
         mo.cell_cap_seconds =
             std::max(0.0, info.cell_cap_seconds -
                               std::chrono::duration<double>(Clock::now() - t_cell).count());
+        // (The cap is the structure's, in wall seconds: how slow it is, not
+        // how busy the machine; the budget above is on the lab's clock.)
         const std::string where = "study: " + sel.spec + " N=" + std::to_string(n) + " " +
                                   (ps.even ? "even" : "uneven") + " ";
         auto tick = [&](const std::string& step) {
-          const double cell = std::chrono::duration<double>(Clock::now() - t_cell).count();
-          show(where + step, std::max(0.0, projected - cell) + rest);
+          // A cell past its projection is given a quarter of what it has
+          // spent again: never "0 s left" while it runs.
+          const double cell = lab_seconds_since(t_cell);
+          show(where + step, std::max(paced - cell, cell > paced ? 0.25 * cell : 0.0), rest);
         };
         try {
           SceneResult r = sel.lean ? measure_arrays(ps, mo, tick)
@@ -480,13 +547,30 @@ void run_study(Run& run) {
         }
       }
       if (h.skipped) continue;
+      if (!h.points.empty()) {
+        projected_sum += projected;
+        actual_sum += lab_seconds_since(t_cell);
+      }
       h.points.push_back({n, costs});
       const double modelled = model(costs, reps, mo.min_rep_seconds);
       h.overhead = modelled > 0 ? std::clamp(costs.total / modelled, 1.0, 3.0) : 1.0;
     }
+    if (!budget_skips.empty()) {
+      std::string names;
+      for (const std::string& b : budget_skips) names += (names.empty() ? "" : ", ") + b;
+      run.note("budget: left out " + names + " from N = " + std::to_string(n) +
+               " on: projected beyond what was left of the six tests' budget of " +
+               seconds_text(info.study_budget_seconds) + " after " + seconds_text(study_elapsed()) +
+               " (the cells so far ran " + over_text(slowness(), "their projections") + ")");
+    }
     for (int p = 0; p < 2; ++p) compare(structures, n, scenes[p], digests[p], hits[p], res);
   }
   if (!run.study_done) info.study_seconds = study_elapsed();
+  const double took = budget.end();
+  if (!run.study_done && took > 1.25 * info.study_budget_seconds)
+    run.note("budget: the six tests took " + seconds_text(took) + ", " +
+             over_text(took / info.study_budget_seconds,
+                       "their " + seconds_text(info.study_budget_seconds)));
 }
 
 // Step 4: the registered experiments (lab/experiment.hpp), each with its
@@ -497,8 +581,7 @@ void run_experiments(Run& run) {
   const fs::path& out_dir = run.out_dir;
   ProgressBar& bar = run.bar;
   PaperResults& res = run.res;
-  RunInfo& info = res.info;
-  auto elapsed = [&run] { return run.elapsed(); };
+  RunBudget& budget = *run.budget;
   const std::size_t kExperiments = experiments().size();
   for (std::size_t k = 0; k < kExperiments; ++k) {
     LabContext ctx;
@@ -508,16 +591,28 @@ void run_experiments(Run& run) {
     if (!o.algos.empty())
       for (const Selected& s : structures)
         if (!s.peer && !s.lean) ctx.algos.push_back(s.spec);
-    const double left = info.budget_seconds - elapsed();
-    ctx.budget_seconds =
-        std::max(o.quick ? 2.0 : 15.0,
-                 std::min(run.experiment_seconds, left / static_cast<double>(kExperiments - k)));
-    const double after = run.experiment_seconds * static_cast<double>(kExperiments - k - 1);
+    // Each gets its share of what is actually left (the tail set aside at
+    // the pace so far), at most its planned share; below the floor a full
+    // run's experiment runs with --quick's sizes instead, said in REPORT.md.
     const std::string name = experiments()[k].name;
-    ctx.progress = [&, name, budget = ctx.budget_seconds](const std::string& what, double f) {
-      const double left_here = std::max(0.0, 1 - f) * budget;
-      const double e = elapsed();
-      bar.update(name + ": " + what, e / (e + left_here + after), left_here + after);
+    const double least = o.quick ? 2.0 : 15.0;
+    const double left = budget.left() - budget.tail() * budget.pace(1, "experiment");
+    const double share = left / static_cast<double>(kExperiments - k);
+    if (!o.quick && share < least && !run.steps->done(name)) {
+      ctx.quick = true;
+      run.note("budget: cut the sizes of the experiment " + name +
+               " to --quick's: " + seconds_text(std::max(0.0, left)) + " were left for " +
+               std::to_string(kExperiments - k) + " experiments after " +
+               seconds_text(budget.spent()) + " of the " + seconds_text(budget.total()) +
+               " budget (the steps so far ran " + over_text(budget.pace(), "their plan") + ")");
+    }
+    ctx.budget_seconds = std::max(least, std::min(run.experiment_seconds, share));
+    const double after = run.experiment_seconds * static_cast<double>(kExperiments - k - 1);
+    budget.begin(name, run.steps->done(name) ? 0 : ctx.budget_seconds, "experiment");
+    ctx.progress = [&, name, after](const std::string& what, double f) {
+      const double left_here = budget.estimate_left(budget.step_left(f), after, 1, "experiment");
+      const double e = run.elapsed();
+      bar.update(name + ": " + what, e / (e + left_here), left_here);
     };
     ctx.progress("starting", 0);
     try {
@@ -529,6 +624,10 @@ void run_experiments(Run& run) {
                              std::string(e.what()) + "**</span>\n");
       bar.message("error: " + name + ": " + e.what());
     }
+    const double planned = budget.step_planned(), took = budget.end();
+    if (planned > 0 && took > 1.25 * planned && took - planned > 1)
+      run.note("budget: the experiment " + name + " took " + seconds_text(took) + ", " +
+               over_text(took / planned, "its " + seconds_text(planned)));
   }
 }
 
@@ -538,6 +637,16 @@ void draw_figures(Run& run) {
   ProgressBar& bar = run.bar;
   PaperResults& res = run.res;
   RunInfo& info = res.info;
+  RunBudget& budget = *run.budget;
+  budget.begin("plots", budget.tail());
+  {
+    // Said before the script runs (a line of its own in a log), with the
+    // tail at the run's pace.
+    const double left = std::max(
+        budget.step_left(0), budget.tail() * budget.pace(1, "experiment") - budget.step_spent());
+    const double e = run.elapsed();
+    bar.update("plots: drawing the figures", e / (e + left), left);
+  }
   // The plot script and its messages write to stderr too: no bar under them.
   bar.clear();
   info.plots = run.steps->plots([&](const fs::path& into) {
@@ -573,6 +682,7 @@ void write_report(Run& run) {
   const fs::path& out_dir = run.out_dir;
   PaperResults& res = run.res;
   RunInfo& info = res.info;
+  run.budget->end();  // the figures
   info.elapsed_seconds = run.elapsed();
   write_json(out_dir / "results.json", res);
   write_file_atomically(out_dir / "REPORT.md", report_markdown(res));

@@ -478,7 +478,9 @@ void write_json(const std::filesystem::path& path, const PaperResults& res) {
               {"reps", i.reps_rule},
               {"min_rep_seconds", i.min_rep_seconds},
               {"structures", i.structures},
-              {"plots", i.plots}};
+              {"plots", i.plots},
+              {"budget_notes", i.budget_notes},
+              {"time_scale", i.time_scale}};
   json rows = json::array();
   for (const Row& r : res.rows) {
     rows.push_back(row_json(r));
@@ -554,6 +556,16 @@ std::string report_markdown(const PaperResults& res) {
      << number(info.cell_cap_seconds) << " s per structure and size |\n";
   md << "| time taken | " << number(info.elapsed_seconds) << " s (" << number(info.study_seconds)
      << " s for the six tests) |\n";
+  md << "| budget kept | "
+     << (info.budget_notes.empty()
+             ? std::string("no step ran far enough over its plan to cut anything")
+             : std::to_string(info.budget_notes.size()) +
+                   " cuts or overruns, listed below the sizes")
+     << " |\n";
+  if (info.time_scale != 1)
+    md << "| time scale | " << number(info.time_scale)
+       << ": every second counted as that many (BROADPHASE_LAB_TIME_SCALE, a test's stand-in "
+          "for a loaded machine) |\n";
   md << "| structures | " << info.structures.size() << ": ";
   for (std::size_t i = 0; i < info.structures.size(); ++i)
     md << (i ? ", " : "") << "`" << info.structures[i] << "`" << (info.peers[i] ? " (peer)" : "");
@@ -567,6 +579,12 @@ std::string report_markdown(const PaperResults& res) {
       md << (i ? ", " : "") << info.scaled_sizes[i];
   }
   md << ". Raw numbers with their spread (min, max, quartiles): `results.csv`, `results.json`.\n\n";
+  if (!info.budget_notes.empty()) {
+    md << "The run measured the time it spent as it went and fell behind its plan; what it "
+          "cut, and why:\n\n";
+    for (const std::string& note : info.budget_notes) md << "- " << note << "\n";
+    md << "\n";
+  }
 
   // Spread of the repeated measurements.
   std::vector<double> spread;

@@ -61,6 +61,10 @@ struct RunInfo {
   std::vector<std::string> registered;  ///< every name the registry knows
   bool plots = false;
   std::string plots_note;
+  /// What the run cut when it fell behind its plan, and the steps that ran
+  /// over it, each "budget: ..." (budget.hpp; REPORT.md lists them).
+  std::vector<std::string> budget_notes;
+  double time_scale = 1;  ///< the lab's time scale (budget.hpp), 1 on a real run
 };
 
 /// Everything REPORT.md is made from.

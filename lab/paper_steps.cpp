@@ -155,6 +155,7 @@ Row row_of(const json& j) {
 void PaperSteps::save_study(const PaperResults& res) {
   json j;
   j["study_seconds"] = res.info.study_seconds;
+  j["budget_notes"] = res.info.budget_notes;
   j["comparisons"] = res.comparisons;
   json& rows = j["rows"] = json::array();
   for (const Row& r : res.rows) rows.push_back(json(row_json(r)));
@@ -179,6 +180,8 @@ bool PaperSteps::load_study(PaperResults& res) const {
   const json j = read_json(steps_dir() / "study.json");
   try {
     j.at("study_seconds").get_to(res.info.study_seconds);
+    // Absent from the state of a run interrupted before budget notes existed.
+    if (j.contains("budget_notes")) j.at("budget_notes").get_to(res.info.budget_notes);
     j.at("comparisons").get_to(res.comparisons);
     for (const json& r : j.at("rows")) res.rows.push_back(row_of(r));
     for (const json& s : j.at("skips"))

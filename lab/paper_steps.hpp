@@ -45,8 +45,8 @@ class PaperSteps {
   bool complete() const { return complete_; }
 
   /// The study: when done before, fills the study's part of `res` (rows,
-  /// skips, mismatches, scenes, comparisons, study seconds) and returns
-  /// true; results.csv is in DIR already.
+  /// skips, mismatches, scenes, comparisons, study seconds, the budget
+  /// notes made so far) and returns true; results.csv is in DIR already.
   bool load_study(PaperResults& res) const;
   /// Records the study as done, with what load_study() gives back.
   void save_study(const PaperResults& res);

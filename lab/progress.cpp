@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "budget.hpp"
+
 namespace broadphase::app {
 
 ProgressBar::ProgressBar(std::FILE* out, bool quiet)
@@ -18,9 +20,7 @@ ProgressBar::~ProgressBar() {
   if (drawn_ && !finished_) clear_line();
 }
 
-double ProgressBar::elapsed() const {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-}
+double ProgressBar::elapsed() const { return lab_seconds_since(start_); }
 
 std::string ProgressBar::format_seconds(double s) {
   if (!(s >= 0) || !std::isfinite(s)) return "?";

@@ -33,7 +33,8 @@ class ProgressBar {
   /// Clears the bar and prints the total time (once; the destructor calls it).
   void finish(const std::string& what = "done");
 
-  /// Seconds since the bar was made.
+  /// Seconds since the bar was made, on the lab's clock (budget.hpp: the
+  /// wall clock unless a time scale is set).
   double elapsed() const;
   /// Seconds between two plain lines when the output is not a terminal.
   void set_plain_interval(double seconds) { plain_interval_ = seconds; }

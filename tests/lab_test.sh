@@ -199,5 +199,58 @@ import csv, sys
 ns = {int(r['n']) for r in csv.DictReader(open('$tmp/small/results.csv'))}
 sys.exit(0 if ns == {50, 100} else 1)"
 
+# The budget kept on a loaded machine: with the lab's clock running 6 times
+# fast (BROADPHASE_LAB_TIME_SCALE, lab/budget.hpp) and a budget of 4 s, the
+# run falls behind the plan its measurements make: it cuts repetitions and
+# sizes and says so in REPORT.md and results.json, and its progress line,
+# re-estimated from the rates measured, does not claim less time left than
+# the run then took (over the second half of the run: before the first
+# experiments end, nothing measured says how long --quick's fixed sizes take).
+BROADPHASE_LAB_TIME_SCALE=6 "$cli" paper --quick --algos naive,grid-hashed,sap --no-peers \
+  --budget 4 --out "$tmp/slow" >/dev/null 2>"$tmp/slow_err"
+rc=$?
+check "a slow run exits 0 (exit $rc: $(tail -3 "$tmp/slow_err"))" test $rc -eq 0
+check "a slow run cuts repetitions and says so in REPORT.md" \
+  grep -q "^- budget: cut repetitions from 3 to 2 for N >= " "$tmp/slow/REPORT.md"
+check "a slow run says what it left out for the budget" \
+  grep -q "^- budget: left out .* from N = .* on: projected beyond" "$tmp/slow/REPORT.md"
+check "a slow run's cuts are in results.json" python3 -c "
+import json, sys
+info = json.load(open('$tmp/slow/results.json'))['run']
+notes = info['budget_notes']
+sys.exit(0 if info['time_scale'] == 6 and any(n.startswith('budget: cut') for n in notes) else 1)"
+cat >"$tmp/honest.py" <<'PY'
+# Each progress line "(elapsed E, about L left)" of the run's second half
+# against the total of the closing "done in T": L must not fall short of
+# what remained, T - E, by more than 3 s (the rounding of the three
+# figures) or a tenth of it.
+import re, sys
+def seconds(t):
+    m = re.fullmatch(r"(?:(\d+)h)?(?:(\d+)m)?(?:(\d+)s)?", t)
+    if not m or not t:
+        return None
+    h, mi, s = (int(x) if x else 0 for x in m.groups())
+    return h * 3600 + mi * 60 + s
+total = None
+points = []
+for line in open(sys.argv[1]).read().splitlines():
+    m = re.search(r"\(elapsed (\S+), about (\S+) left\)$", line)
+    if m:
+        points.append((seconds(m.group(1)), seconds(m.group(2)), line))
+    m = re.search(r"done in (\S+)$", line)
+    if m:
+        total = seconds(m.group(1))
+late = [p for p in points if total is not None and p[0] >= total / 2 and p[1] is not None]
+if total is None or len(late) < 2:
+    print("too few progress lines in the second half:", len(late), "total", total)
+    sys.exit(1)
+bad = [(e, left, line) for e, left, line in late if left < (total - e) - max(3, 0.1 * (total - e))]
+for e, left, line in bad:
+    print("at %d s: claimed %d s left, %d s remained: %s" % (e, left, total - e, line))
+sys.exit(1 if bad else 0)
+PY
+check "the progress line's estimate does not fall short of the time left" \
+  python3 "$tmp/honest.py" "$tmp/slow_err"
+
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]

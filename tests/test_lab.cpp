@@ -4,7 +4,10 @@
 
 #include <broadphase/naive.hpp>
 #include <broadphase/registry.hpp>
+#include <chrono>
+#include <thread>
 
+#include "budget.hpp"
 #include "paper_measure.hpp"
 #include "paper_report.hpp"
 #include "progress.hpp"
@@ -278,6 +281,32 @@ TEST(LabProgress, FormatsSeconds) {
   EXPECT_EQ(ProgressBar::format_seconds(185), "3m05s");
   EXPECT_EQ(ProgressBar::format_seconds(3720), "1h02m");
   EXPECT_EQ(ProgressBar::format_seconds(-1), "?");
+}
+
+TEST(LabBudget, AStepPastItsPlanIsNeverNearlyDone) {
+  // The progress line's estimate of what is left: from the plan while the
+  // step is within it, from the rate of its fraction done when that says
+  // more, and never zero while a step past its plan runs.
+  RunBudget b(100, 4);
+  b.begin("quiet", 0.01);
+  std::this_thread::sleep_for(std::chrono::milliseconds(60));
+  const double spent = b.step_spent();
+  ASSERT_GT(spent, 0.05);
+  EXPECT_GE(b.step_left(0), 0.25 * spent);    // over its plan, no fraction to go by
+  EXPECT_GE(b.step_left(0.5), spent * 0.99);  // half done: as much again
+  EXPECT_GE(b.step_left(0.99), 0.0);
+  EXPECT_DOUBLE_EQ(b.estimate_left(2, 10), 2 + 10 + 4);  // no step ended: pace 1
+  const double took = b.end();
+  EXPECT_GE(took, spent);
+  // That step ran far over its plan: the steps after it are slowed by it.
+  EXPECT_GT(b.pace(), 2);
+  EXPECT_GT(b.estimate_left(0, 10), 10 * 2);
+  EXPECT_GE(b.pace(50), 50);
+}
+
+TEST(LabBudget, SaysHowFarOverThePlan) {
+  EXPECT_EQ(over_text(1.4, "its plan"), "40% over its plan");
+  EXPECT_EQ(over_text(2.5, "its 20s"), "2.5 times its 20s");
 }
 
 }  // namespace
