@@ -3,10 +3,14 @@
 #include "runner.hpp"
 
 #include <broadphase/registry.hpp>
-// A commit from before the lab headers moved has them at the top level.
+// The scene headers where the side has them: scenes/, or lab/ in a commit
+// from before they were named so, or the top level before that.
 #if __has_include(<broadphase/scenes/replay.hpp>)
 #include <broadphase/scenes/replay.hpp>
 #include <broadphase/scenes/scene.hpp>
+#elif __has_include(<broadphase/lab/replay.hpp>)
+#include <broadphase/lab/replay.hpp>
+#include <broadphase/lab/scene.hpp>
 #else
 #include <broadphase/replay.hpp>
 #include <broadphase/scene.hpp>
