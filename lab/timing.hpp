@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <broadphase/arrays/arrays.hpp>
+#include <broadphase/detail/median.hpp>
 #include <broadphase/registry.hpp>
 #include <broadphase/scenes/array_caller.hpp>
 #include <broadphase/scenes/replay.hpp>
@@ -54,12 +55,7 @@ struct StructureTiming {
       for (std::size_t f = 0; f < v->size() && n < k; ++f, ++n) sum += (*v)[f];
     return n > 0 ? sum / static_cast<double>(n) : 0;
   }
-  static double median(std::vector<double> v) {
-    if (v.empty()) return 0;
-    std::sort(v.begin(), v.end());
-    const std::size_t m = v.size() / 2;
-    return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-  }
+  static double median(std::vector<double> v) { return detail::median(std::move(v)); }
 };
 
 /// How long to run a structure.

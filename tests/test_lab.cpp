@@ -2,6 +2,7 @@
 // structure measured on one scene.
 #include <gtest/gtest.h>
 
+#include <broadphase/detail/median.hpp>
 #include <broadphase/naive.hpp>
 #include <broadphase/registry.hpp>
 #include <chrono>
@@ -26,6 +27,15 @@ TEST(LabStat, MedianQuartilesAndSpread) {
   EXPECT_EQ(s.reps, 5);
   EXPECT_EQ(summarize({1, 2}).median, 1.5);
   EXPECT_EQ(summarize({}).reps, 0);
+}
+
+TEST(LabStat, OneMedianForEveryMeasuringProgram) {
+  EXPECT_EQ(detail::median({}), 0);
+  EXPECT_EQ(detail::median({7}), 7);
+  EXPECT_EQ(detail::median({3, 1, 2}), 2);
+  EXPECT_EQ(detail::median({4, 1, 3, 2}), 2.5);
+  EXPECT_EQ(detail::median({9, 9, 1, 1}), 5);
+  EXPECT_EQ(detail::median({2, 2, 2, 8, 8, 8}), 5);
 }
 
 TEST(LabChurn, BatchIsATenthWithinBounds) {

@@ -14,6 +14,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <broadphase/detail/median.hpp>
 #include <broadphase/mpi.hpp>
 #include <broadphase/registry.hpp>
 #include <broadphase/scenes/generate.hpp>
@@ -147,12 +148,7 @@ mpi_app::Share load(const Common& o) {
   return mpi_app::generate_share(MPI_COMM_WORLD, d, n, o.seed);
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t m = v.size() / 2;
-  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
+using broadphase::detail::median;
 
 // Per-rank sums over the frames, gathered to rank 0 for --json.
 struct RankTotals {

@@ -1,6 +1,7 @@
 // `list`, `run` and `gen`: the structures, the replay contract, and scenes.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <broadphase/detail/median.hpp>
 #include <broadphase/scenes/replay.hpp>
 #include <broadphase/scenes/scene.hpp>
 #include <cstdio>
@@ -25,12 +26,7 @@ void add_list_command(CLI::App& app) {
 
 namespace {
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t m = v.size() / 2;
-  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
+using broadphase::detail::median;
 
 struct RunOptions {
   std::string scene;

@@ -2,6 +2,7 @@
 // measures the contacts a discrete step misses.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <broadphase/detail/median.hpp>
 #include <broadphase/scenes/scene.hpp>
 #include <broadphase/scenes/sim.hpp>
 #include <cmath>
@@ -38,12 +39,7 @@ struct SimOptions {
 
 nlohmann::json vec(const Vec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t m = v.size() / 2;
-  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
+using broadphase::detail::median;
 
 void run_sim(const SimOptions& o) {
   if (!o.make_tunnel.empty())

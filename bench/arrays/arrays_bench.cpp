@@ -16,6 +16,7 @@
 // finds the movers itself) instead of passing the movers' indices.
 #include <algorithm>
 #include <broadphase/arrays/arrays.hpp>
+#include <broadphase/detail/median.hpp>
 #include <broadphase/registry.hpp>
 #include <broadphase/scenes/array_caller.hpp>
 #include <broadphase/scenes/replay.hpp>
@@ -52,11 +53,7 @@ double cpu_ms() {
   return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
+using broadphase::detail::median;
 
 }  // namespace
 

@@ -2,6 +2,7 @@
 // cell size of a uniform grid, on the study's even and uneven workloads,
 // with the automatic choice marked.
 #include <algorithm>
+#include <broadphase/detail/median.hpp>
 #include <broadphase/grid_hashed.hpp>
 #include <broadphase/scenes/replay.hpp>
 #include <broadphase/scenes/scene.hpp>
@@ -64,10 +65,7 @@ void count_work(const Scene& scene, double cell, SweepPoint& p) {
   p.overflow = static_cast<double>(overflow) / n;
 }
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v[v.size() / 2];
-}
+using broadphase::detail::median;
 
 // Replays `frames` frames through grid-hashed with cell edge `cell` (0:
 // automatic); fills time and tests; returns the cell actually used.

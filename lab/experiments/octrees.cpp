@@ -3,6 +3,7 @@
 // octrees. Alternatives are replayed side by side, frame by frame, so that
 // the machine's noise hits them alike.
 #include <algorithm>
+#include <broadphase/detail/median.hpp>
 #include <broadphase/kdtree.hpp>
 #include <broadphase/registry.hpp>
 #include <broadphase/scenes/replay.hpp>
@@ -23,12 +24,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t m = v.size() / 2;
-  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
+using broadphase::detail::median;
 
 std::string fixed(double v, int digits) {
   char buf[64];

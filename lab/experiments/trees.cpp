@@ -3,6 +3,7 @@
 // sweep-and-prune under coherent and incoherent motion.
 #include <algorithm>
 #include <broadphase/aabb_tree.hpp>
+#include <broadphase/detail/median.hpp>
 #include <broadphase/registry.hpp>
 #include <broadphase/scenes/scene.hpp>
 #include <broadphase/witness_cache.hpp>
@@ -32,12 +33,7 @@ struct Clock {
 
 double ms_since(double t0) { return Clock::now() - t0; }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t m = v.size() / 2;
-  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
+using broadphase::detail::median;
 
 std::string fmt(double v, int digits = 3) {
   char buf[64];

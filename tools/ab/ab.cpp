@@ -6,6 +6,7 @@
 // by 10-30% on a shared virtual machine, then falls on all four alike. The
 // pair hashes of the four must agree on every frame.
 #include <algorithm>
+#include <broadphase/detail/median.hpp>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -16,10 +17,7 @@
 #include "runner.hpp"
 
 namespace {
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v[v.size() / 2];
-}
+using broadphase::detail::median;
 }  // namespace
 
 int main(int argc, char** argv) {

@@ -29,5 +29,5 @@ build_side() {  # side, tree
 echo "building A ($commit) and B (working tree)..." >&2
 build_side A "$work/A"
 build_side B "$root"
-g++ $flags -I"$root/tools/ab" "$root/tools/ab/ab.cpp" "$work/libA.a" "$work/libB.a" -o "$work/ab"
+g++ $flags -I"$root/tools/ab" -I"$root/include" "$root/tools/ab/ab.cpp" "$work/libA.a" "$work/libB.a" -o "$work/ab"
 "$work/ab" "$scene" "$frames" "$spec1" "$spec2" "$block"
