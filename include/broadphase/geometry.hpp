@@ -4,7 +4,7 @@
 /// the exact overlap predicates of the scene contract.
 ///
 /// Exactness: the predicates are evaluated in double exactly as written in
-/// SCENE-FORMAT.md, left to right, with no fused multiply-add. The library
+/// docs/scene-format.md, left to right, with no fused multiply-add. The library
 /// target compiles with `-ffp-contract=off` and passes that flag on to its
 /// users, because these functions are inline and so are compiled in the
 /// user's translation units too.
@@ -103,7 +103,7 @@ inline bool is_valid(const Shape& s) {
          (s.kind == ShapeKind::box || (h.x == h.y && h.y == h.z));
 }
 
-/// Sphere–sphere overlap, exactly as SCENE-FORMAT.md writes it.
+/// Sphere–sphere overlap, exactly as docs/scene-format.md writes it.
 inline bool spheres_overlap(const Vec3& ci, double ri, const Vec3& cj, double rj) {
   const double dx = ci.x - cj.x;
   const double dy = ci.y - cj.y;
@@ -113,13 +113,13 @@ inline bool spheres_overlap(const Vec3& ci, double ri, const Vec3& cj, double rj
   return d2 <= s * s;
 }
 
-/// Box–box overlap, exactly as SCENE-FORMAT.md writes it.
+/// Box–box overlap, exactly as docs/scene-format.md writes it.
 inline bool boxes_overlap(const Vec3& ci, const Vec3& hi, const Vec3& cj, const Vec3& hj) {
   return std::fabs(ci.x - cj.x) <= hi.x + hj.x && std::fabs(ci.y - cj.y) <= hi.y + hj.y &&
          std::fabs(ci.z - cj.z) <= hi.z + hj.z;
 }
 
-/// Sphere–box overlap, exactly as SCENE-FORMAT.md writes it.
+/// Sphere–box overlap, exactly as docs/scene-format.md writes it.
 inline bool sphere_box_overlap(const Vec3& cs, double r, const Vec3& cb, const Vec3& hb) {
   double d2 = 0;
   for (int a = 0; a < 3; ++a) {
