@@ -9,6 +9,7 @@
 // loses a candidate (docs/peers.md lists where that happens).
 #pragma once
 
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/handle.hpp>
 #include <broadphase/registry.hpp>
 #include <broadphase/structure.hpp>
@@ -85,15 +86,13 @@ class QueryFilter {
 /// shapes and user data, and one library object per slot. `Native` is what
 /// the library hands back for an object (a proxy pointer, a geom id, ...):
 /// a pointer-like type, null while the slot is free.
+/// (size, contains, shape and user_data are the structures' own, from
+/// detail::StoreBase.)
 template <class Native>
-class PeerBase {
- public:
-  std::size_t size() const { return store_.size(); }
-  bool contains(Handle h) const { return store_.contains(h); }
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
-
+class PeerBase : public detail::StoreBase<PeerBase<Native>> {
  protected:
+  using detail::StoreBase<PeerBase<Native>>::store_;
+
   /// Stores the object and returns its slot (the library object is set next).
   std::uint32_t add(const Shape& s, std::uint64_t user, Handle& h) {
     h = store_.insert(s, user);
@@ -128,7 +127,6 @@ class PeerBase {
                              std::to_string(store_.size()));
   }
 
-  ObjectStore store_;
   std::vector<Native> native_;
 };
 
