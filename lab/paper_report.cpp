@@ -705,7 +705,8 @@ std::string report_markdown(const PaperResults& res) {
   }
   if (ix.has(kArraysSeries))
     md << "\n`" << kArraysSeries
-       << "` is the lean path (include/broadphase/arrays/arrays.hpp: a PairTracker over the caller's "
+       << "` is the lean path (include/broadphase/arrays/arrays.hpp: a PairTracker over the "
+          "caller's "
           "arrays): its own line counts only what the tracker keeps between calls; the line "
           "with the caller's arrays adds the columns it reads in place (centres and radii, 32 "
           "bytes per sphere), which the other structures hold a copy of.\n";
