@@ -281,6 +281,20 @@ struct Run {
     res.info.budget_notes.push_back(text);
     bar.message(text);
   }
+  // Notes a step that took more than a quarter over its plan (and more
+  // than `least` seconds over): "budget: the six tests took 20m, 40% over
+  // their 14m".
+  void note_overrun(const std::string& step, double took, double planned, const std::string& whose,
+                    double least = 0) {
+    if (planned > 0 && took > 1.25 * planned && took - planned > least)
+      note("budget: " + step + " took " + seconds_text(took) + ", " +
+           over_text(took / planned, whose + " " + seconds_text(planned)));
+  }
+  // The progress line: `what`, with `left` lab seconds estimated to go.
+  void show_left(const std::string& what, double left) {
+    const double e = elapsed();
+    bar.update(what, e / (e + left), left);
+  }
 };
 
 // Step 1: checks everything the user asked for before any work; chooses the
@@ -450,9 +464,7 @@ void run_study(Run& run) {
       const double study =
           cell_left + std::min(rest * slowness(), std::max(0.0, info.study_budget_seconds -
                                                                     study_elapsed() - cell_left));
-      const double left = budget.estimate_left(study, hooks_left, slowness(), "experiment");
-      const double e = run.elapsed();
-      bar.update(what, e / (e + left), left);
+      run.show_left(what, budget.estimate_left(study, hooks_left, slowness(), "experiment"));
     };
     // Decide who is over the cap before generating the scenes: a million
     // objects take seconds to generate, for nobody when all are skipped.
@@ -570,10 +582,7 @@ void run_study(Run& run) {
   }
   if (!run.study_done) info.study_seconds = study_elapsed();
   const double took = budget.end();
-  if (!run.study_done && took > 1.25 * info.study_budget_seconds)
-    run.note("budget: the six tests took " + seconds_text(took) + ", " +
-             over_text(took / info.study_budget_seconds,
-                       "their " + seconds_text(info.study_budget_seconds)));
+  if (!run.study_done) run.note_overrun("the six tests", took, info.study_budget_seconds, "their");
 }
 
 // Step 4: the registered experiments (lab/experiment.hpp), each with its
@@ -618,9 +627,8 @@ void run_experiments(Run& run) {
     const double after = run.experiment_seconds * static_cast<double>(kExperiments - k - 1);
     budget.begin(name, run.steps->done(name) ? 0 : ctx.budget_seconds, "experiment");
     ctx.progress = [&, name, after](const std::string& what, double f) {
-      const double left_here = budget.estimate_left(budget.step_left(f), after, 1, "experiment");
-      const double e = run.elapsed();
-      bar.update(name + ": " + what, e / (e + left_here), left_here);
+      run.show_left(name + ": " + what,
+                    budget.estimate_left(budget.step_left(f), after, 1, "experiment"));
     };
     ctx.progress("starting", 0);
     try {
@@ -633,9 +641,7 @@ void run_experiments(Run& run) {
       bar.message("error: " + name + ": " + e.what());
     }
     const double planned = budget.step_planned(), took = budget.end();
-    if (planned > 0 && took > 1.25 * planned && took - planned > 1)
-      run.note("budget: the experiment " + name + " took " + seconds_text(took) + ", " +
-               over_text(took / planned, "its " + seconds_text(planned)));
+    run.note_overrun("the experiment " + name, took, planned, "its", 1);
   }
 }
 
@@ -652,8 +658,7 @@ void draw_figures(Run& run) {
     // tail at the run's pace.
     const double left = std::max(
         budget.step_left(0), budget.tail() * budget.pace(1, "experiment") - budget.step_spent());
-    const double e = run.elapsed();
-    bar.update("plots: drawing the figures", e / (e + left), left);
+    run.show_left("plots: drawing the figures", left);
   }
   // The plot script and its messages write to stderr too: no bar under them.
   bar.clear();
