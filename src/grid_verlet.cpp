@@ -77,8 +77,18 @@ std::uint32_t GridVerlet::allocate_slot() {
   }
   ++slots_[s].gen;  // even (free) -> odd (alive)
   ++live_;
+  if (s < filters_.size()) filters_[s] = Filter{};
   return s;
 }
+
+void GridVerlet::set_filter(Handle h, Filter f) {
+  const std::uint32_t s = index_of(h);
+  if (filters_.empty() && f == Filter{}) return;
+  if (filters_.size() < slots_.size()) filters_.resize(slots_.size());
+  filters_[s] = f;
+}
+
+void GridVerlet::set_pair_filter(PairFilter pf) { pair_filter_ = std::move(pf); }
 
 void GridVerlet::free_slot(std::uint32_t s) {
   slots_[s].home = Home::free;

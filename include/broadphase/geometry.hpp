@@ -140,6 +140,21 @@ inline bool overlaps(const Shape& a, const Shape& b) {
   return boxes_overlap(a.center, a.half, b.center, b.half);
 }
 
+/// An object's collision filter (docs/scene-format.md, "Filters"): its
+/// group bits and the groups it may pair with. The defaults pair everything.
+struct Filter {
+  std::uint32_t group = 1;
+  std::uint32_t mask = 0xffffffffu;
+  friend constexpr bool operator==(const Filter&, const Filter&) = default;
+};
+
+/// The contract's filter rule: two objects may form a pair only when each
+/// one's group shares a bit with the other's mask (Bullet's group/mask,
+/// Box2D's category/mask). Symmetric.
+constexpr bool filters_pass(Filter a, Filter b) {
+  return (a.group & b.mask) != 0 && (b.group & a.mask) != 0;
+}
+
 /// Relative slack added around every conservative box. The predicates round
 /// at most a few ulps (2^-52 relative) of |centre| + extent away from exact
 /// arithmetic; 2^-40 of that covers them with a wide margin, so whenever

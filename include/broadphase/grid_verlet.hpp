@@ -160,6 +160,18 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   const Shape& shape(Handle h) const { return shape_of(index_of(h)); }
   /// The user data given at insertion. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return user_[index_of(h)]; }
+  /// Changes an object's collision filter (HasFilters). Throws InvalidHandle.
+  void set_filter(Handle h, Filter f);
+  /// An object's collision filter. Throws InvalidHandle.
+  Filter filter(Handle h) const {
+    const std::uint32_t i = index_of(h);
+    return i < filters_.size() ? filters_[i] : Filter{};
+  }
+  /// Installs the pair filter (structure.hpp's PairFilter); empty removes it.
+  void set_pair_filter(PairFilter pf);
+  /// Casts a ray (HasRayCast); each hit once to `visitor`. Throws InvalidRay.
+  template <class V>
+  QueryCost cast_ray(const Ray& r, V&& visitor) const;
   /// The number of threads find_pairs and the bulk update use.
   unsigned threads() const { return shares_.threads(); }
   /// Checks slots, lists, grid order and the pair cache; throws std::logic_error.
@@ -283,6 +295,11 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   std::uint32_t free_head_ = Handle::kNullIndex;
   std::size_t live_ = 0;
 
+  // Collision filters by slot: empty until one other than the default is set.
+  std::vector<Filter> filters_;
+  PairFilter pair_filter_;
+  Filter filter_of(std::uint32_t s) const { return s < filters_.size() ? filters_[s] : Filter{}; }
+
   std::vector<std::uint32_t> loose_;  // loose slots
   std::vector<AabbF> loose_bounds_;   // parallel to loose_
   std::vector<Shape> loose_shapes_;   // parallel to loose_
@@ -320,6 +337,27 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
 };
 
 // ---------------------------------------------------------------------------
+
+template <class V>
+QueryCost GridVerlet::cast_ray(const Ray& r, V&& visitor) const {
+  require_valid(r);
+  QueryCost cost;
+  double tmax = r.tmax;
+  for (std::uint32_t i = 0; i < slots_.size(); ++i) {
+    const Home home = slots_[i].home;
+    if (home == Home::free || home == Home::held) continue;
+    if ((filter_of(i).group & r.mask) == 0) continue;
+    ++cost.tests;
+    double t;
+    if (!ray_hit(r.origin, r.dir, tmax, shape_of(i), t)) continue;
+    tmax = visit_hit(visitor, handle_of(i), t, tmax);
+    if (tmax < 0) {
+      cost.stopped = true;
+      break;
+    }
+  }
+  return cost;
+}
 
 template <class V>
 QueryCost GridVerlet::query(const Shape& q, V&& visitor) const {

@@ -146,6 +146,7 @@ class ObjectStore {
     }
     shapes_[h.index] = s;
     user_[h.index] = user;
+    if (h.index < filters_.size()) filters_[h.index] = Filter{};
     return h;
   }
   /// Frees the slot; returns its index. Throws InvalidHandle.
@@ -162,6 +163,28 @@ class ObjectStore {
     return i;
   }
 
+  /// Sets the collision filter of a live object. Throws InvalidHandle.
+  /// The filters take no memory until the first object gets one other than
+  /// the default (a world without filters pays nothing for them).
+  std::uint32_t set_filter(Handle h, Filter f) {
+    const std::uint32_t i = slots_.index_of(h);
+    if (filters_.empty() && f == Filter{}) return i;
+    if (filters_.size() < shapes_.size()) filters_.resize(shapes_.size());
+    filters_[i] = f;
+    return i;
+  }
+  /// The filter of slot `i` (the default for slots never given one).
+  Filter filter(std::uint32_t i) const { return i < filters_.size() ? filters_[i] : Filter{}; }
+  Filter filter_of(Handle h) const { return filter(slots_.index_of(h)); }
+  /// True once any object was given a filter other than the default: until
+  /// then every pair passes and walks may skip the filter test.
+  bool filtered() const { return !filters_.empty(); }
+  /// True when slots `i` and `j` may pair by their filters.
+  bool may_pair(std::uint32_t i, std::uint32_t j) const {
+    return filters_.empty() || filters_pass(filter(i), filter(j));
+  }
+  /// True when a ray with `mask` sees slot `i`.
+  bool sees(std::uint32_t mask, std::uint32_t i) const { return (filter(i).group & mask) != 0; }
   const Shape& shape(std::uint32_t i) const { return shapes_[i]; }
   std::uint64_t user(std::uint32_t i) const { return user_[i]; }
   std::uint64_t user_data(Handle h) const { return user_[slots_.index_of(h)]; }
@@ -174,12 +197,13 @@ class ObjectStore {
   std::uint32_t slot_count() const { return slots_.slot_count(); }
   std::size_t memory_bytes() const {
     return slots_.memory_bytes() + shapes_.capacity() * sizeof(Shape) +
-           user_.capacity() * sizeof(std::uint64_t);
+           user_.capacity() * sizeof(std::uint64_t) + filters_.capacity() * sizeof(Filter);
   }
   void clear() {
     slots_.clear();
     shapes_.clear();
     user_.clear();
+    filters_.clear();
   }
   void validate() const { slots_.validate(); }
 
@@ -187,6 +211,7 @@ class ObjectStore {
   SlotMap slots_;
   std::vector<Shape> shapes_;
   std::vector<std::uint64_t> user_;
+  std::vector<Filter> filters_;  // empty until a filter other than the default is set
 };
 
 }  // namespace broadphase

@@ -11,9 +11,11 @@
 
 #include <broadphase/geometry.hpp>
 #include <broadphase/handle.hpp>
+#include <broadphase/ray.hpp>
 #include <concepts>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <span>
@@ -145,6 +147,56 @@ concept HasSettle = requires(S& s) {
   s.settle();
 };
 
+/// The user's pair filter, applied after the group/mask bits (Filter): false
+/// means "these two never pair" (a joint, a ragdoll's own parts). It must be
+/// symmetric, pure and safe to call from several threads at once (a
+/// structure on several threads calls it from each).
+using PairFilter = std::function<bool(Handle, Handle)>;
+
+/// A structure with collision filters: `set_filter(h, f)` changes an
+/// object's group and mask (InvalidHandle for a stale handle), `filter(h)`
+/// reads them, `set_pair_filter(pf)` installs (or, empty, removes) the pair
+/// filter. Pairs that fail either are never reported nor cached: the rule is
+/// applied inside the structure, before a pair is reported.
+template <class S>
+concept HasFilters = requires(S& s, const S& cs, Handle h, Filter f, PairFilter pf) {
+  s.set_filter(h, f);
+  { cs.filter(h) } -> std::same_as<Filter>;
+  s.set_pair_filter(pf);
+};
+
+/// A structure that casts rays: `cast_ray(ray, visitor)` reports every
+/// object the ray sees (Ray::mask) and hits by the contract's evaluation
+/// (ray.hpp), each once with its t, to a visitor `(Handle, double t)` that
+/// may clip or stop the cast (kRayGoOn, kStopRay). Throws InvalidRay.
+template <class S>
+concept HasRayCast = requires(const S& cs, const Ray& r, double (*v)(Handle, double)) {
+  { cs.cast_ray(r, v) } -> std::same_as<QueryCost>;
+};
+
+/// The closest hit of `r` in `s` (smallest t, then smallest slot index), or
+/// a null handle when there is none. Throws InvalidRay.
+template <HasRayCast S>
+RayHit closest_hit(const S& s, const Ray& r) {
+  RayHit best{Handle{}, std::numeric_limits<double>::infinity()};
+  s.cast_ray(r, [&](Handle h, double t) {
+    if (best.handle.is_null() || closer({h, t}, best)) best = {h, t};
+    return best.t;
+  });
+  return best;
+}
+
+/// True when `r` hits anything in `s`; stops at the first hit found.
+template <HasRayCast S>
+bool any_hit(const S& s, const Ray& r) {
+  bool hit = false;
+  s.cast_ray(r, [&](Handle, double) {
+    hit = true;
+    return kStopRay;
+  });
+  return hit;
+}
+
 /// Calls `s.settle()` when S has it; otherwise does nothing.
 template <class S>
 void settle_structure(S& s) {
@@ -204,8 +256,42 @@ class AnyBroadPhase {
   /// or after a frame's moves (HasSettle); a no-op for structures without
   /// a commit step. Call it instead of an empty bulk update.
   virtual void settle() {}
+  /// Adds an object with a collision filter. Throws InvalidShape.
+  Handle insert(const Shape& s, std::uint64_t user, Motion m, Filter f) {
+    const Handle h = insert(s, user, m);
+    if (!(f == Filter{})) set_filter(h, f);
+    return h;
+  }
+  /// Changes an object's collision filter (HasFilters). Throws InvalidHandle.
+  virtual void set_filter(Handle h, Filter f) = 0;
+  /// An object's collision filter. Throws InvalidHandle.
+  virtual Filter filter(Handle h) const = 0;
+  /// Installs the pair filter (PairFilter), or removes it when empty.
+  virtual void set_pair_filter(PairFilter pf) = 0;
   /// Visits every object whose shape overlaps `s` exactly.
   virtual QueryCost query(const Shape& s, FunctionRef<bool(Handle)> visitor) const = 0;
+  /// Casts a ray (HasRayCast): every hit to `visitor`, which returns the
+  /// ray's new tmax (kRayGoOn, a clip, or kStopRay). Throws InvalidRay.
+  virtual QueryCost cast_ray(const Ray& r, FunctionRef<double(Handle, double)> visitor) const = 0;
+  /// The closest hit (smallest t, then smallest slot index); a null handle
+  /// when the ray hits nothing. Throws InvalidRay.
+  RayHit closest_hit(const Ray& r) const {
+    RayHit best{Handle{}, std::numeric_limits<double>::infinity()};
+    cast_ray(r, [&](Handle h, double t) {
+      if (best.handle.is_null() || closer({h, t}, best)) best = {h, t};
+      return best.t;
+    });
+    return best;
+  }
+  /// True when the ray hits anything; stops at the first hit found.
+  bool any_hit(const Ray& r) const {
+    bool hit = false;
+    cast_ray(r, [&](Handle, double) {
+      hit = true;
+      return kStopRay;
+    });
+    return hit;
+  }
   /// Visits every overlapping pair once.
   virtual QueryCost for_each_pair(FunctionRef<bool(Handle, Handle)> visitor) const = 0;
   /// Appends every overlapping pair once to `out` (no per-pair virtual call).
@@ -249,8 +335,15 @@ class Erased final : public AnyBroadPhase {
     }
   }
   void settle() override { settle_structure(s_); }
+  using AnyBroadPhase::insert;
+  void set_filter(Handle h, Filter f) override { s_.set_filter(h, f); }
+  Filter filter(Handle h) const override { return s_.filter(h); }
+  void set_pair_filter(PairFilter pf) override { s_.set_pair_filter(std::move(pf)); }
   QueryCost query(const Shape& s, FunctionRef<bool(Handle)> v) const override {
     return s_.query(s, v);
+  }
+  QueryCost cast_ray(const Ray& r, FunctionRef<double(Handle, double)> v) const override {
+    return s_.cast_ray(r, v);
   }
   QueryCost for_each_pair(FunctionRef<bool(Handle, Handle)> v) const override {
     return s_.for_each_pair(v);

@@ -45,7 +45,7 @@ struct Stop {};
 /// insert, remove, update: O(1). for_each_pair: O(n log^3 n + pairs) in
 /// CGAL's bound. query: box_intersection_d of the query box with all boxes.
 /// Queries reuse a scratch box vector: not thread-safe.
-class CgalBoxIntersection {
+class CgalBoxIntersection : public detail::StoreBase<CgalBoxIntersection> {
  public:
   explicit CgalBoxIntersection(const Config& c) {
     OptionReader(c, "cgal-box").finish();
@@ -88,10 +88,6 @@ class CgalBoxIntersection {
     return filter.cost();
   }
 
-  std::size_t size() const { return store_.size(); }
-  bool contains(Handle h) const { return store_.contains(h); }
-  const Shape& shape(Handle h) const { return store_.shape_of(h); }
-  std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
   /// The stored objects and the box sequence CGAL runs on. CGAL's internal
   /// copy (box_self_intersection_d copies the sequence once per call) is
   /// temporary and not counted.
@@ -110,7 +106,6 @@ class CgalBoxIntersection {
       if (store_.slots().alive(i)) scratch_.push_back(box_of(store_.shape(i), i));
   }
 
-  ObjectStore store_;
   mutable std::vector<CgalBox> scratch_;
 };
 

@@ -34,12 +34,14 @@
 #pragma once
 
 #include <broadphase/handle.hpp>
+#include <broadphase/ray.hpp>
 #include <broadphase/structure.hpp>
 #include <cstddef>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
 
 namespace broadphase::detail {
 
@@ -83,7 +85,48 @@ class StoreBase : public StructureBase<S> {
   /// The user data given at insertion. Throws InvalidHandle. O(1).
   std::uint64_t user_data(Handle h) const { return store_.user_data(h); }
 
+  /// Changes an object's collision filter (HasFilters). Throws
+  /// InvalidHandle. A structure that caches pairs or keeps filters in its
+  /// own nodes hides this with its own.
+  void set_filter(Handle h, Filter f) { store_.set_filter(h, f); }
+  /// An object's collision filter. Throws InvalidHandle. O(1).
+  Filter filter(Handle h) const { return store_.filter_of(h); }
+  /// Installs the pair filter (structure.hpp's PairFilter); empty removes it.
+  void set_pair_filter(PairFilter pf) { pair_filter_ = std::move(pf); }
+
+  /// Casts a ray by testing every object (HasRayCast): the fallback of a
+  /// structure without a walk of its own, and the oracle the walks are
+  /// checked against. O(n).
+  template <class V>
+  QueryCost cast_ray(const Ray& r, V&& visitor) const {
+    require_valid(r);
+    QueryCost cost;
+    double tmax = r.tmax;
+    const std::uint32_t slots = store_.slot_count();
+    for (std::uint32_t i = 0; i < slots; ++i) {
+      if (!store_.slots().alive(i) || !store_.sees(r.mask, i)) continue;
+      ++cost.tests;
+      double t;
+      if (!ray_hit(r.origin, r.dir, tmax, store_.shape(i), t)) continue;
+      tmax = visit_hit(visitor, store_.handle(i), t, tmax);
+      if (tmax < 0) {
+        cost.stopped = true;
+        break;
+      }
+    }
+    return cost;
+  }
+
  protected:
+  /// True when slots `i` and `j` may pair: their filters pass and so does
+  /// the pair filter. Every pair a structure reports or caches passes this.
+  bool may_pair(std::uint32_t i, std::uint32_t j) const {
+    return store_.may_pair(i, j) &&
+           (!pair_filter_ || pair_filter_(store_.handle(i), store_.handle(j)));
+  }
+  /// True when no filter or pair filter is set: every pair passes.
+  bool unfiltered() const { return !store_.filtered() && !pair_filter_; }
+
   /// The opening of every validate(): checks the store's own invariants and
   /// returns the thrower for the structure's further checks.
   InvariantFailure validate_store(std::string_view structure) const {
@@ -92,6 +135,7 @@ class StoreBase : public StructureBase<S> {
   }
 
   ObjectStore store_;
+  PairFilter pair_filter_;
 };
 
 }  // namespace broadphase::detail
