@@ -17,6 +17,12 @@ std::vector<ExperimentInfo>& table() {
 
 const std::vector<ExperimentInfo>& experiments() { return table(); }
 
+double experiment_weights() {
+  double w = 0;
+  for (const ExperimentInfo& e : table()) w += e.weight;
+  return w;
+}
+
 RegisterExperiment::RegisterExperiment(ExperimentInfo info) {
   auto& t = table();
   if (std::any_of(t.begin(), t.end(), [&](const ExperimentInfo& e) { return e.name == info.name; }))

@@ -19,7 +19,14 @@ struct ExperimentInfo {
   int order = 0;            ///< report order: lower first
   std::string description;  ///< one line, for docs/lab.md and --help readers
   LabExperiment run;
+  /// Its share of the experiments' budget relative to the others' (1 each
+  /// by default): what it took, over what they took, on the 2-core hosts
+  /// with a generous budget.
+  double weight = 1;
 };
+
+/// The experiments' weights added up.
+double experiment_weights();
 
 /// The registered experiments, in report order.
 const std::vector<ExperimentInfo>& experiments();

@@ -16,6 +16,11 @@
 
 namespace broadphase::app {
 
+/// The default budget of a full run, in seconds: 25 minutes. Quiet 2-core
+/// hosts took 24-26 minutes with the floors of every step met; a budget
+/// below that cuts repetitions and sizes, said in the report.
+inline constexpr double kDefaultBudget = 1500;
+
 /// What `broadphase paper` was asked for (its --help says each option).
 struct PaperOptions {
   bool quick = false;

@@ -31,7 +31,7 @@ void add_paper_command(CLI::App& app) {
                    ->check(whole_number());
   auto* budget =
       cmd->add_option("--budget", o->budget,
-                      "Seconds the whole run should take at most (default 1200, 35 with --quick); "
+                      "Seconds the whole run should take at most (default 1500, 35 with --quick); "
                       "structures whose projected time does not fit are skipped at large sizes");
   auto* peers =
       cmd->add_flag("--peers,!--no-peers", o->peers, "Include the peer libraries (default: yes)");
