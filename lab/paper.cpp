@@ -370,6 +370,10 @@ void prepare(Run& run) {
                            std::max(1.0, experiment_weights());
 }
 
+// Thrown from a cell's progress step when the study has run well past its
+// budget: the cell stops there and is left out.
+struct CellOverBudget {};
+
 // Step 2: the study's six tests, memory and the frame time on every
 // structure at every size, skipping what does not fit the budget; compares
 // what the structures report.
@@ -531,6 +535,7 @@ void run_study(Run& run) {
       const double rest = study_left(ni, si + 1);
       const auto t_cell = Clock::now();
       CellCosts costs;
+      std::vector<Row> cell_rows;  // both placements' rows, kept when both ran
       for (int p = 0; p < 2; ++p) {
         const PaperScene& ps = scenes[p];
         mo.churn = ps.even;
@@ -548,14 +553,33 @@ void run_study(Run& run) {
           // spent again: never "0 s left" while it runs.
           const double cell = lab_seconds_since(t_cell);
           show(where + step, std::max(paced - cell, cell > paced ? 0.25 * cell : 0.0), rest);
+          // The projections cannot see a machine that slows down during a
+          // cell: one cell of Bullet's dbvt at 102 400 took 14 minutes on
+          // a machine whose other programs left this one a twentieth of a
+          // core. A cell still running when the study is past its budget
+          // by a tenth stops at its next step, and is left out.
+          if (study_elapsed() > 1.1 * info.study_budget_seconds + 10) throw CellOverBudget{};
         };
         try {
           SceneResult r = sel.lean ? measure_arrays(ps, mo, tick)
                                    : measure_scene(registry(), sel.spec, sel.peer, ps, mo, tick);
-          for (Row& row : r.rows) res.rows.push_back(std::move(row));
+          for (Row& row : r.rows) cell_rows.push_back(std::move(row));
           digests[p][si] = std::move(r.digests);
           hits[p][si] = std::move(r.query_hits);
           costs += r.costs;
+        } catch (const CellOverBudget&) {
+          const std::string why = "stopped during the cell: the six tests ran past their " +
+                                  seconds_text(info.study_budget_seconds) + " budget";
+          res.skips.push_back({sel.spec, n, paced, info.cell_cap_seconds, why});
+          bar.message("stopping " + sel.spec + " at N=" + std::to_string(n) + ": " + why);
+          budget_skips.push_back(sel.spec);
+          digests[0][si].clear();
+          digests[1][si].clear();
+          hits[0][si].clear();
+          hits[1][si].clear();
+          cell_rows.clear();
+          h.skipped = true;
+          break;
         } catch (const std::exception& e) {
           res.mismatches.push_back(
               {n, ps.even ? "even" : "uneven", "error", sel.spec, e.what(), "no error", ""});
@@ -564,6 +588,7 @@ void run_study(Run& run) {
           break;
         }
       }
+      for (Row& row : cell_rows) res.rows.push_back(std::move(row));
       if (h.skipped) continue;
       if (!h.points.empty()) {
         projected_sum += projected;
