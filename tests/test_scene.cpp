@@ -107,7 +107,7 @@ TEST(Scene, RejectsEveryMalformedFileNamingTheLine) {
   const std::string v1 = "broadphase-scene 1\nworld 10\nobjects 1\n";
   const std::string v2 = "broadphase-scene 2\nworld 10\nobjects 1\n";
   expect_rejected("", 0, "empty file");
-  expect_rejected("broadphase-scene 3\nworld 10\nobjects 0\n", 1, "wrong header");
+  expect_rejected("broadphase-scene 4\nworld 10\nobjects 0\n", 1, "wrong header");
   expect_rejected("\nbroadphase-scene 1\nworld 10\nobjects 0\n", 1, "header not on line 1");
   expect_rejected("broadphase-scene 1\nobjects 0\n", 2, "missing world");
   expect_rejected("broadphase-scene 1\nworld\nobjects 0\n", 2, "world without a value");

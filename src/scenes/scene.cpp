@@ -1,14 +1,17 @@
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <broadphase/scenes/excerpt.hpp>
 #include <broadphase/scenes/output_file.hpp>
 #include <broadphase/scenes/scene.hpp>
+#include <cctype>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <numeric>
 #include <sstream>
 
@@ -19,6 +22,14 @@ bool Scene::has_boxes() const {
     if (s.kind == ShapeKind::box) return true;
   return false;
 }
+
+bool Scene::has_filters() const {
+  for (const Filter& f : filters)
+    if (!(f == Filter{})) return true;
+  return false;
+}
+
+int Scene::version() const { return has_filters() || has_rays() ? 3 : has_boxes() ? 2 : 1; }
 
 namespace {
 
@@ -83,12 +94,80 @@ class LineReader {
 
 }  // namespace
 
+namespace {
+
+// A filter's bits: decimal (a leading 0 is not octal) or 0x/0X and hex
+// digits, no sign, below 2^32.
+std::uint32_t parse_bits(const LineReader& r, std::string_view text, const char* what) {
+  std::string_view digits = text;
+  int base = 10;
+  if (digits.size() >= 2 && digits[0] == '0' && (digits[1] == 'x' || digits[1] == 'X')) {
+    digits.remove_prefix(2);
+    base = 16;
+  }
+  std::uint64_t v = 0;
+  const bool only_digits =
+      !digits.empty() && std::all_of(digits.begin(), digits.end(), [&](char c) {
+        return base == 10 ? std::isdigit(static_cast<unsigned char>(c)) != 0
+                          : std::isxdigit(static_cast<unsigned char>(c)) != 0;
+      });
+  if (!only_digits)
+    r.fail(std::string(what) + " " + excerpt(text) +
+           " is not an unsigned integer (decimal, or 0x and hex digits)");
+  const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), v, base);
+  if (ec != std::errc{} || end != digits.data() + digits.size() || v > 0xffffffffull)
+    r.fail(std::string(what) + " " + excerpt(text) + " is not below 2^32");
+  return static_cast<std::uint32_t>(v);
+}
+
+// A count line's value: a whole number below 2^32.
+std::uint64_t parse_count(const LineReader& r, std::string_view text, const char* what) {
+  std::uint64_t count = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), count);
+  if (ec != std::errc{} || end != text.data() + text.size() || count > 0xfffffffeull)
+    r.fail(std::string(what) + " " + excerpt(text) + " is not a whole number below 2^32");
+  return count;
+}
+
+// A ray's tmax: a number >= 0 or `inf`; -0 counts as 0.
+double parse_tmax(const LineReader& r, std::string_view text) {
+  const std::string_view digits = text.size() > 1 && text[0] == '+' ? text.substr(1) : text;
+  if (digits == "inf" || digits == "infinity" || digits == "INF" || digits == "Inf")
+    return std::numeric_limits<double>::infinity();
+  const double v = r.number(text, "tmax");
+  if (v < 0) r.fail("tmax " + excerpt(text) + " is negative");
+  return v == 0 ? 0.0 : v;  // -0 counts as 0
+}
+
+// A ray line (its first field is "ray"): `ray ox oy oz dx dy dz tmax [filter M]`.
+Ray parse_ray(const LineReader& r, const std::vector<std::string_view>& f) {
+  if (f.size() != 8 && !(f.size() == 10 && f[8] == "filter")) {
+    if (f.size() > 8 && f[8] == "filter")
+      r.fail("'filter' on a ray line takes exactly one value, its mask M");
+    r.fail("a ray line needs 7 numbers (ox oy oz dx dy dz tmax) and optionally 'filter M', got " +
+           std::to_string(f.size() - 1) + " fields");
+  }
+  static const char* const kNames[] = {"ox", "oy", "oz", "dx", "dy", "dz"};
+  double v[6];
+  for (int i = 0; i < 6; ++i) v[i] = r.number(f[1 + i], kNames[i]);
+  Ray ray;
+  ray.origin = {v[0], v[1], v[2]};
+  ray.dir = {v[3], v[4], v[5]};
+  ray.tmax = parse_tmax(r, f[7]);
+  if (f.size() == 10) ray.mask = parse_bits(r, f[9], "ray mask");
+  const std::string why = ray_problem(ray);
+  if (!why.empty()) r.fail("ray " + why);
+  return ray;
+}
+
+}  // namespace
+
 Scene parse_scene(std::istream& in, const std::string& name) {
   LineReader r(in, name);
   std::vector<std::string_view> f;
   std::string header;
   // The header must be line 1 exactly, so it is read raw, not skipped as blank.
-  if (!r.raw(header)) r.fail("empty file; expected 'broadphase-scene 1' or 'broadphase-scene 2'");
+  if (!r.raw(header)) r.fail("empty file; expected 'broadphase-scene 1', '2' or '3'");
   if (!header.empty() && header.back() == '\r') header.pop_back();
   // A UTF-8 byte order mark, as some editors write, is not part of the text.
   if (header.starts_with("\xEF\xBB\xBF")) header.erase(0, 3);
@@ -100,35 +179,59 @@ Scene parse_scene(std::istream& in, const std::string& name) {
     version = 1;
   else if (header == "broadphase-scene 2")
     version = 2;
+  else if (header == "broadphase-scene 3")
+    version = 3;
   else
-    r.fail("expected 'broadphase-scene 1' or 'broadphase-scene 2', got " + excerpt(header));
+    r.fail("expected 'broadphase-scene 1', 'broadphase-scene 2' or 'broadphase-scene 3', got " +
+           excerpt(header));
   Scene scene;
   auto expect_keyword = [&](const char* key) {
     if (!r.next(f)) r.fail(std::string("missing '") + key + " ...' line");
     if (f[0] != key) r.fail(std::string("expected '") + key + " ...', got " + excerpt(f[0]));
+    if (f.size() > 2 && f[0] == "world" && f[2] == "periodic")
+      r.fail("periodic worlds are not supported yet (a version 3 'world L periodic AXES')");
     if (f.size() != 2) r.fail(std::string("'") + key + "' takes exactly one value");
   };
   expect_keyword("world");
   scene.world = r.number(f[1], "world size");
   if (!(scene.world > 0)) r.fail("world size must be > 0");
   expect_keyword("objects");
-  std::uint64_t count = 0;
-  {
-    const auto [end, ec] = std::from_chars(f[1].data(), f[1].data() + f[1].size(), count);
-    if (ec != std::errc{} || end != f[1].data() + f[1].size() || count > 0xfffffffeull)
-      r.fail("object count " + excerpt(f[1]) + " is not a whole number below 2^32");
-  }
+  const std::uint64_t count = parse_count(r, f[1], "object count");
   // Room for at most 2^16 objects up front: the count is the file's claim,
   // and a 130-byte file claiming 2^24 objects made the reader take 1.3 GB
   // before it read one (fuzz_scene_reader); beyond, the vectors grow.
   scene.objects.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(count, 1u << 16)));
   scene.velocity.reserve(scene.objects.capacity());
+  bool any_filter = false;
+  // Version 3's rays block, once its `rays N` line is read.
+  bool in_rays = false;
+  std::uint64_t ray_count = 0;
   while (r.next(f)) {
+    if (f[0] == "rays") {
+      if (version < 3) r.fail("a 'rays' block needs 'broadphase-scene 3'");
+      if (in_rays) r.fail("a second 'rays' line; a file has one rays block");
+      if (scene.objects.size() != count)
+        r.fail("the file declares " + std::to_string(count) + " objects but has " +
+               std::to_string(scene.objects.size()) + " before its rays block");
+      if (f.size() != 2) r.fail("'rays' takes exactly one value");
+      ray_count = parse_count(r, f[1], "ray count");
+      scene.rays.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(ray_count, 1u << 16)));
+      in_rays = true;
+      continue;
+    }
+    if (in_rays) {
+      if (f[0] != "ray") r.fail("expected 'ray ...' in the rays block, got " + excerpt(f[0]));
+      if (scene.rays.size() == ray_count)
+        r.fail("more ray lines than the declared count of " + std::to_string(ray_count));
+      scene.rays.push_back(parse_ray(r, f));
+      continue;
+    }
+    if (f[0] == "ray") r.fail("a 'ray' line before its 'rays N' line");
     if (scene.objects.size() == count)
       r.fail("more object lines than the declared count of " + std::to_string(count));
     std::size_t k = 0;
     ShapeKind kind = ShapeKind::sphere;
-    if (version == 2) {
+    if (version >= 2) {
       if (f[0] == "sphere")
         kind = ShapeKind::sphere;
       else if (f[0] == "box")
@@ -138,14 +241,29 @@ Scene parse_scene(std::istream& in, const std::string& name) {
       k = 1;
     }
     const std::size_t want = kind == ShapeKind::sphere ? 7 : 9;
-    if (f.size() - k != want)
+    // Version 3: `filter G M` may end the line.
+    std::size_t numbers = f.size() - k;
+    const bool has_filter = version == 3 && numbers > want && f[k + want] == "filter";
+    if (has_filter) {
+      if (numbers != want + 3)
+        r.fail("'filter' takes exactly two values, the group G and the mask M");
+      numbers = want;
+    } else if (version < 3 && numbers > want && f[k + want] == "filter") {
+      r.fail("'filter' on an object line needs 'broadphase-scene 3'");
+    }
+    if (numbers != want)
       r.fail("a " + std::string(kind == ShapeKind::sphere ? "sphere" : "box") + " line needs " +
-             std::to_string(want) + " numbers, got " + std::to_string(f.size() - k));
+             std::to_string(want) + " numbers, got " + std::to_string(numbers));
     static const char* const kSphereNames[] = {"x", "y", "z", "radius", "vx", "vy", "vz"};
     static const char* const kBoxNames[] = {"x", "y", "z", "hx", "hy", "hz", "vx", "vy", "vz"};
     double v[9];
     for (std::size_t i = 0; i < want; ++i)
       v[i] = r.number(f[k + i], kind == ShapeKind::sphere ? kSphereNames[i] : kBoxNames[i]);
+    Filter filter;
+    if (has_filter) {
+      filter.group = parse_bits(r, f[k + want + 1], "filter group");
+      filter.mask = parse_bits(r, f[k + want + 2], "filter mask");
+    }
     if (kind == ShapeKind::sphere) {
       if (v[3] < 0) r.fail("radius " + excerpt(f[k + 3]) + " is negative");
       scene.objects.push_back(Shape::sphere({v[0], v[1], v[2]}, v[3]));
@@ -156,11 +274,21 @@ Scene parse_scene(std::istream& in, const std::string& name) {
       scene.objects.push_back(Shape::box({v[0], v[1], v[2]}, {v[3], v[4], v[5]}));
       scene.velocity.push_back({v[6], v[7], v[8]});
     }
+    if (!(filter == Filter{}) && !any_filter) {
+      // The first filter that is not the default: every object before it has the default.
+      any_filter = true;
+      scene.filters.assign(scene.objects.size() - 1, Filter{});
+    }
+    if (any_filter) scene.filters.push_back(filter);
   }
   if (scene.objects.size() != count)
     throw SceneError(name + ":" + std::to_string(r.line()) + ": the file declares " +
                      std::to_string(count) + " objects but has " +
                      std::to_string(scene.objects.size()));
+  if (in_rays && scene.rays.size() != ray_count)
+    throw SceneError(name + ":" + std::to_string(r.line()) + ": the file declares " +
+                     std::to_string(ray_count) + " rays but has " +
+                     std::to_string(scene.rays.size()));
   return scene;
 }
 
@@ -180,17 +308,28 @@ void put(std::ostream& out, double v) {
   std::snprintf(buf, sizeof buf, "%.17g", v);
   out << buf;
 }
+
+void put_bits(std::ostream& out, std::uint32_t v) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "0x%x", static_cast<unsigned>(v));
+  out << buf;
+}
 }  // namespace
 
 void write_scene(std::ostream& out, const Scene& scene) {
-  const bool v2 = scene.has_boxes();
-  out << "broadphase-scene " << (v2 ? 2 : 1) << "\nworld ";
+  const int version = scene.version();
+  const bool kinds = version >= 2;
+  const bool filters = scene.has_filters();
+  out << "broadphase-scene " << version << "\nworld ";
   put(out, scene.world);
   out << "\nobjects " << scene.objects.size() << "\n";
-  out << (v2 ? "# kind x y z (r | hx hy hz) vx vy vz\n" : "# x y z r vx vy vz\n");
+  out << (version == 3   ? "# sphere x y z r vx vy vz [filter G M] | box x y z hx hy hz vx vy vz "
+                           "[filter G M]\n"
+          : version == 2 ? "# kind x y z (r | hx hy hz) vx vy vz\n"
+                         : "# x y z r vx vy vz\n");
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const Shape& s = scene.objects[i];
-    if (v2) out << (s.kind == ShapeKind::sphere ? "sphere " : "box ");
+    if (kinds) out << (s.kind == ShapeKind::sphere ? "sphere " : "box ");
     put(out, s.center.x), out << ' ', put(out, s.center.y), out << ' ', put(out, s.center.z);
     if (s.kind == ShapeKind::sphere) {
       out << ' ', put(out, s.half.x);
@@ -200,6 +339,24 @@ void write_scene(std::ostream& out, const Scene& scene) {
     }
     const Vec3& v = scene.velocity[i];
     out << ' ', put(out, v.x), out << ' ', put(out, v.y), out << ' ', put(out, v.z);
+    if (filters && !(scene.filters[i] == Filter{})) {
+      out << " filter " << scene.filters[i].group << ' ';
+      put_bits(out, scene.filters[i].mask);
+    }
+    out << '\n';
+  }
+  if (scene.rays.empty()) return;
+  out << "rays " << scene.rays.size() << "\n# ray ox oy oz dx dy dz tmax [filter M]\n";
+  for (const Ray& r : scene.rays) {
+    out << "ray ";
+    put(out, r.origin.x), out << ' ', put(out, r.origin.y), out << ' ', put(out, r.origin.z);
+    out << ' ', put(out, r.dir.x), out << ' ', put(out, r.dir.y), out << ' ', put(out, r.dir.z);
+    out << ' ';
+    if (std::isinf(r.tmax))
+      out << "inf";
+    else
+      put(out, r.tmax);
+    if (r.mask != 0xffffffffu) out << " filter ", put_bits(out, r.mask);
     out << '\n';
   }
 }
@@ -226,6 +383,35 @@ std::string hex16(std::uint64_t v) {
   char buf[17];
   std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
   return buf;
+}
+
+std::uint64_t hit_hash(std::uint32_t ray, std::uint32_t id, double t) {
+  std::uint64_t bits = 0;
+  std::memcpy(&bits, &t, sizeof bits);
+  return splitmix64(splitmix64((std::uint64_t(ray) << 32) | id) + bits);
+}
+
+void RayHits::add(std::uint32_t id, double t) {
+  if (hits_ == 0 || t < best_t_ || (t == best_t_ && id < best_id_)) {
+    best_t_ = t;
+    best_id_ = id;
+  }
+  ++hits_;
+  hash_ += hit_hash(ray_, id, t);
+}
+
+void RayHits::add_to(HitDigest& d) const {
+  d.hits += hits_;
+  d.hash += hash_;
+  if (hits_ > 0) d.closest += hit_hash(ray_, best_id_, best_t_);
+}
+
+std::string frame_line(int frame, const FrameDigest& pairs, const HitDigest* hits) {
+  std::string line =
+      std::to_string(frame) + ' ' + std::to_string(pairs.pairs) + ' ' + hex16(pairs.hash);
+  if (hits)
+    line += ' ' + std::to_string(hits->hits) + ' ' + hex16(hits->hash) + ' ' + hex16(hits->closest);
+  return line;
 }
 
 Distribution parse_distribution(std::string_view name) {

@@ -1,9 +1,11 @@
 /// \file lab/scene.hpp
-/// Scene files (docs/scene-format.md, versions 1 and 2), the replay motion, the
-/// pair hash, and the study's workload generator.
+/// Scene files (docs/scene-format.md, versions 1 to 3: spheres, boxes,
+/// filters and rays), the replay motion, the pair and hit hashes, and the
+/// workload generators.
 #pragma once
 
 #include <broadphase/geometry.hpp>
+#include <broadphase/ray.hpp>
 #include <cstdint>
 #include <iosfwd>
 #include <stdexcept>
@@ -13,19 +15,35 @@
 
 namespace broadphase {
 
-/// A world cube [0, L]^3 with objects; object id = position in `objects`.
+/// A world cube [0, L]^3 with objects; object id = position in `objects`;
+/// ray id = position in `rays`.
 struct Scene {
   double world = 1000;
   std::vector<Shape> objects;
   std::vector<Vec3> velocity;  ///< per object; (0,0,0) means static
+  /// Per object, or empty when every object has the default Filter{}
+  /// (group 1, mask 0xffffffff). When not empty, as long as `objects`.
+  std::vector<Filter> filters;
+  /// Cast every frame after the objects moved (version 3); each valid
+  /// (`is_valid(Ray)`).
+  std::vector<Ray> rays;
 
   std::size_t size() const { return objects.size(); }
   bool is_moving(std::size_t i) const {
     const Vec3& v = velocity[i];
     return v.x != 0 || v.y != 0 || v.z != 0;
   }
-  /// True when any object is a box (the file must then be version 2).
+  /// Object `i`'s filter (the default when `filters` is empty).
+  Filter filter(std::size_t i) const { return filters.empty() ? Filter{} : filters[i]; }
+  /// True when any object is a box (the file must then be version 2 or 3).
   bool has_boxes() const;
+  /// True when any object's filter is not the default (version 3).
+  bool has_filters() const;
+  /// True when the scene's frames print the version 3 lines with hits.
+  bool has_rays() const { return !rays.empty(); }
+  /// The version `write_scene` writes: 3 with filters or rays, else 2 with
+  /// boxes, else 1.
+  int version() const;
 };
 
 /// Thrown for a malformed scene; `what()` is "FILE:LINE: reason".
@@ -34,14 +52,17 @@ class SceneError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Parses a scene. `name` is used in messages. Throws SceneError. Beyond
-/// the letter of the format, CRLF line ends, a UTF-8 byte order mark before
-/// the header and a leading '+' on a number are accepted.
+/// Parses a scene of version 1, 2 or 3. `name` is used in messages. Throws
+/// SceneError naming the line; a periodic world (`world L periodic AXES`)
+/// is refused: periodic worlds are not supported yet. Beyond the letter of
+/// the format, CRLF line ends, a UTF-8 byte order mark before the header
+/// and a leading '+' on a number are accepted.
 Scene parse_scene(std::istream& in, const std::string& name);
 /// Reads a scene file. Throws SceneError (also when it cannot be opened).
 Scene read_scene(const std::string& path);
-/// Writes version 1 (spheres only) or version 2 (when there are boxes),
-/// numbers as %.17g so that reading gives back the same doubles.
+/// Writes version 1 (spheres only), version 2 (when there are boxes) or
+/// version 3 (when there are filters or rays; `Scene::version`), numbers as
+/// %.17g so that reading gives back the same doubles.
 void write_scene(std::ostream& out, const Scene& scene);
 /// Writes a scene file. Throws std::runtime_error when it cannot be written.
 void write_scene(const std::string& path, const Scene& scene);
@@ -86,8 +107,40 @@ struct FrameDigest {
   friend bool operator==(const FrameDigest&, const FrameDigest&) = default;
 };
 
+/// The contract's hash of one ray hit (version 3, "Frame lines"):
+/// splitmix64(splitmix64((ray << 32) | id) + bits(t)).
+std::uint64_t hit_hash(std::uint32_t ray, std::uint32_t id, double t);
+
+/// Hit count and order-independent hashes of one frame's rays: every hit,
+/// and each ray's closest hit (smallest t, then smallest id).
+struct HitDigest {
+  std::uint64_t hits = 0;
+  std::uint64_t hash = 0;     ///< over every hit
+  std::uint64_t closest = 0;  ///< over each ray's closest hit
+  friend bool operator==(const HitDigest&, const HitDigest&) = default;
+};
+
+/// Gathers one ray's hits, in any order, and adds them to a HitDigest.
+class RayHits {
+ public:
+  explicit RayHits(std::uint32_t ray) : ray_(ray) {}
+  void add(std::uint32_t id, double t);
+  /// Adds this ray's hits and its closest hit (if any) to `d`.
+  void add_to(HitDigest& d) const;
+
+ private:
+  std::uint32_t ray_;
+  std::uint64_t hits_ = 0, hash_ = 0;
+  std::uint32_t best_id_ = 0;
+  double best_t_ = 0;
+};
+
 /// 16 lowercase hex digits.
 std::string hex16(std::uint64_t v);
+
+/// One frame's line as `run` prints it (no newline): `frame pairs hash`,
+/// and with rays `frame pairs hash hits hits_hash closest_hash`.
+std::string frame_line(int frame, const FrameDigest& pairs, const HitDigest* hits);
 
 /// The study's workloads (docs/scene-format.md, "The paper's workloads"), and
 /// the stress kinds the performance work is measured on.
@@ -157,5 +210,38 @@ class Rng {
 /// standing on a ground box (neighbours and the ground touch exactly), and
 /// 30% spheres (the movers) flying at heights 50 to L.
 Scene generate(Distribution d, std::size_t n, std::uint64_t seed);
+
+/// How `add_filters` gives the objects their filters (version 3).
+enum class FilterKind {
+  layers,  ///< object in one of K layers: group 1 << layer, a layer pairs with itself and
+           ///< its two neighbours (layer ± 1 mod K), so most layers ignore each other
+  random,  ///< groups and masks of random bits over 8 groups (some pair with nothing)
+};
+
+/// Gives every object of `scene` a filter drawn from `seed` (a stream of
+/// its own: the objects stay as they are). `layers` (1 to 32) is used by
+/// FilterKind::layers. Throws std::invalid_argument for a layer count out
+/// of range.
+void add_filters(Scene& scene, FilterKind kind, int layers, std::uint64_t seed);
+
+/// The rays `add_rays` makes (version 3).
+enum class RayKind {
+  mixed,   ///< a share of each kind below
+  random,  ///< random points (some outside the world), random directions and lengths
+  lidar,   ///< a fan from one point: rings of elevation, evenly spaced azimuths
+  axis,    ///< along an axis on cell faces and edges (multiples of L/8 .. L/64), and
+           ///< diagonals through cell corners
+  inside,  ///< starting inside or on an object (a hit at t = 0)
+  zero,    ///< direction 0: the ray is its origin alone
+};
+/// Parses "mixed", "random", "lidar", "axis", "inside" or "zero"; throws
+/// std::invalid_argument listing them.
+RayKind parse_ray_kind(std::string_view name);
+std::string_view to_string(RayKind k);
+
+/// Appends `n` rays of `kind` to `scene`, drawn from `seed` (a stream of its
+/// own). tmax is a mix of +infinity, 0 and finite values; where the scene
+/// has filters, a quarter of the rays get a mask of one or a few groups.
+void add_rays(Scene& scene, std::size_t n, RayKind kind, std::uint64_t seed);
 
 }  // namespace broadphase
