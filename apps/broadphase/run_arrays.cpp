@@ -16,7 +16,16 @@
 namespace broadphase::app {
 
 void run_arrays(const std::string& path, int frames, bool json) {
-  ArrayCaller caller(read_scene(path));
+  Scene scene = read_scene(path);
+  // The lean path has no filters nor rays yet: refuse rather than print
+  // lines that ignore them.
+  if (scene.has_filters() || scene.has_rays())
+    throw SceneError(path + ": the lean path (--arrays) does not take " +
+                     (scene.has_filters() && scene.has_rays() ? "filters and rays"
+                      : scene.has_filters()                   ? "filters"
+                                                              : "rays") +
+                     " yet; run this scene with --algo NAME");
+  ArrayCaller caller(std::move(scene));
   const std::size_t n = caller.size();
   const Objects objects = caller.objects();
   const std::vector<std::uint32_t>& movers = caller.movers();

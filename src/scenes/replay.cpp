@@ -15,7 +15,8 @@ Replay::Replay(AnyBroadPhase& structure, Scene scene) : bp_(structure), scene_(s
   const auto t0 = std::chrono::steady_clock::now();
   for (std::size_t i = 0; i < scene_.size(); ++i) {
     const bool moving = scene_.is_moving(i);
-    handles_.push_back(bp_.insert(scene_.objects[i], i, moving ? Motion::dynamic : Motion::fixed));
+    handles_.push_back(bp_.insert(scene_.objects[i], i, moving ? Motion::dynamic : Motion::fixed,
+                                  scene_.filter(i)));
   }
   build_seconds_ = since(t0);
   for (std::size_t i = 0; i < scene_.size(); ++i)
@@ -49,8 +50,24 @@ FrameResult Replay::next() {
   for (const HandlePair& p : pairs_)
     r.digest.add(static_cast<std::uint32_t>(bp_.user_data(p.a)),
                  static_cast<std::uint32_t>(bp_.user_data(p.b)));
+  if (!scene_.rays.empty()) {
+    const auto t2 = std::chrono::steady_clock::now();
+    for (std::size_t k = 0; k < scene_.rays.size(); ++k) {
+      RayHits hits(static_cast<std::uint32_t>(k));
+      bp_.cast_ray(scene_.rays[k], [&](Handle h, double t) {
+        hits.add(static_cast<std::uint32_t>(bp_.user_data(h)), t);
+        return kRayGoOn;  // every hit, not only the closest
+      });
+      hits.add_to(r.hits);
+    }
+    r.rays_seconds = since(t2);
+  }
   ++frame_;
   return r;
+}
+
+std::string frame_line(int frame, const FrameResult& r, bool rays) {
+  return frame_line(frame, r.digest, rays ? &r.hits : nullptr);
 }
 
 }  // namespace broadphase

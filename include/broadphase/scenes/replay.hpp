@@ -6,6 +6,7 @@
 #include <broadphase/scenes/scene.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace broadphase {
@@ -13,15 +14,24 @@ namespace broadphase {
 /// What one frame found and cost.
 struct FrameResult {
   FrameDigest digest;
+  HitDigest hits;             ///< the rays' hits (zero when the scene has no rays)
   std::uint64_t tests = 0;    ///< narrow-phase tests performed
   double update_seconds = 0;  ///< the structure's update of the moved objects
   double pairs_seconds = 0;   ///< finding all pairs
+  double rays_seconds = 0;    ///< casting the scene's rays (0 without rays)
+  /// The structure's update and pairs (the rays are timed apart).
   double seconds() const { return update_seconds + pairs_seconds; }
 };
 
+/// The line `run` prints for frame `frame` (frame_line): with the hits when
+/// the scene has rays.
+std::string frame_line(int frame, const FrameResult& r, bool rays);
+
 /// Holds a scene and a structure filled with its objects (object id i has
-/// user data i; moving objects are inserted as Motion::dynamic, the others
-/// as Motion::fixed). Each `next()` evaluates one frame.
+/// user data i and the scene's filter of object i; moving objects are
+/// inserted as Motion::dynamic, the others as Motion::fixed). Each `next()`
+/// evaluates one frame: the contract's motion, the pairs, then every ray
+/// of the scene cast through `cast_ray`, all hits collected.
 class Replay {
  public:
   /// Inserts every object of `scene` into `structure` (which should be empty).
