@@ -47,7 +47,7 @@ bad() {  # bad NAME PATTERN CONTENT
   printf '%b' "$3" >"$tmp/bad.scene"
   expect_error "$1" "$2" run --scene "$tmp/bad.scene" --algo naive --frames 1
 }
-bad "wrong header" "bad.scene:1:" "broadphase-scene 3\nworld 10\nobjects 0\n"
+bad "wrong header" "bad.scene:1:" "broadphase-scene 4\nworld 10\nobjects 0\n"
 bad "missing field" "bad.scene:4:" "broadphase-scene 1\nworld 10\nobjects 1\n1 2 3 4 0 0\n"
 bad "extra field" "bad.scene:4:" "broadphase-scene 1\nworld 10\nobjects 1\n1 2 3 4 0 0 0 9\n"
 bad "not a number" "bad.scene:4:.*'abc'" "broadphase-scene 1\nworld 10\nobjects 1\n1 abc 3 4 0 0 0\n"

@@ -1,0 +1,154 @@
+#!/usr/bin/env bash
+# Scene format version 3 on the command line (filters and rays).
+#   cli_v3_test.sh CLI DATA input    bad input (a message naming the line, a
+#                                    non-zero exit, nothing printed), periodic
+#                                    worlds refused, `run --oracle` on the
+#                                    reference scenes, --arrays refusing v3,
+#                                    `gen`'s filters and rays
+#   cli_v3_test.sh CLI DATA rays     every structure of `list` on the
+#                                    reference scenes with rays and no filters
+#   cli_v3_test.sh CLI DATA filters  every structure of `list` on the
+#                                    reference scenes with filters
+set -u
+cli=$1
+data=$2
+mode=$3
+fail=0
+pass=0
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+check() {  # check NAME CONDITION...
+  local name=$1; shift
+  if "$@"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: $name"; fi
+}
+
+has_filters() { grep -q '^\(sphere\|box\) .* filter ' "$1"; }
+
+# Every structure of `list` prints the expected lines of the reference
+# scenes of one kind (rays: scenes without object filters; filters: with).
+replay_all() {  # replay_all rays|filters
+  local algos
+  algos=$("$cli" list | awk '{print $1}')
+  [ -n "$algos" ] || { echo "FAIL: list printed nothing"; fail=$((fail + 1)); return; }
+  for s in "$data"/scenes/v3/*.scene; do
+    if has_filters "$s"; then [ "$1" = filters ] || continue; else [ "$1" = rays ] || continue; fi
+    exp=${s%.scene}.expected
+    frames=$(wc -l <"$exp")
+    for a in $algos; do
+      "$cli" run --scene "$s" --algo "$a" --frames "$frames" >"$tmp/out" 2>"$tmp/err"
+      check "$a on v3/$(basename "$s")" cmp -s "$tmp/out" "$exp"
+    done
+  done
+}
+
+expect_error() {  # expect_error NAME PATTERN ARGS...
+  local name=$1 pattern=$2; shift 2
+  "$cli" "$@" >"$tmp/out" 2>"$tmp/err"
+  local rc=$?
+  if [ $rc -ne 0 ] && [ $rc -lt 128 ] && grep -q -- "$pattern" "$tmp/err" && [ ! -s "$tmp/out" ]; then
+    pass=$((pass + 1))
+  else
+    fail=$((fail + 1)); echo "FAIL: $name (exit $rc): $(cat "$tmp/err")"
+  fi
+}
+bad() {  # bad NAME PATTERN CONTENT: refused by run (a structure and the oracle)
+  printf '%b' "$3" >"$tmp/bad.scene"
+  expect_error "$1" "$2" run --scene "$tmp/bad.scene" --algo grid-verlet --frames 1
+  expect_error "$1 (oracle)" "$2" run --scene "$tmp/bad.scene" --oracle --frames 1
+}
+
+input_checks() {
+  local h="broadphase-scene 3\nworld 100\nobjects 1\n" o="sphere 1 2 3 4 0 0 0\n"
+  bad "version 4" "bad.scene:1:" "broadphase-scene 4\nworld 10\nobjects 0\n"
+  bad "filter with one value" "bad.scene:4:.*two values" "${h}sphere 1 2 3 4 0 0 0 filter 1\n"
+  bad "negative group" "bad.scene:4:.*'-1'" "${h}sphere 1 2 3 4 0 0 0 filter -1 1\n"
+  bad "signed mask" "bad.scene:4:" "${h}sphere 1 2 3 4 0 0 0 filter 1 +1\n"
+  bad "mask of 2^32" "bad.scene:4:.*2^32" "${h}sphere 1 2 3 4 0 0 0 filter 1 4294967296\n"
+  bad "hex mask of 2^32" "bad.scene:4:.*2^32" "${h}box 1 2 3 1 1 1 0 0 0 filter 1 0x100000000\n"
+  bad "malformed mask" "bad.scene:4:.*'0xz'" "${h}sphere 1 2 3 4 0 0 0 filter 1 0xz\n"
+  bad "filter in version 2" "bad.scene:4:.*broadphase-scene 3" \
+    "broadphase-scene 2\nworld 100\nobjects 1\n${o%\\n} filter 1 1\n"
+  bad "rays in version 2" "bad.scene:5:.*broadphase-scene 3" \
+    "broadphase-scene 2\nworld 100\nobjects 1\n${o}rays 0\n"
+  bad "NaN origin" "bad.scene:6:.*'nan'" "${h}${o}rays 1\nray nan 0 0 1 0 0 1\n"
+  bad "infinite origin" "bad.scene:6:" "${h}${o}rays 1\nray 0 0 inf 1 0 0 1\n"
+  bad "infinite direction" "bad.scene:6:" "${h}${o}rays 1\nray 0 0 0 1 -inf 0 1\n"
+  bad "NaN direction" "bad.scene:6:" "${h}${o}rays 1\nray 0 0 0 1 nan 0 1\n"
+  bad "direction overflows" "bad.scene:6:.*overflows" "${h}${o}rays 1\nray 0 0 0 1e200 0 0 1\n"
+  bad "direction underflows" "bad.scene:6:.*smallest normal" "${h}${o}rays 1\nray 0 0 0 0 1e-170 0 1\n"
+  bad "negative tmax" "bad.scene:6:.*negative" "${h}${o}rays 1\nray 0 0 0 1 0 0 -2\n"
+  bad "NaN tmax" "bad.scene:6:.*tmax" "${h}${o}rays 1\nray 0 0 0 1 0 0 nan\n"
+  bad "missing tmax" "bad.scene:6:" "${h}${o}rays 1\nray 0 0 0 1 0 0\n"
+  bad "malformed ray mask" "bad.scene:6:.*ray mask" "${h}${o}rays 1\nray 0 0 0 1 0 0 1 filter 1.5\n"
+  bad "fewer rays" "declares 2 rays but has 1" "${h}${o}rays 2\nray 0 0 0 1 0 0 1\n"
+  bad "more rays" "bad.scene:7:.*more ray lines" "${h}${o}rays 1\nray 0 0 0 1 0 0 1\nray 0 0 0 1 0 0 1\n"
+  bad "ray without block" "bad.scene:5:" "${h}${o}ray 0 0 0 1 0 0 1\n"
+  bad "periodic world" "bad.scene:2:.*periodic worlds are not supported yet" \
+    "broadphase-scene 3\nworld 1000 periodic xyz\nobjects 0\n"
+  # The shared periodic scenes' opening lines, as they are written.
+  for axes in xyz xy; do
+    bad "periodic $axes" "bad.scene:3:.*periodic worlds are not supported yet" \
+      "broadphase-scene 3\n# gen --periodic $axes\nworld 1000 periodic $axes\nobjects 1\nsphere 1 2 3 4 0 0 0\n"
+  done
+
+  # The oracle prints every reference scene's lines, rays and filters alike.
+  for s in "$data"/scenes/v3/*.scene; do
+    exp=${s%.scene}.expected
+    "$cli" run --scene "$s" --oracle --frames "$(wc -l <"$exp")" >"$tmp/out" 2>"$tmp/err"
+    check "oracle on v3/$(basename "$s")" cmp -s "$tmp/out" "$exp"
+  done
+  # And the version 1 and 2 scenes' lines, unchanged.
+  for s in "$data"/scenes/*.scene; do
+    exp=${s%.scene}.expected
+    "$cli" run --scene "$s" --oracle --frames "$(wc -l <"$exp")" >"$tmp/out" 2>"$tmp/err"
+    check "oracle on $(basename "$s")" cmp -s "$tmp/out" "$exp"
+  done
+  expect_error "--oracle with --arrays" "excludes" run --scene "$data/scenes/single.scene" --oracle --arrays
+
+  # The lean path refuses filters and rays rather than ignore them.
+  expect_error "arrays: filters" "does not take filters yet" \
+    run --scene "$data/scenes/v3/filter-layers-400.scene" --arrays --frames 1
+  expect_error "arrays: rays" "does not take rays yet" \
+    run --scene "$data/scenes/v3/rays-mixed-300.scene" --arrays --frames 1
+
+  # gen: filters and rays written as version 3, deterministic, replayable;
+  # the objects are those of the same seed without them.
+  "$cli" gen --dist uneven --n 300 --seed 4 --out "$tmp/plain.scene"
+  "$cli" gen --dist uneven --n 300 --seed 4 --layers 8 --rays 50 --out "$tmp/a.scene"
+  "$cli" gen --dist uneven --n 300 --seed 4 --layers 8 --rays 50 --out "$tmp/b.scene"
+  check "gen v3 is deterministic" cmp -s "$tmp/a.scene" "$tmp/b.scene"
+  check "gen v3 header" test "$(head -1 "$tmp/a.scene")" = "broadphase-scene 3"
+  "$cli" gen --dist uneven --n 300 --seed 4 --rays 50 --out "$tmp/c.scene"
+  check "gen v3 keeps the objects" test \
+    "$(grep '^sphere\|^box' "$tmp/a.scene" | sed 's/ filter.*//')" = "$(grep '^sphere\|^box' "$tmp/c.scene")"
+  "$cli" run --scene "$tmp/plain.scene" --oracle --frames 3 >"$tmp/p"
+  "$cli" run --scene "$tmp/c.scene" --oracle --frames 3 | cut -d' ' -f1-3 >"$tmp/q"
+  check "gen v3 keeps the pairs" cmp -s "$tmp/p" "$tmp/q"
+  "$cli" run --scene "$tmp/a.scene" --oracle --frames 3 >"$tmp/o" 2>"$tmp/err"
+  check "gen v3 replays with six fields" test "$(awk '{print NF}' "$tmp/o" | sort -u)" = 6
+  "$cli" gen --dist even --n 100 --filters random --out "$tmp/r.scene"
+  check "gen --filters random" grep -q ' filter ' "$tmp/r.scene"
+  "$cli" run --scene "$tmp/r.scene" --oracle --frames 1 >"$tmp/o"
+  check "filters alone print three fields" test "$(awk '{print NF}' "$tmp/o")" = 3
+  for k in mixed random lidar axis inside zero; do
+    "$cli" gen --dist boxes --n 50 --rays 20 --ray-kind $k --out "$tmp/k.scene" 2>"$tmp/err"
+    check "gen --ray-kind $k" test "$(grep -c '^ray ' "$tmp/k.scene")" = 20
+  done
+  "$cli" run --scene "$tmp/a.scene" --algo naive --frames 2 --json >"$tmp/j"
+  check "json has the hit totals" python3 -c "import json,sys; j=json.load(open('$tmp/j')); sys.exit(0 if all(k in j for k in ['hits_total','hits_hash_total','closest_hash_total','rays']) else 1)"
+  expect_error "gen: bad ray kind" "ray-kind" gen --dist even --n 10 --rays 3 --ray-kind laser --out "$tmp/x.scene"
+  expect_error "gen: bad filters" "filters" gen --dist even --n 10 --filters all --out "$tmp/x.scene"
+  expect_error "gen: layers out of range" "layers" gen --dist even --n 10 --layers 33 --out "$tmp/x.scene"
+  expect_error "gen: layers with random" "layers" gen --dist even --n 10 --layers 3 --filters random --out "$tmp/x.scene"
+  check "gen: nothing written on a bad option" test ! -e "$tmp/x.scene"
+}
+
+case $mode in
+  input) input_checks ;;
+  rays) replay_all rays ;;
+  filters) replay_all filters ;;
+  *) echo "unknown mode $mode"; exit 2 ;;
+esac
+echo "$pass passed, $fail failed"
+[ $fail -eq 0 ]
