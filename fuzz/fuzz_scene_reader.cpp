@@ -1,7 +1,7 @@
 // Fuzzes the scene reader (lab/scene.hpp): any bytes either parse or throw
 // SceneError, never crash or hang; a scene that parses is written and read
-// back to the same doubles (the format's exact round trip), and names its
-// objects' shapes validly.
+// back to the same doubles, filters and rays (the format's exact round
+// trip), and names its objects' shapes and its rays validly.
 #include <broadphase/scenes/scene.hpp>
 #include <cstddef>
 #include <cstdint>
@@ -38,6 +38,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     finding("objects and velocities differ in count");
   for (const Shape& s : scene.objects)
     if (!is_valid(s)) finding("a parsed shape is not valid");
+  if (!scene.filters.empty() && scene.filters.size() != scene.objects.size())
+    finding("filters and objects differ in count");
+  for (const Ray& r : scene.rays)
+    if (!is_valid(r)) finding("a parsed ray is not valid");
   std::ostringstream out;
   write_scene(out, scene);
   std::istringstream back_in(out.str());
@@ -56,6 +60,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (a.kind != b.kind || !same(a.center, b.center) || !same(a.half, b.half) ||
         !same(scene.velocity[i], back.velocity[i]))
       finding("round trip changed an object");
+    if (!(scene.filter(i) == back.filter(i))) finding("round trip changed a filter");
+  }
+  if (back.rays.size() != scene.rays.size()) finding("round trip changed the ray count");
+  for (std::size_t k = 0; k < scene.rays.size(); ++k) {
+    const Ray& a = scene.rays[k];
+    const Ray& b = back.rays[k];
+    if (!same(a.origin, b.origin) || !same(a.dir, b.dir) || !same(a.tmax, b.tmax) ||
+        a.mask != b.mask)
+      finding("round trip changed a ray");
   }
   return 0;
 }
