@@ -112,6 +112,12 @@ input_checks() {
   expect_error "arrays: rays" "does not take rays yet" \
     run --scene "$data/scenes/v3/rays-mixed-300.scene" --arrays --frames 1
 
+  # sim knows no filters yet and says so; rays play no part in it.
+  expect_error "sim: filters" "sim does not take filters yet" \
+    sim --scene "$data/scenes/v3/filter-layers-400.scene" --frames 1
+  "$cli" sim --scene "$data/scenes/v3/rays-mixed-300.scene" --frames 2 >"$tmp/out" 2>"$tmp/err"
+  check "sim: rays ignored" test $? -eq 0
+
   # gen: filters and rays written as version 3, deterministic, replayable;
   # the objects are those of the same seed without them.
   "$cli" gen --dist uneven --n 300 --seed 4 --out "$tmp/plain.scene"
