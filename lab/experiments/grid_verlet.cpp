@@ -230,10 +230,12 @@ std::string lab_performance(const LabContext& ctx) {
       for (std::size_t p = 0; p < peers.size(); ++p) {
         const PeerCost& c = peer_costs[p];
         if (!ctx.quick && c.n > 0) {
-          // Superlinear builds (the sweep's) grow as n², the rest as n.
-          const double r = static_cast<double>(n) / static_cast<double>(c.n);
-          const double projected = c.seconds * (r > 1 ? r * r : r);
-          if (projected > 4 * lim.budget_seconds + 1) {
+          // Projected as growing with n: a superlinear build (the sweep's)
+          // runs once at the larger size, and is projected from there on.
+          // (Grown as n², Bullet's dbvt, the fastest peer on most kinds,
+          // was left out of every 20 000-object workload.)
+          const double projected = c.seconds * static_cast<double>(n) / static_cast<double>(c.n);
+          if (projected > 4 * lim.budget_seconds + 2) {
             peers_left_out[peers[p]].push_back(w.label);
             ++row.peers_left_out;
             continue;
