@@ -12,6 +12,7 @@
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/inline_stack.hpp>
 #include <broadphase/detail/pair_table.hpp>
+#include <broadphase/detail/ray_walk.hpp>
 #include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
@@ -138,6 +139,11 @@ class AabbTree : public detail::StoreBase<AabbTree> {
   /// As `for_each_pair`, also reporting node tests and the front into `stats`.
   template <class V>
   QueryCost for_each_pair(V&& visitor, TraversalStats& stats) const;
+  /// Casts a ray (HasRayCast): front to back through the nodes whose fat
+  /// boxes the ray enters before its live tmax (detail/ray_walk.hpp), each
+  /// leaf culled by its object's own box. Throws InvalidRay.
+  template <class V>
+  QueryCost cast_ray(const Ray& r, V&& visitor) const;
 
   /// Bytes held (capacities of every array and table).
   std::size_t memory_bytes() const;
@@ -315,6 +321,27 @@ QueryCost AabbTree::query(const Shape& q, V&& visitor, TraversalStats& stats) co
     stack.push(node.child[node.first]);
   }
   return cost;
+}
+
+template <class V>
+QueryCost AabbTree::cast_ray(const Ray& r, V&& visitor) const {
+  require_valid(r);
+  detail::RayCast<std::remove_reference_t<V>> cast(store_, r, visitor);
+  double t0;
+  if (root_ == kNull || !cast.cull.enter(nodes_[root_].box, cast.tmax, t0)) return cast.cost;
+  detail::ray_tree_walk(
+      cast, root_, t0, [&](std::uint32_t n) -> const AabbF& { return nodes_[n].box; },
+      [&](std::uint32_t n, auto&& f) {
+        const Node& node = nodes_[n];
+        if (node.is_leaf()) return;
+        f(node.child[0]);
+        f(node.child[1]);
+      },
+      [&](std::uint32_t n) {
+        const Node& node = nodes_[n];
+        return !node.is_leaf() || cast.test(node.object, tight_[node.object]);
+      });
+  return cast.cost;
 }
 
 template <class V>

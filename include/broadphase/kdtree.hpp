@@ -6,6 +6,7 @@
 /// enough to be rebuilt.
 #pragma once
 
+#include <broadphase/detail/ray_walk.hpp>
 #include <broadphase/detail/structure_base.hpp>
 #include <broadphase/octree.hpp>
 #include <cstdint>
@@ -88,6 +89,11 @@ class KdTree : public detail::StoreBase<KdTree> {
   /// Visits every overlapping pair once.
   template <class V>
   QueryCost for_each_pair(V&& visitor) const;
+  /// Casts a ray (HasRayCast): front to back through the nodes whose boxes
+  /// the ray enters before its live tmax (detail/ray_walk.hpp). Throws
+  /// InvalidRay.
+  template <class V>
+  QueryCost cast_ray(const Ray& r, V&& visitor) const;
 
   /// Bytes held (capacities of every array and table). O(nodes).
   std::size_t memory_bytes() const;
@@ -219,6 +225,28 @@ QueryCost KdTree::for_each_pair(V&& visitor) const {
     }
   }
   return cost;
+}
+
+template <class V>
+QueryCost KdTree::cast_ray(const Ray& r, V&& visitor) const {
+  require_valid(r);
+  detail::RayCast<std::remove_reference_t<V>> cast(store_, r, visitor);
+  double t0;
+  if (!cast.cull.enter(nodes_[root_].box, cast.tmax, t0)) return cast.cost;
+  detail::ray_tree_walk(
+      cast, root_, t0, [&](std::uint32_t n) -> const AabbF& { return nodes_[n].box; },
+      [&](std::uint32_t n, auto&& f) {
+        const Node& node = nodes_[n];
+        if (node.left == detail::kNoNode) return;
+        f(node.left);
+        f(node.right);
+      },
+      [&](std::uint32_t n) {
+        for (const detail::OctItem& it : nodes_[n].items)
+          if (!cast.test(it.slot, it.box)) return false;
+        return true;
+      });
+  return cast.cost;
 }
 
 }  // namespace broadphase

@@ -12,6 +12,7 @@
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/inline_stack.hpp>
 #include <broadphase/detail/node_items.hpp>
+#include <broadphase/detail/ray_walk.hpp>
 #include <broadphase/detail/structure_base.hpp>
 #include <broadphase/detail/tree_walk.hpp>
 #include <broadphase/structure.hpp>
@@ -81,6 +82,14 @@ class Octree : public detail::StoreBase<Octree> {
   template <class V>
   QueryCost for_each_pair(V&& visitor) const {
     return detail::nested_tree_pairs(*this, store_, visitor);
+  }
+  /// Casts a ray (HasRayCast): front to back through the nodes whose boxes
+  /// the ray enters before its live tmax (detail/ray_walk.hpp); the root,
+  /// which also holds the objects outside the cube, is always opened.
+  /// Throws InvalidRay.
+  template <class V>
+  QueryCost cast_ray(const Ray& r, V&& visitor) const {
+    return detail::tree_cast_ray(*this, store_, r, visitor);
   }
 
   /// Bytes held (capacities of every array and table). O(nodes).

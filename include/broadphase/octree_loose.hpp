@@ -7,6 +7,7 @@
 #pragma once
 
 #include <algorithm>
+#include <broadphase/detail/ray_walk.hpp>
 #include <broadphase/detail/structure_base.hpp>
 #include <broadphase/octree.hpp>
 #include <cstdint>
@@ -70,6 +71,14 @@ class LooseOctree : public detail::StoreBase<LooseOctree> {
   /// Visits every overlapping pair once.
   template <class V>
   QueryCost for_each_pair(V&& visitor) const;
+  /// Casts a ray (HasRayCast): front to back through the nodes whose boxes
+  /// the ray enters before its live tmax (detail/ray_walk.hpp); the root,
+  /// which also holds the objects outside the cube, is always opened.
+  /// Throws InvalidRay.
+  template <class V>
+  QueryCost cast_ray(const Ray& r, V&& visitor) const {
+    return detail::tree_cast_ray(*this, store_, r, visitor);
+  }
 
   /// Bytes held (capacities of every array and table). O(nodes).
   std::size_t memory_bytes() const;

@@ -11,6 +11,7 @@
 #include <bit>
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/pair_table.hpp>
+#include <broadphase/detail/ray_walk.hpp>
 #include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
@@ -94,6 +95,14 @@ class Sap : public detail::StoreBase<Sap> {
     return cost;
   }
 
+  /// Casts a ray (HasRayCast) along one sorted axis: the one whose reach
+  /// of the ray (detail::ray_axis_reach) holds the fewest endpoints, walked
+  /// in the ray's direction and cut short as the visitor clips the ray.
+  /// O(log n + objects whose interval on that axis meets the ray's).
+  /// Throws InvalidRay.
+  template <class V>
+  QueryCost cast_ray(const Ray& r, V&& visitor) const;
+
   /// Bytes held (capacities of every array and table).
   std::size_t memory_bytes() const;
   /// Pairs of overlapping boxes currently in the set (candidates).
@@ -164,5 +173,61 @@ class Sap : public detail::StoreBase<Sap> {
   std::uint64_t rebuilds_ = 0;
   std::uint64_t incoherent_batches_ = 0;  // consecutive batches that rebuilt early
 };
+
+template <class V>
+QueryCost Sap::cast_ray(const Ray& r, V&& visitor) const {
+  require_valid(r);
+  detail::RayCast<std::remove_reference_t<V>> cast(store_, r, visitor);
+  if (store_.size() == 0) return cast.cost;
+  using It = std::vector<std::uint64_t>::const_iterator;
+  int axis = 0;
+  It first, last;
+  for (int a = 0; a < 3; ++a) {
+    double lo, hi;
+    detail::ray_axis_reach(r, r.tmax, a, lo, hi);
+    const std::vector<std::uint64_t>& e = ep_[a];
+    const It f = std::lower_bound(
+        e.begin(), e.end(), key(lower_limit(detail::float_below(lo), max_extent_[a]), false, 0));
+    const It l = std::upper_bound(f, e.end(), key(detail::float_above(hi), false, 0x7fffffffu));
+    if (a == 0 || l - f < last - first) {
+      axis = a;
+      first = f;
+      last = l;
+    }
+  }
+  const int a = axis;
+  double lo_live, hi_live, at = r.tmax;
+  detail::ray_axis_reach(r, at, a, lo_live, hi_live);
+  float stop = lower_limit(detail::float_below(lo_live), max_extent_[a]);
+  if (r.dir[a] >= 0) {
+    // Lower ends upwards, until one lies beyond the reach of the live tmax.
+    for (It it = first; it != last; ++it) {
+      if (is_upper(*it)) continue;
+      const std::uint32_t o = slot_of(*it);
+      if (cast.tmax != at) {
+        at = cast.tmax;
+        detail::ray_axis_reach(r, at, a, lo_live, hi_live);
+      }
+      if (static_cast<double>(box_[o].lo[a]) > hi_live) break;
+      if (!cast.test(o, box_[o])) break;
+    }
+  } else {
+    // Lower ends downwards, until one lies so low that its box, at most
+    // the largest extent long, ends below the reach of the live tmax.
+    for (It it = last; it != first;) {
+      --it;
+      if (is_upper(*it)) continue;
+      const std::uint32_t o = slot_of(*it);
+      if (cast.tmax != at) {
+        at = cast.tmax;
+        detail::ray_axis_reach(r, at, a, lo_live, hi_live);
+        stop = lower_limit(detail::float_below(lo_live), max_extent_[a]);
+      }
+      if (box_[o].lo[a] < stop) break;
+      if (!cast.test(o, box_[o])) break;
+    }
+  }
+  return cast.cost;
+}
 
 }  // namespace broadphase

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <broadphase/config_error.hpp>
+#include <broadphase/detail/ray_walk.hpp>
 #include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
@@ -63,6 +64,19 @@ class SortSweep : public detail::StoreBase<SortSweep> {
       }
     }
     return cost;
+  }
+
+  /// Casts a ray (HasRayCast): a linear scan of the dense boxes, each
+  /// culled by RayCull before the exact test. The sort is made per pass in
+  /// a per-thread buffer, so there is no kept order to walk: sorting for one
+  /// ray would cost more than the scan. O(n). Throws InvalidRay.
+  template <class V>
+  QueryCost cast_ray(const Ray& r, V&& visitor) const {
+    require_valid(r);
+    detail::RayCast<std::remove_reference_t<V>> cast(store_, r, visitor);
+    for (std::size_t d = 0; d < dense_.size(); ++d)
+      if (!cast.test(dense_[d], box_[d])) break;
+    return cast.cost;
   }
 
   /// Visits every overlapping pair once: sort, then sweep.

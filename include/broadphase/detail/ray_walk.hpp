@@ -1,0 +1,440 @@
+/// \file detail/ray_walk.hpp
+/// The ray walks the structures share, written once per family:
+///
+///   - `ray_tree_walk`: front to back through a tree whose nodes have boxes
+///     holding every object below them (the octrees, the k-d tree, the AABB
+///     tree), on a growable stack, pruning nodes entered beyond the current
+///     (clipped) tmax;
+///   - `RayGridMarch`: the cells of a grid along a ray, conservative with
+///     respect to the contract's evaluation, for the grids whose cells are a
+///     monotone map of coordinates (grid-dense, grid-hashed, grid-hybrid,
+///     grid-static, grid-implicit, the levels of the hierarchical grids);
+///   - `RaySlots`: the objects a cast has tested already, so that an object
+///     entered into several cells is tested and reported once per ray.
+///
+/// All of them cull with detail::RayCull (ray.hpp), never with real-number
+/// geometry, and keep no state between calls: const casts may run
+/// concurrently.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <broadphase/detail/grid_common.hpp>
+#include <broadphase/detail/inline_stack.hpp>
+#include <broadphase/detail/node_items.hpp>
+#include <broadphase/handle.hpp>
+#include <broadphase/ray.hpp>
+#include <broadphase/structure.hpp>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace broadphase::detail {
+
+/// What one cast carries through a walk: the objects, the ray, its
+/// culling, the live tmax (clipped by the visitor, negative once it
+/// stopped) and the cost.
+template <class V>
+struct RayCast {
+  RayCast(const ObjectStore& s, const Ray& r, V& v)
+      : store(s), ray(r), cull(r), tmax(r.tmax), visitor(v) {}
+
+  /// Tests object `slot` exactly (mask first) and reports a hit; false when
+  /// the visitor stopped the cast.
+  bool test(std::uint32_t slot) {
+    if (!store.sees(ray.mask, slot)) return true;
+    ++cost.tests;
+    double t;
+    if (!ray_hit(ray.origin, ray.dir, tmax, store.shape(slot), t)) return true;
+    tmax = visit_hit(visitor, store.handle(slot), t, tmax);
+    if (tmax < 0) {
+      cost.stopped = true;
+      return false;
+    }
+    return true;
+  }
+  /// As `test`, culling first by the object's stored float box (which holds
+  /// its bounds, so the culling is conservative).
+  bool test(std::uint32_t slot, const AabbF& box) {
+    double t;
+    if (!cull.enter(box, tmax, t)) return true;
+    return test(slot);
+  }
+
+  const ObjectStore& store;
+  const Ray& ray;
+  RayCull cull;
+  double tmax;
+  V& visitor;
+  QueryCost cost;
+};
+
+/// The interval of axis `a` that every object hit by `r` at t <= `tl`
+/// reaches: the points o + t·d for t in [0, tl], grown by RayCull's margin
+/// of a box holding them, which is at most M0 + M1·t (M0 from |o|, M1 from
+/// |d|: RayCull::margin); doubled against the rounding of the bound itself.
+/// `tl` may be infinite: an end that runs off with t is then infinite, and
+/// so is an end that the growing margin outruns.
+inline void ray_axis_reach(const Ray& r, double tl, int a, double& lo, double& hi) {
+  double om = 0, dm = 0;
+  for (int k = 0; k < 3; ++k) {
+    om = std::max(om, std::fabs(r.origin[k]));
+    dm = std::max(dm, std::fabs(r.dir[k]));
+  }
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const double m0 = 2 * (2 * om * RayCull::kMargin + kBoundsFloor);
+  const double m1 = 2 * dm * RayCull::kMargin;
+  const double o = r.origin[a];
+  const double d = r.dir[a];
+  if (tl <= std::numeric_limits<double>::max()) {
+    const double end = o + tl * d;
+    const double m = m0 + m1 * tl;
+    lo = std::min(o, end) - 2 * m;
+    hi = std::max(o, end) + 2 * m;
+    return;
+  }
+  lo = d - m1 >= 0 ? o - 2 * m0 : -kInf;
+  hi = d + m1 <= 0 ? o + 2 * m0 : kInf;
+}
+
+/// The largest float at or below `v` (-inf below the floats' range).
+inline float float_below(double v) {
+  constexpr float kMax = std::numeric_limits<float>::max();
+  if (!(v >= -static_cast<double>(kMax))) return -std::numeric_limits<float>::infinity();
+  if (v >= static_cast<double>(kMax))
+    return v == std::numeric_limits<double>::infinity() ? std::numeric_limits<float>::infinity()
+                                                        : kMax;
+  float f = static_cast<float>(v);
+  if (static_cast<double>(f) > v) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+/// The smallest float at or above `v` (+inf above the floats' range).
+inline float float_above(double v) { return -float_below(-v); }
+
+/// A set of slots, for the objects a cast has tested: open addressing in
+/// an inline table of 64 entries, growing onto the heap beyond half of it,
+/// so that a short ray never allocates and a long one never loses an entry.
+class RaySlots {
+ public:
+  RaySlots() { inline_.fill(kEmpty); }
+  RaySlots(const RaySlots&) = delete;
+  RaySlots& operator=(const RaySlots&) = delete;
+
+  /// Adds `slot`; true when it was not there yet.
+  bool insert(std::uint32_t slot) {
+    std::uint32_t* table = heap_.empty() ? inline_.data() : heap_.data();
+    const std::size_t mask = capacity() - 1;
+    for (std::size_t i = home(slot) & mask;; i = (i + 1) & mask) {
+      if (table[i] == slot) return false;
+      if (table[i] == kEmpty) {
+        table[i] = slot;
+        if (2 * ++size_ > capacity()) grow();
+        return true;
+      }
+    }
+  }
+  /// True when `slot` is in the set.
+  bool contains(std::uint32_t slot) const {
+    const std::uint32_t* table = heap_.empty() ? inline_.data() : heap_.data();
+    const std::size_t mask = capacity() - 1;
+    for (std::size_t i = home(slot) & mask;; i = (i + 1) & mask) {
+      if (table[i] == slot) return true;
+      if (table[i] == kEmpty) return false;
+    }
+  }
+
+ private:
+  static constexpr std::uint32_t kEmpty = 0xffffffffu;
+  static std::size_t home(std::uint32_t slot) {
+    return static_cast<std::size_t>((slot * 0x9E3779B1u) >> 7);
+  }
+  std::size_t capacity() const { return heap_.empty() ? inline_.size() : heap_.size(); }
+  void grow() {
+    std::vector<std::uint32_t> next(2 * capacity(), kEmpty);
+    const std::uint32_t* table = heap_.empty() ? inline_.data() : heap_.data();
+    const std::size_t old = capacity();
+    const std::size_t mask = next.size() - 1;
+    for (std::size_t j = 0; j < old; ++j) {
+      if (table[j] == kEmpty) continue;
+      std::size_t i = home(table[j]) & mask;
+      while (next[i] != kEmpty) i = (i + 1) & mask;
+      next[i] = table[j];
+    }
+    heap_ = std::move(next);
+  }
+
+  std::array<std::uint32_t, 64> inline_;
+  std::vector<std::uint32_t> heap_;
+  std::size_t size_ = 0;
+};
+
+/// Walks a tree front to back. `root` is entered at parameter `root_t`
+/// (0 for a root that is not culled: the octrees' roots also hold the
+/// objects outside their cube). `box(n)` is a box (Aabb or AabbF) holding
+/// every object below node n (never asked of the root);
+/// `for_each_child(n, f)` calls f(child) for each child worth visiting;
+/// `items(n)` tests node n's own objects through the cast and returns false
+/// when the visitor stopped.
+///
+/// Nodes are popped nearest entry first: the children of a node are pushed
+/// far to near, so the nearer is walked first, and a node whose entry lies
+/// beyond the live tmax is dropped unopened (RayCull's entry is never
+/// beyond the t of a hit inside it, so no hit is lost: hits at exactly the
+/// clipped tmax are still reported). The stack is an InlineStack, which
+/// spills to the heap: no depth drops a node.
+template <class Cast, class Box, class Children, class Items>
+void ray_tree_walk(Cast& cast, std::uint32_t root, double root_t, Box&& box,
+                   Children&& for_each_child, Items&& items) {
+  struct Entry {
+    std::uint32_t node;
+    double t;
+  };
+  InlineStack<Entry, 64> stack;
+  stack.push({root, root_t});
+  while (!stack.empty()) {
+    const Entry e = stack.pop();
+    if (e.t > cast.tmax) continue;
+    if (!items(e.node)) return;
+    // At most eight children (an octree's); any beyond go straight on the
+    // stack unordered, still walked.
+    Entry kids[8];
+    int count = 0;
+    for_each_child(e.node, [&](std::uint32_t c) {
+      double t;
+      if (!cast.cull.enter(box(c), cast.tmax, t)) return;
+      if (count < 8)
+        kids[count++] = {c, t};
+      else
+        stack.push({c, t});
+    });
+    // Insertion sort, far first, so that the nearest is popped next.
+    for (int i = 1; i < count; ++i)
+      for (int j = i; j > 0 && kids[j - 1].t < kids[j].t; --j) std::swap(kids[j - 1], kids[j]);
+    for (int i = 0; i < count; ++i) stack.push(kids[i]);
+  }
+}
+
+/// The cells of one grid (or one level of a hierarchy) that a ray passes,
+/// conservatively, for grids whose cell coordinates are a non-decreasing
+/// function of the coordinates, clamped (grid_common.hpp, CellMap).
+///
+/// What it guarantees: if `ray_hit` reports object X at t <= the live tmax,
+/// some cell in which X is entered is visited. The argument: the point
+/// P = o + t·d lies within RayCull's margin of X's bounds (the errors of
+/// the evaluation are a few ulps of |o| + |P|, which the margin, 2^-20 of
+/// that, covers more than thirtyfold: see RayCull), so the cell coordinate
+/// of some point of X's bounds, and hence (monotone map) a cell X is
+/// entered in, lies in the cell range of the box of the ray's points over
+/// [ta, tb] grown by that margin, for the step [ta, tb] that holds t. The
+/// steps cover [0, tmax] without a gap: the march steps through the grid's
+/// own region one cell of the fastest axis at a time, and takes what lies
+/// beyond it (where the clamped coordinates no longer change) in one
+/// stretch, whose margin grows with the distance, bounded analytically
+/// when tmax is infinite. Grids that enter objects by the cell of their
+/// centre give `reach`, the largest distance from a point of an object's
+/// bounds to its centre, and every box is grown by it too.
+///
+/// Bounded cost: a march that would visit more cells than `budget` stops
+/// and asks for a scan of every object instead (`scan`), never more work
+/// than the brute force it replaces. Each object is tested once per ray
+/// (RaySlots), however many of the visited cells it is entered in.
+struct RayGridLevel {
+  Vec3 origin;         ///< corner of cell (0, 0, 0)
+  double cell = 1;     ///< cell edge
+  double index_lo[3];  ///< lowest cell coordinate per axis (the clamp)
+  double index_hi[3];  ///< highest cell coordinate per axis
+  double reach = 0;    ///< see RayGridMarch (0: objects entered by their bounds)
+};
+
+/// See RayGridLevel. `coord(x, axis)` is the grid's own monotone map;
+/// `cell(key)` visits the objects of one cell, calling back `f(slot)`
+/// (through the cast's test) and returning false when the cast stopped.
+template <class Coord, class Cell>
+class RayGridMarch {
+ public:
+  RayGridMarch(const RayGridLevel& level, Coord coord, Cell cell)
+      : level_(level), coord_(coord), cell_(cell) {}
+
+  /// How a march ended.
+  enum class Outcome {
+    finished,  ///< every cell up to the live tmax visited
+    stopped,   ///< the visitor stopped the cast
+    scan,      ///< out of budget: the caller tests the objects not yet tested
+  };
+
+  /// Marches `cast`'s ray from t = 0 to its live tmax, visiting at most
+  /// `budget` cells (see the class comment).
+  template <class Cast>
+  Outcome march(Cast& cast, double budget) const {
+    const Vec3& o = cast.ray.origin;
+    const Vec3& d = cast.ray.dir;
+    // The grid's own region, one cell wider each side: beyond it on every
+    // axis the clamped coordinates stop changing. It only guides the step
+    // sizes; correctness rests on the boxes' ranges alone.
+    double enter_at[3], leave_at[3];
+    double t_all = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double glo = level_.origin[a] + (level_.index_lo[a] - 1) * level_.cell;
+      const double ghi = level_.origin[a] + (level_.index_hi[a] + 2) * level_.cell;
+      if (d[a] == 0) {
+        enter_at[a] = kInf;
+        leave_at[a] = -kInf;
+        continue;
+      }
+      double t1 = (glo - o[a]) / d[a];
+      double t2 = (ghi - o[a]) / d[a];
+      if (t1 > t2) std::swap(t1, t2);
+      enter_at[a] = t1;
+      leave_at[a] = t2;
+      if (t2 > t_all) t_all = t2;
+    }
+    if (!(t_all <= std::numeric_limits<double>::max())) t_all = std::numeric_limits<double>::max();
+    CellRange prev;  // empty
+    double visited = 0;
+    double t = 0;
+    while (t < cast.tmax && t < t_all) {
+      // One cell of the fastest axis inside the region, or a jump to where
+      // an axis enters it.
+      double tb = std::min(t_all, cast.tmax);
+      for (int a = 0; a < 3; ++a) {
+        if (d[a] == 0) continue;
+        if (t >= enter_at[a] && t < leave_at[a])
+          tb = std::min(tb, t + level_.cell / std::fabs(d[a]));
+        else if (enter_at[a] > t)
+          tb = std::min(tb, enter_at[a]);
+      }
+      if (!(tb > t)) tb = std::nextafter(t, kInf);  // cells below the ulps of t
+      CellRange r;
+      segment_range(o, d, t, tb, cast.cull, r);
+      if (visited + r.cells() > budget) return Outcome::scan;
+      if (!visit_range(r, prev, visited)) return Outcome::stopped;
+      prev = r;
+      t = tb;
+    }
+    if (!(t < cast.tmax)) return Outcome::finished;
+    // Beyond the region: the rest of the ray in one stretch.
+    CellRange r;
+    if (cast.tmax <= std::numeric_limits<double>::max())
+      segment_range(o, d, t, cast.tmax, cast.cull, r);
+    else
+      tail_range(o, d, t, r);
+    if (visited + r.cells() > budget) return Outcome::scan;
+    if (!visit_range(r, prev, visited)) return Outcome::stopped;
+    return Outcome::finished;
+  }
+
+ private:
+  static constexpr double kInf = std::numeric_limits<double>::infinity();
+
+  std::int32_t coord(double x, int a) const { return coord_(x, a); }
+
+  // The cells of the box of the ray's points over [ta, tb], grown by the
+  // margin and the reach.
+  void segment_range(const Vec3& o, const Vec3& d, double ta, double tb, const RayCull& cull,
+                     CellRange& r) const {
+    Aabb box;
+    for (int a = 0; a < 3; ++a) {
+      const double p = d[a] == 0 ? o[a] : o[a] + ta * d[a];
+      const double q = d[a] == 0 ? o[a] : o[a] + tb * d[a];
+      box.lo[a] = std::min(p, q);
+      box.hi[a] = std::max(p, q);
+    }
+    const double m = cull.margin(box) + level_.reach;
+    for (int a = 0; a < 3; ++a) {
+      r.lo[a] = coord(box.lo[a] - m, a);
+      r.hi[a] = coord(box.hi[a] + m, a);
+    }
+  }
+
+  // The cells of every point o + s·d, s >= t, grown by a margin that grows
+  // with the distance: RayCull's margin of a box of such points is at most
+  // M0 + M1·s (|o|, |d| the largest components), so on each axis the grown
+  // box's low end is at least o + s·(d - M1) - M0, which has its least
+  // value at s = t when d >= M1 and none (-inf) otherwise; the high end
+  // likewise. The constants are doubled against their own rounding.
+  void tail_range(const Vec3& o, const Vec3& d, double t, CellRange& r) const {
+    double om = 0, dm = 0;
+    for (int a = 0; a < 3; ++a) {
+      om = std::max(om, std::fabs(o[a]));
+      dm = std::max(dm, std::fabs(d[a]));
+    }
+    const double m1 = 2 * RayCull::kMargin * dm;
+    const double m0 = 2 * (2 * om * RayCull::kMargin + kBoundsFloor) + level_.reach;
+    for (int a = 0; a < 3; ++a) {
+      const double at_t = d[a] == 0 ? o[a] : o[a] + t * d[a];
+      const double grow = m0 + m1 * t;
+      const double lo = d[a] - m1 >= 0 ? at_t - 2 * grow : -kInf;
+      const double hi = d[a] + m1 <= 0 ? at_t + 2 * grow : kInf;
+      r.lo[a] = coord(lo, a);
+      r.hi[a] = coord(hi, a);
+    }
+  }
+
+  // Visits the cells of `r` not in `prev` (the previous step's, whose
+  // objects are all in the cast's tested set already).
+  bool visit_range(const CellRange& r, const CellRange& prev, double& visited) const {
+    CellKey k;
+    for (k.c[2] = r.lo[2]; k.c[2] <= r.hi[2]; ++k.c[2])
+      for (k.c[1] = r.lo[1]; k.c[1] <= r.hi[1]; ++k.c[1])
+        for (k.c[0] = r.lo[0]; k.c[0] <= r.hi[0]; ++k.c[0]) {
+          if (prev.contains(k)) continue;
+          visited += 1;
+          if (!cell_(k)) return false;
+        }
+    return true;
+  }
+
+  RayGridLevel level_;
+  Coord coord_;
+  Cell cell_;
+};
+
+/// A cast through a nested tree (the octrees' interface of tree_walk.hpp:
+/// `root()`, `items(n)` of OctItem, `box(n)`, `for_each_child(n, f)`),
+/// whose root is not culled: it also holds the objects outside the cube.
+template <class Tree, class V>
+QueryCost tree_cast_ray(const Tree& tree, const ObjectStore& store, const Ray& r, V& visitor) {
+  require_valid(r);
+  RayCast<V> cast(store, r, visitor);
+  ray_tree_walk(
+      cast, tree.root(), 0.0, [&](std::uint32_t n) -> decltype(auto) { return tree.box(n); },
+      [&](std::uint32_t n, auto&& f) { tree.for_each_child(n, f); },
+      [&](std::uint32_t n) {
+        for (const OctItem& it : tree.items(n))
+          if (!cast.test(it.slot, it.box)) return false;
+        return true;
+      });
+  return cast.cost;
+}
+
+/// A cast through one grid (or one level of a hierarchy): the march of
+/// RayGridMarch over `level` with the grid's `coord(x, axis)`, each object
+/// tested once (`tested`, shared by the levels of a hierarchy). The grid
+/// gives `for_cell(key, f)`, calling f(slot) for the objects entered in
+/// cell `key` and false as soon as f does, `for_all(f)` likewise over
+/// every object of the grid (the scan of a march out of budget), and
+/// `box_of(slot)`, the object's stored float box. `budget`: cells worth
+/// visiting before a scan is cheaper (about the grid's object count).
+/// False when the visitor stopped the cast.
+template <class Cast, class Coord, class ForCell, class ForAll, class BoxOf>
+bool ray_grid_cast(Cast& cast, RaySlots& tested, const RayGridLevel& level, double budget,
+                   Coord&& coord, ForCell&& for_cell, ForAll&& for_all, BoxOf&& box_of) {
+  auto test = [&](std::uint32_t s) { return !tested.insert(s) || cast.test(s, box_of(s)); };
+  auto cell = [&](const CellKey& k) { return for_cell(k, test); };
+  const RayGridMarch march(
+      level, [&](double x, int a) { return coord(x, a); }, cell);
+  using Outcome = typename decltype(march)::Outcome;
+  switch (march.march(cast, budget)) {
+    case Outcome::finished:
+      return true;
+    case Outcome::stopped:
+      return false;
+    case Outcome::scan:
+      break;
+  }
+  return for_all([&](std::uint32_t s) { return tested.contains(s) || cast.test(s, box_of(s)); });
+}
+
+}  // namespace broadphase::detail
