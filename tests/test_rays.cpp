@@ -1,0 +1,311 @@
+// Ray casts of every structure against brute force (the contract's ray_hit
+// over every object the ray sees): random scenes and rays of every kind the
+// contract names, masks and filters, the structure mutated between casts,
+// validate() after every step, all hits (index and t bit for bit), the
+// closest hit, any hit and a clipping visitor; and the batches against
+// single casts on one and several threads. Seeds are printed on failure.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <bit>
+#include <broadphase/rays.hpp>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <random>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "testing.hpp"
+
+namespace broadphase::testing {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+using HitSet = std::set<std::pair<std::uint32_t, std::uint64_t>>;  // (slot, bits of t)
+
+// The kinds of scene the rays are cast into.
+enum class Kind { spheres, boxes, mixed, far, huge_and_tiny, lattice };
+
+struct Object {
+  Handle h;
+  Shape s;
+  Filter f;
+};
+
+class Model {
+ public:
+  Model(std::string spec, Kind kind, std::uint64_t seed)
+      : kind_(kind), rng_(seed), spec_(std::move(spec)) {
+    if (kind == Kind::far) {
+      base_ = 1e15;
+      scale_ = 1000;
+    }
+    Config c;
+    c.world = {{base_, base_, base_}, {base_ + scale_, base_ + scale_, base_ + scale_}};
+    bp_ = make_structure(spec_, c);
+  }
+
+  double u(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng_); }
+  std::uint64_t bits() { return rng_(); }
+  bool coin(double p = 0.5) { return u(0, 1) < p; }
+
+  // A coordinate: uniform, or on a "round" value where cell faces of
+  // power-of-two grids and octree midplanes fall.
+  double coord() {
+    if (kind_ == Kind::lattice || coin(0.2))
+      return base_ + scale_ * static_cast<double>(bits() % 17) / 16.0;
+    return base_ + u(-0.1, 1.1) * scale_;
+  }
+
+  Shape shape() {
+    const Vec3 c{coord(), coord(), coord()};
+    const bool box =
+        kind_ == Kind::boxes || ((kind_ != Kind::spheres && kind_ != Kind::lattice) && coin());
+    double size = scale_ * std::exp(u(std::log(1e-3), std::log(5e-2)));
+    if (kind_ == Kind::lattice) size = scale_ / 32;
+    if (kind_ == Kind::huge_and_tiny) {
+      const double p = u(0, 1);
+      if (p < 0.1)
+        size = scale_ * u(0.5, 3);  // larger than many cells, or the world
+      else if (p < 0.3)
+        size = scale_ * 1e-9;
+      else if (p < 0.35)
+        size = 0;
+    }
+    if (box) return Shape::box(c, {size * u(0.2, 1), size * u(0.2, 1), size * u(0.2, 1)});
+    return Shape::sphere(c, size);
+  }
+
+  Filter filter() {
+    if (coin(0.7)) return Filter{};
+    return Filter{static_cast<std::uint32_t>(1u << (bits() % 4)), 0xffffffffu};
+  }
+
+  void insert() {
+    const Shape s = shape();
+    const Filter f = filter();
+    const Handle h = bp_->insert(s, objects_.size(), coin(0.3) ? Motion::fixed : Motion::dynamic);
+    if (!(f == Filter{})) bp_->set_filter(h, f);
+    objects_.push_back({h, s, f});
+  }
+
+  // One random mutation (insert, remove, update, filter change, bulk).
+  void mutate() {
+    const double p = u(0, 1);
+    if (objects_.empty() || p < 0.3) {
+      insert();
+    } else if (p < 0.45) {
+      const std::size_t i = bits() % objects_.size();
+      bp_->remove(objects_[i].h);
+      objects_[i] = objects_.back();
+      objects_.pop_back();
+    } else if (p < 0.8) {
+      Object& o = objects_[bits() % objects_.size()];
+      o.s = coin(0.5) ? shape()
+                      : Shape{o.s.center + Vec3{u(-1, 1), u(-1, 1), u(-1, 1)} * (scale_ / 50),
+                              o.s.half, o.s.kind};
+      bp_->update(o.h, o.s);
+    } else if (p < 0.9) {
+      Object& o = objects_[bits() % objects_.size()];
+      o.f = filter();
+      bp_->set_filter(o.h, o.f);
+    } else {
+      std::vector<Move> moves;
+      for (int k = 0; k < 8 && !objects_.empty(); ++k) {
+        Object& o = objects_[bits() % objects_.size()];
+        o.s = shape();
+        moves.push_back({o.h, o.s});
+      }
+      bp_->update(moves);
+    }
+    if (coin(0.3)) bp_->settle();
+    bp_->validate();
+  }
+
+  // A ray of one of the contract's kinds.
+  Ray ray() {
+    Ray r;
+    const int kind = static_cast<int>(bits() % 10);
+    r.origin = {coord(), coord(), coord()};
+    if (kind == 0 && !objects_.empty()) r.origin = objects_[bits() % objects_.size()].s.center;
+    if (kind == 1) r.origin = {base_ - scale_ * 2, coord(), coord()};  // outside the world
+    for (int a = 0; a < 3; ++a) r.dir[a] = u(-1, 1);
+    if (kind == 2 || kind == 3) {  // along a cell face: zero components
+      r.dir = {0, 0, 0};
+      r.dir[static_cast<int>(bits() % 3)] = coin() ? 1 : -1;
+      if (kind == 3) r.dir[static_cast<int>(bits() % 3)] = coin() ? 0.5 : -0.5;
+    }
+    if (kind == 4) r.dir = {0, 0, 0};
+    if (kind == 5 && !objects_.empty()) {  // at an object, through a corner
+      const Object& o = objects_[bits() % objects_.size()];
+      const Vec3 target = coin() ? o.s.center : o.s.center + o.s.half;
+      r.dir = target - r.origin;
+    }
+    if (kind == 6) r.dir = r.dir * 1e-150;  // tiny, still a valid length
+    if (kind == 7) r.origin = {base_ - scale_ * 3, base_ - scale_ * 3, base_ - scale_ * 3};
+    const double p = u(0, 1);
+    r.tmax = p < 0.4 ? kInf : p < 0.5 ? 0.0 : u(0, 2) * scale_ / std::max(1e-300, length(r.dir));
+    if (!std::isfinite(r.tmax)) r.tmax = kInf;
+    if (coin(0.25)) r.mask = static_cast<std::uint32_t>(bits() % 16);
+    if (ray_problem(r) != "") r.dir = {1, 0, 0};
+    return r;
+  }
+
+  static double length(const Vec3& v) { return std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z); }
+
+  HitSet brute(const Ray& r, double tmax) const {
+    HitSet hits;
+    for (const Object& o : objects_) {
+      double t;
+      if (ray_sees(r.mask, o.f) && ray_hit(r.origin, r.dir, tmax, o.s, t))
+        hits.insert({o.h.index, std::bit_cast<std::uint64_t>(t)});
+    }
+    return hits;
+  }
+
+  // Every way of casting `r`, against brute force.
+  void check(const Ray& r) {
+    const HitSet want = brute(r, r.tmax);
+    HitSet got;
+    std::size_t reports = 0;
+    bp_->cast_ray(r, [&](Handle h, double t) {
+      ++reports;
+      EXPECT_TRUE(bp_->contains(h));
+      got.insert({h.index, std::bit_cast<std::uint64_t>(t)});
+      return kRayGoOn;
+    });
+    ASSERT_EQ(got, want) << describe(r);
+    ASSERT_EQ(reports, want.size()) << "an object reported twice " << describe(r);
+
+    const RayHit c = bp_->closest_hit(r);
+    if (want.empty()) {
+      ASSERT_TRUE(c.handle.is_null()) << describe(r);
+    } else {
+      RayHit best{Handle{}, kInf};
+      for (const auto& [i, b] : want) {
+        const RayHit x{Handle{i, 0}, std::bit_cast<double>(b)};
+        if (best.handle.is_null() || closer(x, best)) best = x;
+      }
+      ASSERT_EQ(c.handle.index, best.handle.index) << describe(r);
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(c.t), std::bit_cast<std::uint64_t>(best.t));
+    }
+    ASSERT_EQ(bp_->any_hit(r), !want.empty()) << describe(r);
+
+    // A visitor clipping the ray to 1.5 times its nearest hit so far: every
+    // report is a true hit within the clip in force, and every true hit
+    // within the final clip is reported.
+    double clip = r.tmax;
+    HitSet clipped;
+    bp_->cast_ray(r, [&](Handle h, double t) {
+      EXPECT_LE(t, clip);
+      EXPECT_TRUE(want.count({h.index, std::bit_cast<std::uint64_t>(t)}) == 1) << describe(r);
+      clipped.insert({h.index, std::bit_cast<std::uint64_t>(t)});
+      clip = std::min(clip, t * 1.5);
+      return clip;
+    });
+    for (const auto& hit : brute(r, clip))
+      ASSERT_EQ(clipped.count(hit), 1u) << "a hit within the clip missed " << describe(r);
+  }
+
+  std::string describe(const Ray& r) const {
+    char buf[400];
+    std::snprintf(buf, sizeof buf, "ray o=(%a, %a, %a) d=(%a, %a, %a) tmax=%a mask=%x objects=%zu",
+                  r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.tmax, r.mask,
+                  objects_.size());
+    return buf;
+  }
+
+  AnyBroadPhase& bp() { return *bp_; }
+  std::size_t size() const { return objects_.size(); }
+
+ private:
+  Kind kind_;
+  std::mt19937_64 rng_;
+  std::string spec_;
+  double base_ = 0;
+  double scale_ = 1000;
+  std::unique_ptr<AnyBroadPhase> bp_;
+  std::vector<Object> objects_;
+};
+
+class Rays : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(Rays, MatchBruteForceOnRandomScenesAndMutations) {
+  for (Kind kind :
+       {Kind::spheres, Kind::boxes, Kind::mixed, Kind::far, Kind::huge_and_tiny, Kind::lattice})
+    for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(repeats(3)); ++seed) {
+      const std::uint64_t s = seed * 1000003 + static_cast<std::uint64_t>(kind);
+      SCOPED_TRACE("seed " + std::to_string(s) + " kind " + std::to_string(static_cast<int>(kind)));
+      Model m(GetParam(), kind, s);
+      for (int i = 0; i < 20; ++i) m.check(m.ray());  // empty structure
+      const int n = 200 + static_cast<int>(s % 300);
+      for (int i = 0; i < n; ++i) m.insert();
+      m.bp().settle();
+      m.bp().validate();
+      for (int step = 0; step < 60; ++step) {
+        for (int k = 0; k < 5; ++k) m.mutate();
+        for (int k = 0; k < 8; ++k) {
+          m.check(m.ray());
+          if (HasFailure()) return;
+        }
+      }
+    }
+}
+
+TEST_P(Rays, BatchesMatchSingleCastsOnAnyThreadCount) {
+  Model m(GetParam(), Kind::mixed, 77);
+  for (int i = 0; i < 600; ++i) m.insert();
+  m.bp().settle();
+  std::vector<Ray> rays;
+  for (int i = 0; i < 700; ++i) rays.push_back(m.ray());
+  std::vector<RayHit> one(rays.size()), two(rays.size());
+  cast_rays(m.bp(), rays, one, 1);
+  cast_rays(m.bp(), rays, two, 3);
+  RayHitRows rows1, rows3;
+  cast_rays_all(m.bp(), rays, rows1, 1);
+  cast_rays_all(m.bp(), rays, rows3, 3);
+  ASSERT_EQ(rows1.offsets, rows3.offsets);
+  ASSERT_EQ(rows1.hits.size(), rows3.hits.size());
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    const RayHit single = m.bp().closest_hit(rays[i]);
+    ASSERT_EQ(one[i].handle, single.handle) << i;
+    ASSERT_EQ(two[i].handle, single.handle) << i;
+    ASSERT_EQ(std::bit_cast<std::uint64_t>(one[i].t), std::bit_cast<std::uint64_t>(single.t));
+    ASSERT_EQ(std::bit_cast<std::uint64_t>(two[i].t), std::bit_cast<std::uint64_t>(single.t));
+    const HitSet want = m.brute(rays[i], rays[i].tmax);
+    ASSERT_EQ(rows1.offsets[i + 1] - rows1.offsets[i], want.size()) << i;
+    for (std::size_t k = rows1.offsets[i]; k < rows1.offsets[i + 1]; ++k) {
+      ASSERT_EQ(rows1.hits[k].handle, rows3.hits[k].handle);
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(rows1.hits[k].t),
+                std::bit_cast<std::uint64_t>(rows3.hits[k].t));
+      if (k > rows1.offsets[i]) {
+        ASSERT_FALSE(closer(rows1.hits[k], rows1.hits[k - 1]));
+      }
+    }
+    if (!want.empty()) {
+      ASSERT_EQ(rows1.hits[rows1.offsets[i]].handle, single.handle);
+    }
+  }
+  rays[5].tmax = -1;
+  EXPECT_THROW(cast_rays(m.bp(), rays, one, 2), InvalidRay);
+  EXPECT_THROW(cast_rays_all(m.bp(), rays, rows1, 2), InvalidRay);
+}
+
+TEST_P(Rays, RejectInvalidRays) {
+  auto bp = make_structure(GetParam());
+  bp->insert(Shape::sphere({5, 5, 5}, 1), 0);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const Ray& bad :
+       {Ray{{nan, 0, 0}, {1, 0, 0}}, Ray{{0, 0, 0}, {kInf, 0, 0}}, Ray{{0, 0, 0}, {1, 0, 0}, -1},
+        Ray{{0, 0, 0}, {1, 0, 0}, nan}, Ray{{0, 0, 0}, {1e-200, 0, 0}}})
+    EXPECT_THROW(bp->cast_ray(bad, [](Handle, double) { return kRayGoOn; }), InvalidRay);
+}
+
+INSTANTIATE_TEST_SUITE_P(All, Rays, ::testing::ValuesIn(structure_specs()), StructureParamName{});
+
+}  // namespace
+}  // namespace broadphase::testing
