@@ -27,6 +27,7 @@
 
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/grid_common.hpp>
+#include <broadphase/detail/ray_walk.hpp>
 #include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <span>
@@ -88,6 +89,39 @@ class GridStatic : public detail::StoreBase<GridStatic> {
   /// Moves many objects with at most one rebuild. Every handle and shape is
   /// checked before anything changes. Throws InvalidHandle, InvalidShape.
   void update(std::span<const Move> moves);
+
+  /// Casts a ray (HasRayCast): the overflowing objects, then a march
+  /// through the cells the ray passes (detail/ray_walk.hpp) over both
+  /// tables, each object tested once. O(cells passed + candidates), and
+  /// never more than about a scan of every object. Throws InvalidRay.
+  template <class V>
+  QueryCost cast_ray(const Ray& r, V&& visitor) const {
+    require_valid(r);
+    detail::RayCast<std::remove_reference_t<V>> cast(store_, r, visitor);
+    for (std::uint32_t b : overflow_)
+      if (!cast.test(b, box_[b])) return cast.cost;
+    detail::RaySlots tested;
+    const double budget = 2.0 * static_cast<double>(store_.size() - overflow_.size()) + 64;
+    detail::ray_grid_cast(
+        cast, tested, detail::ray_level(map_), budget,
+        [&](double x, int a) { return map_.coord(x, a); },
+        [&](const detail::CellKey& c, auto&& f) {
+          const std::size_t k = bucket_of(c);
+          for (const Table* t : {&fixed_, &dyn_}) {
+            const Entry* e = t->entries.data() + t->start[k];
+            for (std::uint32_t j = 0; j < t->count[k]; ++j)
+              if (e[j].key == c && !f(e[j].tag >> 3)) return false;
+          }
+          return true;
+        },
+        [&](auto&& f) {
+          for (std::uint32_t b = 0; b < store_.slot_count(); ++b)
+            if (kind_[b] != kDead && where_[b] == detail::kNone && !f(b)) return false;
+          return true;
+        },
+        [&](std::uint32_t b) -> const AabbF& { return box_[b]; });
+    return cast.cost;
+  }
 
   /// Visits every object overlapping `q`.
   template <class V>

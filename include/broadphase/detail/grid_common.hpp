@@ -154,6 +154,11 @@ class CellMap {
     return r;
   }
   double cell() const { return cell_; }
+  /// The corner of cell (0, 0, 0), and the lowest and highest cell
+  /// coordinate of axis `a` (the clamp), for the ray march.
+  const Vec3& origin() const { return origin_; }
+  double index_lo(int a) const { return lo_[a]; }
+  double index_hi(int a) const { return hi_[a]; }
   /// The box of cell `k` (for pictures: border cells of a bounded map also
   /// hold what the clamp folds into them).
   Aabb box(const CellKey& k) const {

@@ -10,6 +10,7 @@
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/cell_tally.hpp>
 #include <broadphase/detail/grid_common.hpp>
+#include <broadphase/detail/ray_walk.hpp>
 #include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cstring>
@@ -106,6 +107,39 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
     for (std::uint32_t b : overflow_)
       if (!test_query(store_, box_.data(), q, qb, b, cost, visitor)) return cost;
     return cost;
+  }
+
+  /// Casts a ray (HasRayCast): the overflowing objects, then a march
+  /// through the cells the ray passes (detail/ray_walk.hpp), each object
+  /// tested once. O(cells passed + candidates), and never more than about
+  /// a scan of every object. Throws InvalidRay.
+  template <class V>
+  QueryCost cast_ray(const Ray& r, V&& visitor) const {
+    require_valid(r);
+    RayCast<std::remove_reference_t<V>> cast(store_, r, visitor);
+    for (std::uint32_t b : overflow_)
+      if (!cast.test(b, box_[b])) return cast.cost;
+    RaySlots tested;
+    const double budget = 2.0 * static_cast<double>(store_.size() - overflow_.size()) + 64;
+    ray_grid_cast(
+        cast, tested, ray_level(map_), budget, [&](double x, int a) { return map_.coord(x, a); },
+        [&](const CellKey& c, auto&& f) {
+          for (std::uint32_t m = heads_[bucket_of(c)]; m != kNone; m = next_[m]) {
+            const std::uint32_t b = m >> 3;
+            if constexpr (kHashed) {
+              if (!(key_of(range_[b], m & 7u) == c)) continue;  // another cell, same bucket
+            }
+            if (!f(b)) return false;
+          }
+          return true;
+        },
+        [&](auto&& f) {
+          for (std::uint32_t b = 0; b < store_.slot_count(); ++b)
+            if (kmask_[b] != 0 && !f(b)) return false;
+          return true;
+        },
+        [&](std::uint32_t b) -> const AabbF& { return box_[b]; });
+    return cast.cost;
   }
 
   /// Visits every overlapping pair once. Each cell's (or bucket's) list is

@@ -248,6 +248,18 @@ struct RayGridLevel {
   double reach = 0;    ///< see RayGridMarch (0: objects entered by their bounds)
 };
 
+/// The march's view of a CellMap (objects entered by their bounds).
+inline RayGridLevel ray_level(const CellMap& m) {
+  RayGridLevel l;
+  l.origin = m.origin();
+  l.cell = m.cell();
+  for (int a = 0; a < 3; ++a) {
+    l.index_lo[a] = m.index_lo(a);
+    l.index_hi[a] = m.index_hi(a);
+  }
+  return l;
+}
+
 /// See RayGridLevel. `coord(x, axis)` is the grid's own monotone map;
 /// `cell(key)` visits the objects of one cell, calling back `f(slot)`
 /// (through the cast's test) and returning false when the cast stopped.
@@ -294,7 +306,9 @@ class RayGridMarch {
     CellRange prev;  // empty
     double visited = 0;
     double t = 0;
-    while (t < cast.tmax && t < t_all) {
+    // The first step always runs: a ray with tmax = 0 (or leaving the
+    // region at once) still meets the cells about its origin.
+    for (bool first = true; first || (t < cast.tmax && t < t_all); first = false) {
       // One cell of the fastest axis inside the region, or a jump to where
       // an axis enters it.
       double tb = std::min(t_all, cast.tmax);
