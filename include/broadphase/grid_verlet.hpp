@@ -61,6 +61,7 @@
 #include <algorithm>
 #include <broadphase/config_error.hpp>
 #include <broadphase/detail/level_grid.hpp>
+#include <broadphase/detail/ray_walk.hpp>
 #include <broadphase/detail/structure_base.hpp>
 #include <broadphase/detail/verlet_lists.hpp>
 #include <broadphase/detail/work_shares.hpp>
@@ -341,22 +342,59 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
 template <class V>
 QueryCost GridVerlet::cast_ray(const Ray& r, V&& visitor) const {
   require_valid(r);
-  QueryCost cost;
-  double tmax = r.tmax;
-  for (std::uint32_t i = 0; i < slots_.size(); ++i) {
-    const Home home = slots_[i].home;
-    if (home == Home::free || home == Home::held) continue;
-    if ((filter_of(i).group & r.mask) == 0) continue;
-    ++cost.tests;
+  detail::RayCast<std::remove_reference_t<V>> cast(nullptr, r, visitor);
+  auto test = [&](Handle h, const Shape& s, const AabbF& box) {
     double t;
-    if (!ray_hit(r.origin, r.dir, tmax, shape_of(i), t)) continue;
-    tmax = visit_hit(visitor, handle_of(i), t, tmax);
-    if (tmax < 0) {
-      cost.stopped = true;
-      break;
+    return !cast.cull.enter(box, cast.tmax, t) || cast.test_object(h, s, filter_of(h.index).group);
+  };
+  for (std::size_t i = 0; i < loose_.size(); ++i)
+    if (!test(handle_of(loose_[i]), loose_shapes_[i], loose_bounds_[i])) return cast.cost;
+  // Each level of both grids: a march through its cells (an entry sits in
+  // the cell of its box's lower corner and reaches at most the level's
+  // reach above it), each entry tested once.
+  detail::RaySlots tested;
+  for (const Grid* g : {&fixed_, &moving_})
+    for (const Level& lv : g->levels) {
+      const std::uint32_t begin = g->cell_start[lv.first_cell];
+      const std::uint32_t end = g->cell_start[lv.first_cell + lv.cells()];
+      if (begin == end) continue;
+      detail::RayGridLevel l;
+      l.cell = lv.inv_cell > 0 ? 1 / lv.inv_cell : std::numeric_limits<double>::infinity();
+      for (int a = 0; a < 3; ++a) {
+        l.origin[a] = lv.origin[a];
+        l.index_lo[a] = 0;
+        l.index_hi[a] = lv.n[a] - 1.0;
+      }
+      l.reach = lv.reach;
+      auto entry = [&](std::uint32_t k) {
+        const Entry& e = g->entries[k];
+        return e.dead() || !tested.insert(e.slot) || test(e.handle(), g->shapes[k], e.box());
+      };
+      auto march = detail::RayGridMarch(
+          l, [&](double x, int a) { return static_cast<std::int32_t>(lv.cell(x, a)); },
+          [&](const detail::CellKey& c) {
+            const std::uint32_t cell = lv.first_cell +
+                                       (static_cast<std::uint32_t>(c.c[1]) * lv.n[2] +
+                                        static_cast<std::uint32_t>(c.c[2])) *
+                                           lv.n[0] +
+                                       static_cast<std::uint32_t>(c.c[0]);
+            for (std::uint32_t k = g->cell_start[cell]; k < g->cell_start[cell + 1]; ++k)
+              if (!entry(k)) return false;
+            return true;
+          });
+      using Outcome = decltype(march)::Outcome;
+      switch (march.march(cast, 2.0 * (end - begin) + 64)) {
+        case Outcome::finished:
+          continue;
+        case Outcome::stopped:
+          return cast.cost;
+        case Outcome::scan:
+          break;
+      }
+      for (std::uint32_t k = begin; k < end; ++k)
+        if (!entry(k)) return cast.cost;
     }
-  }
-  return cost;
+  return cast.cost;
 }
 
 template <class V>

@@ -38,17 +38,23 @@ namespace broadphase::detail {
 /// stopped) and the cost.
 template <class V>
 struct RayCast {
-  RayCast(const ObjectStore& s, const Ray& r, V& v)
+  RayCast(const ObjectStore& s, const Ray& r, V& v) : RayCast(&s, r, v) {}
+  /// For a structure that keeps its objects itself (test_object only).
+  RayCast(const ObjectStore* s, const Ray& r, V& v)
       : store(s), ray(r), cull(r), tmax(r.tmax), visitor(v) {}
 
-  /// Tests object `slot` exactly (mask first) and reports a hit; false when
-  /// the visitor stopped the cast.
+  /// Tests object `slot` of the store exactly (mask first) and reports a
+  /// hit; false when the visitor stopped the cast.
   bool test(std::uint32_t slot) {
-    if (!store.sees(ray.mask, slot)) return true;
+    return test_object(store->handle(slot), store->shape(slot), store->filter(slot).group);
+  }
+  /// Tests an object given by its handle, shape and group (mask first).
+  bool test_object(Handle h, const Shape& shape, std::uint32_t group) {
+    if ((group & ray.mask) == 0) return true;
     ++cost.tests;
     double t;
-    if (!ray_hit(ray.origin, ray.dir, tmax, store.shape(slot), t)) return true;
-    tmax = visit_hit(visitor, store.handle(slot), t, tmax);
+    if (!ray_hit(ray.origin, ray.dir, tmax, shape, t)) return true;
+    tmax = visit_hit(visitor, h, t, tmax);
     if (tmax < 0) {
       cost.stopped = true;
       return false;
@@ -63,7 +69,7 @@ struct RayCast {
     return test(slot);
   }
 
-  const ObjectStore& store;
+  const ObjectStore* store;
   const Ray& ray;
   RayCull cull;
   double tmax;
