@@ -115,6 +115,7 @@ void GridStatic::move_one(std::uint32_t i, const AabbF& b, bool patch) {
   const CellRange r = map_.range(b);
   if (kind_[i] == kDynamic && where_[i] == kNone && r == range_[i]) {
     box_[i] = b;
+    occupied_.add(b);
     return;
   }
   const bool was_fixed = kind_[i] == kFixed;
@@ -135,6 +136,7 @@ void GridStatic::attach(std::uint32_t i, bool patch) {
     return;
   }
   entries_total_ += cell_count(range_[i]);
+  occupied_.add(box_[i]);
   Table& t = table_of(i);
   if (!patch || t.dirty || !add_entries(t, i)) t.dirty = true;
 }
@@ -262,6 +264,7 @@ void GridStatic::finish_mutation() {
 void GridStatic::regrid(double cell) {
   map_ = detail::CellMap(origin_, cell);
   overflow_.clear();
+  occupied_.clear();
   entries_total_ = 0;
   for (std::uint32_t i = 0; i < store_.slot_count(); ++i) {
     where_[i] = kNone;
@@ -272,6 +275,7 @@ void GridStatic::regrid(double cell) {
       overflow_.push_back(i);
     } else {
       entries_total_ += cell_count(range_[i]);
+      occupied_.add(box_[i]);
     }
   }
   const std::size_t buckets = std::bit_ceil(std::max<std::size_t>(entries_total_, 64));
@@ -335,6 +339,7 @@ void GridStatic::validate() const {
     if (!(map_.range(b) == range_[i])) fail("stale cell range");
     const bool over = range_[i].cells() > kMaxCells;
     if (over != (where_[i] != kNone)) fail("overflow membership");
+    if (!over && !occupied_.holds(b)) fail("an object outside the occupied box");
     if (over && (where_[i] >= overflow_.size() || overflow_[where_[i]] != i))
       fail("overflow position");
     if (!over) entries += cell_count(range_[i]);

@@ -69,6 +69,7 @@ void HGrid::update(Handle h, const Shape& s) {
     if (level == level_[i]) {
       if (cell_for(b, level) == cell_[i]) {
         box_[i] = b;
+        occupied_.add(b);
         return;
       }
     }
@@ -87,6 +88,7 @@ void HGrid::place(std::uint32_t i) {
   }
   level_[i] = level;
   const AabbF& b = box_[i];
+  occupied_.add(b);
   cell_[i] = cell_for(b, level);
   if (2 * (cells_used_ + 1) > table_.size()) grow_table();
   Cell& c = table_[find(level, cell_[i])];
@@ -169,6 +171,7 @@ void HGrid::validate() const {
     }
     const AabbF b = bounds_f(store_.shape(i));
     if (std::memcmp(&b, &box_[i], sizeof b) != 0) fail("stale bounds");
+    if (where_[i] == kNone && !occupied_.holds(b)) fail("an object outside the occupied box");
     const int level = level_for(b);
     if ((level > kMaxLevel) != (where_[i] != kNone)) fail("overflow membership");
     if (where_[i] != kNone) {

@@ -103,7 +103,7 @@ class GridStatic : public detail::StoreBase<GridStatic> {
     detail::RaySlots tested;
     const double budget = 2.0 * static_cast<double>(store_.size() - overflow_.size()) + 64;
     detail::ray_grid_cast(
-        cast, tested, detail::ray_level(map_), budget,
+        cast, tested, detail::ray_level(map_), budget, &occupied_,
         [&](double x, int a) { return map_.coord(x, a); },
         [&](const detail::CellKey& c, auto&& f) {
           const std::size_t k = bucket_of(c);
@@ -300,6 +300,7 @@ class GridStatic : public detail::StoreBase<GridStatic> {
   std::vector<std::uint32_t> where_;   // position in overflow_, or kNone
   std::vector<std::uint32_t> degree_;  // cached pairs per fixed object
   std::vector<std::uint32_t> overflow_;
+  detail::OccupiedBox occupied_;  // holds every box entered in a table (rays)
   std::vector<std::pair<std::uint32_t, std::uint32_t>> fixed_pairs_;
   Table fixed_{kFixed}, dyn_{kDynamic};
   detail::CellMap map_;

@@ -104,9 +104,11 @@ class HGrid : public detail::StoreBase<HGrid> {
         l.index_hi[a] = 0x1p30;
       }
       l.reach = l.cell * (0.5 + 0x1p-20);  // as scan_level's slack
-      const double budget = 2.0 * static_cast<double>(occupancy(level)) + 64;
+      // A level's scan reads every slot (there is no list per level), so
+      // the march may cost as much before it gives up.
+      const double budget = 2.0 * static_cast<double>(store_.size()) + 64;
       const bool go = detail::ray_grid_cast(
-          cast, tested, l, budget, [&](double x, int) { return coord(x, level); },
+          cast, tested, l, budget, &occupied_, [&](double x, int) { return coord(x, level); },
           [&](const detail::CellKey& k, auto&& f) {
             for (std::uint32_t b = table_[find(level, k)].head; b != detail::kNone; b = next_[b])
               if (!f(b)) return false;
@@ -244,7 +246,8 @@ class HGrid : public detail::StoreBase<HGrid> {
   std::vector<std::uint32_t> next_, prev_;
   std::vector<std::uint32_t> where_;  // position in overflow_, or kNone
   std::vector<std::uint32_t> overflow_;
-  std::vector<Cell> table_;  // open addressing, linear probing
+  detail::OccupiedBox occupied_;  // holds every box placed (rays)
+  std::vector<Cell> table_;       // open addressing, linear probing
   std::size_t cells_used_ = 0;
   std::vector<std::uint32_t> count_;  // objects per level
   std::vector<int> levels_;           // occupied levels, ascending

@@ -86,6 +86,7 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
     const CellRange r = map_.range(b);
     if (kmask_[i] != 0 && r == range_[i]) {
       box_[i] = b;
+      occupied_.add(b);
       if constexpr (kSorted) resort(i);
       return;
     }
@@ -122,7 +123,8 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
     RaySlots tested;
     const double budget = 2.0 * static_cast<double>(store_.size() - overflow_.size()) + 64;
     ray_grid_cast(
-        cast, tested, ray_level(map_), budget, [&](double x, int a) { return map_.coord(x, a); },
+        cast, tested, ray_level(map_), budget, &occupied_,
+        [&](double x, int a) { return map_.coord(x, a); },
         [&](const CellKey& c, auto&& f) {
           for (std::uint32_t m = heads_[bucket_of(c)]; m != kNone; m = next_[m]) {
             const std::uint32_t b = m >> 3;
@@ -183,6 +185,7 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
       const AabbF b = bounds_f(store_.shape(i));
       if (std::memcmp(&b, &box_[i], sizeof b) != 0) fail("stale bounds");
       if (!(map_.range(b) == range_[i])) fail("stale cell range");
+      if (!occupied_.holds(b)) fail("an object outside the occupied box");
       const unsigned want = link_mask(range_[i]);
       if (want != kmask_[i]) fail("link mask disagrees with range");
       if ((want == 0) != (where_[i] != kNone)) fail("overflow membership disagrees with range");
@@ -373,6 +376,7 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
   }
 
   void place(std::uint32_t i) {
+    occupied_.add(box_[i]);
     range_[i] = map_.range(box_[i]);
     const unsigned mask = link_mask(range_[i]);
     kmask_[i] = static_cast<std::uint8_t>(mask);
@@ -510,6 +514,7 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
 
   // Re-enters every object after the cell map or the bucket table changed.
   void relink_all() {
+    occupied_.clear();
     std::fill(heads_.begin(), heads_.end(), kNone);
     overflow_.clear();
     link_count_ = 0;
@@ -544,6 +549,7 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
   std::vector<std::uint32_t> prev_;   // per link: previous link, kNone at the head
   std::vector<std::uint32_t> heads_;  // per cell (dense) or bucket (hashed): first link
   std::vector<std::uint32_t> overflow_;
+  OccupiedBox occupied_;  // holds every box placed since the last relink (rays)
   CellMap map_;
   std::int32_t n_[3] = {1, 1, 1};
   bool forced_buckets_ = false;

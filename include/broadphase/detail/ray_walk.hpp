@@ -222,6 +222,62 @@ void ray_tree_walk(Cast& cast, std::uint32_t root, double root_t, Box&& box,
   }
 }
 
+/// A box holding every object a grid has placed since it was last
+/// cleared: grown on each placement, never shrunk (so always conservative,
+/// O(1) to keep), cleared when the grid re-enters all its objects. It ends
+/// a ray's march where the ray leaves the occupied space, instead of at the
+/// edge of an unbounded cell map.
+struct OccupiedBox {
+  AabbF box{{kEmptyLo, kEmptyLo, kEmptyLo}, {-kEmptyLo, -kEmptyLo, -kEmptyLo}};
+
+  void add(const AabbF& b) {
+    for (int a = 0; a < 3; ++a) {
+      box.lo[a] = std::min(box.lo[a], b.lo[a]);
+      box.hi[a] = std::max(box.hi[a], b.hi[a]);
+    }
+  }
+  void clear() { *this = OccupiedBox{}; }
+  bool empty() const { return !(box.lo[0] <= box.hi[0]); }
+  /// True when `b` lies inside (for validate()).
+  bool holds(const AabbF& b) const {
+    for (int a = 0; a < 3; ++a)
+      if (!(box.lo[a] <= b.lo[a] && b.hi[a] <= box.hi[a])) return false;
+    return true;
+  }
+  Aabb as_double() const {
+    return {{box.lo[0], box.lo[1], box.lo[2]}, {box.hi[0], box.hi[1], box.hi[2]}};
+  }
+
+ private:
+  static constexpr float kEmptyLo = std::numeric_limits<float>::infinity();
+};
+
+/// The parameters [tn, tf] within [0, tmax] over which the ray is inside
+/// `b` grown by twice RayCull's margin; false when it never is. No object
+/// inside `b` is hit at a t outside them: a hit's point lies within the
+/// margin of the object (RayCull), and the slab's own rounding is a few
+/// ulps of t, far below the second margin.
+inline bool ray_span(const RayCull& c, const Aabb& b, double tmax, double& tn, double& tf) {
+  const double m = 2 * c.margin(b);
+  tn = 0;
+  tf = tmax;
+  for (int a = 0; a < 3; ++a) {
+    const double lo = (b.lo[a] - m) - c.origin()[a];
+    const double hi = (b.hi[a] + m) - c.origin()[a];
+    const double d = c.dir()[a];
+    if (d == 0) {
+      if (lo > 0 || hi < 0) return false;
+      continue;
+    }
+    double t1 = lo / d;
+    double t2 = hi / d;
+    if (t1 > t2) std::swap(t1, t2);
+    if (t1 > tn) tn = t1;
+    if (t2 < tf) tf = t2;
+  }
+  return tn <= tf;
+}
+
 /// The cells of one grid (or one level of a hierarchy) that a ray passes,
 /// conservatively, for grids whose cell coordinates are a non-decreasing
 /// function of the coordinates, clamped (grid_common.hpp, CellMap).
@@ -285,9 +341,18 @@ class RayGridMarch {
   /// Marches `cast`'s ray from t = 0 to its live tmax, visiting at most
   /// `budget` cells (see the class comment).
   template <class Cast>
-  Outcome march(Cast& cast, double budget) const {
+  Outcome march(Cast& cast, double budget, const OccupiedBox* occupied = nullptr) const {
     const Vec3& o = cast.ray.origin;
     const Vec3& d = cast.ray.dir;
+    // Where the ray is inside the occupied space, when the grid keeps it:
+    // no object is hit before t_from or after t_end.
+    double t_from = 0;
+    double t_end = std::numeric_limits<double>::infinity();
+    if (occupied != nullptr) {
+      if (occupied->empty() ||
+          !ray_span(cast.cull, occupied->as_double(), cast.tmax, t_from, t_end))
+        return Outcome::finished;
+    }
     // The grid's own region, one cell wider each side: beyond it on every
     // axis the clamped coordinates stop changing. It only guides the step
     // sizes; correctness rests on the boxes' ranges alone.
@@ -308,10 +373,11 @@ class RayGridMarch {
       leave_at[a] = t2;
       if (t2 > t_all) t_all = t2;
     }
+    t_all = std::min(t_all, t_end);
     if (!(t_all <= std::numeric_limits<double>::max())) t_all = std::numeric_limits<double>::max();
     CellRange prev;  // empty
     double visited = 0;
-    double t = 0;
+    double t = t_from;
     // The first step always runs: a ray with tmax = 0 (or leaving the
     // region at once) still meets the cells about its origin.
     for (bool first = true; first || (t < cast.tmax && t < t_all); first = false) {
@@ -333,11 +399,12 @@ class RayGridMarch {
       prev = r;
       t = tb;
     }
-    if (!(t < cast.tmax)) return Outcome::finished;
+    const double last = std::min(cast.tmax, t_end);
+    if (!(t < last)) return Outcome::finished;
     // Beyond the region: the rest of the ray in one stretch.
     CellRange r;
-    if (cast.tmax <= std::numeric_limits<double>::max())
-      segment_range(o, d, t, cast.tmax, cast.cull, r);
+    if (last <= std::numeric_limits<double>::max())
+      segment_range(o, d, t, last, cast.cull, r);
     else
       tail_range(o, d, t, r);
     if (visited + r.cells() > budget) return Outcome::scan;
@@ -435,18 +502,20 @@ QueryCost tree_cast_ray(const Tree& tree, const ObjectStore& store, const Ray& r
 /// gives `for_cell(key, f)`, calling f(slot) for the objects entered in
 /// cell `key` and false as soon as f does, `for_all(f)` likewise over
 /// every object of the grid (the scan of a march out of budget), and
-/// `box_of(slot)`, the object's stored float box. `budget`: cells worth
+/// `box_of(slot)`, the object's stored float box; `occupied`, when not
+/// null, holds every object of the grid (OccupiedBox). `budget`: cells worth
 /// visiting before a scan is cheaper (about the grid's object count).
 /// False when the visitor stopped the cast.
 template <class Cast, class Coord, class ForCell, class ForAll, class BoxOf>
 bool ray_grid_cast(Cast& cast, RaySlots& tested, const RayGridLevel& level, double budget,
-                   Coord&& coord, ForCell&& for_cell, ForAll&& for_all, BoxOf&& box_of) {
+                   const OccupiedBox* occupied, Coord&& coord, ForCell&& for_cell, ForAll&& for_all,
+                   BoxOf&& box_of) {
   auto test = [&](std::uint32_t s) { return !tested.insert(s) || cast.test(s, box_of(s)); };
   auto cell = [&](const CellKey& k) { return for_cell(k, test); };
   const RayGridMarch march(
       level, [&](double x, int a) { return coord(x, a); }, cell);
   using Outcome = typename decltype(march)::Outcome;
-  switch (march.march(cast, budget)) {
+  switch (march.march(cast, budget, occupied)) {
     case Outcome::finished:
       return true;
     case Outcome::stopped:
