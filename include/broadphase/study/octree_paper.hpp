@@ -22,9 +22,12 @@
 #include <algorithm>
 #include <array>
 #include <broadphase/config_error.hpp>
+#include <broadphase/detail/ray_walk.hpp>
 #include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -89,6 +92,14 @@ class OctreePaper : public detail::StoreBase<OctreePaper> {
   /// Visits every overlapping pair exactly once.
   template <class V>
   QueryCost for_each_pair(V&& visitor) const;
+
+  /// Casts a ray (HasRayCast): front to back through the nodes whose cubes
+  /// the ray enters before its live tmax (detail/ray_walk.hpp); the root,
+  /// which holds the objects outside the cube, is always opened, and with
+  /// `clamp_outside` the border nodes reach out to infinity. Throws
+  /// InvalidRay.
+  template <class V>
+  QueryCost cast_ray(const Ray& r, V&& visitor) const;
 
   /// The store (shapes, user data, generations), the node lists' capacities
   /// and the fixed node arrays.
@@ -183,6 +194,46 @@ QueryCost OctreePaper::query(const Shape& q, V&& visitor) const {
   const CellRange r = range_of(bounds(q));
   if (!r.empty && !visit_descendants(0, {0, 0, 0, 0}, r, test_node)) cost.stopped = true;
   return cost;
+}
+
+template <class V>
+QueryCost OctreePaper::cast_ray(const Ray& r, V&& visitor) const {
+  require_valid(r);
+  detail::RayCast<std::remove_reference_t<V>> cast(store_, r, visitor);
+  // A node's cube, grown by 2^-30 of its magnitude and side: an object is
+  // placed by cell_of, whose rounding is a few ulps of |v| + |origin|, and
+  // the side is at least 1/8 of the world's, so this covers it by far.
+  auto cube = [&](std::uint32_t node) {
+    const NodeCell c = decode(node);
+    const double side = std::ldexp(1.0, kFinest - c.level) / scale_;
+    const int cells = 1 << c.level;
+    const int at[3] = {c.x, c.y, c.z};
+    Aabb b;
+    for (int a = 0; a < 3; ++a) {
+      b.lo[a] = origin_[a] + at[a] * side;
+      b.hi[a] = origin_[a] + (at[a] + 1) * side;
+      const double grow =
+          0x1p-30 * (std::fabs(b.lo[a]) + std::fabs(b.hi[a]) + side + std::fabs(origin_[a]));
+      b.lo[a] -= grow;
+      b.hi[a] += grow;
+      if (clamp_outside_ && at[a] == 0) b.lo[a] = -std::numeric_limits<double>::infinity();
+      if (clamp_outside_ && at[a] == cells - 1) b.hi[a] = std::numeric_limits<double>::infinity();
+    }
+    return b;
+  };
+  detail::ray_tree_walk(
+      cast, 0, 0.0, cube,
+      [&](std::uint32_t n, auto&& f) {
+        if (level_of(n) == kFinest) return;
+        for (std::uint32_t k = 1; k <= 8; ++k)
+          if (subtree_count_[8 * n + k] != 0) f(8 * n + k);
+      },
+      [&](std::uint32_t n) {
+        for (std::uint32_t i : lists_[n])
+          if (!cast.test(i)) return false;
+        return true;
+      });
+  return cast.cost;
 }
 
 template <class V>
