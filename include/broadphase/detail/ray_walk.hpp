@@ -338,7 +338,8 @@ class RayGridMarch {
     scan,      ///< out of budget: the caller tests the objects not yet tested
   };
 
-  /// Marches `cast`'s ray from t = 0 to its live tmax, visiting at most
+  /// Marches `cast`'s ray from t = 0 to its live tmax (only over the part
+  /// inside `occupied`, when given: see OccupiedBox), visiting at most
   /// `budget` cells (see the class comment).
   template <class Cast>
   Outcome march(Cast& cast, double budget, const OccupiedBox* occupied = nullptr) const {
