@@ -12,13 +12,28 @@
 // position and corrupt its edge arrays when removed. Clamping is monotone, so
 // an overlapping pair still overlaps after clamping (objects far outside just
 // become extra candidates, rejected by the exact test).
+//
+// Rays: cast_ray walks Bullet's own tree with rayTest (the sweep's rayTest
+// walks the dbvt it keeps beside its edges, the "accelerator"; without it
+// Bullet hands over every proxy, so the sweep with accelerator=off casts by
+// our store's test of every object instead). The callback runs our exact
+// `ray_hit` on every proxy Bullet reaches and clips `m_lambda_max` to the
+// closest hit; Bullet reads that clip only between its two trees (the walk
+// of one tree takes lambda_max by value), which is Bullet's cost, measured
+// as is. Filters: each proxy carries the object's group and mask, which is
+// Bullet's own rule (btOverlappingPairCache::needsBroadphaseCollision), so
+// the pair cache holds only pairs that pass.
 #include <btBulletCollisionCommon.h>
 
 #include <algorithm>
+#include <broadphase/ray.hpp>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "peer_common.hpp"
 
@@ -36,6 +51,45 @@ struct AabbVisitor final : btBroadphaseAabbCallback {
     return filter(slot_of(proxy->m_clientObject));
   }
   F& filter;
+};
+
+/// Hands every proxy Bullet's ray walk reaches to our exact test, and clips
+/// the walk (m_lambda_max, in the ray's own parameter t) to the hits found.
+template <class V>
+struct RayVisitor final : btBroadphaseRayCallback {
+  RayVisitor(const ObjectStore& s, const Ray& r, V& v) : store(s), ray(r), visitor(v) {}
+  bool process(const btBroadphaseProxy* proxy) override {
+    if (cost.stopped) return false;  // Bullet cannot stop its walk: the rest is ignored
+    const std::uint32_t slot = slot_of(proxy->m_clientObject);
+    if (!store.sees(ray.mask, slot)) return true;
+    if (walking && slot < clamped.size() && clamped[slot]) return true;  // tested apart
+    ++cost.tests;
+    double t;
+    if (!ray_hit(ray.origin, ray.dir, tmax, store.shape(slot), t)) return true;
+    tmax = visit_hit(visitor, store.handle(slot), t, tmax);
+    if (tmax < 0) {
+      cost.stopped = true;
+      m_lambda_max = -1;
+      return false;
+    }
+    m_lambda_max = lambda_above(tmax);
+    return true;
+  }
+  /// A float clip that keeps every hit at exactly `t` (ties go to the
+  /// smaller id): `t` grown by 2^-16 and rounded up, far beyond the few
+  /// float ulps by which Bullet's slab test rounds the entry parameter.
+  static float lambda_above(double t) {
+    const double grown = t * (1 + 0x1p-16);
+    if (!(grown < std::numeric_limits<float>::max())) return std::numeric_limits<float>::infinity();
+    return std::nextafter(static_cast<float>(grown), std::numeric_limits<float>::infinity());
+  }
+  const ObjectStore& store;
+  const Ray& ray;
+  V& visitor;
+  double tmax = 0;
+  QueryCost cost;
+  std::span<const std::uint8_t> clamped;  // the sweep's clamped objects, tested after the walk
+  bool walking = true;
 };
 
 enum class Kind { dbvt, sweep };
@@ -86,7 +140,15 @@ class BulletBroadPhase : public PeerBase<btBroadphaseProxy*> {
     return h;
   }
   /// Destroys the proxy (and its cached pairs).
-  void remove(Handle h) { bp_->destroyProxy(take(h), nullptr); }
+  void remove(Handle h) {
+    if constexpr (K == Kind::sweep) {
+      if (h.index < clamped_.size() && store_.contains(h)) {
+        clamped_count_ -= clamped_[h.index];
+        clamped_[h.index] = 0;
+      }
+    }
+    bp_->destroyProxy(take(h), nullptr);
+  }
   /// Moves the proxy with setAabb.
   void update(Handle h, const Shape& s) {
     const std::uint32_t i = store_.set_shape(h, s);
@@ -109,6 +171,52 @@ class BulletBroadPhase : public PeerBase<btBroadphaseProxy*> {
     return filter.cost();
   }
 
+  /// Casts a ray with Bullet's rayTest (the dbvt's walk, or the sweep's
+  /// accelerator tree; see the file comment), our exact test on every proxy
+  /// it reaches. Bullet works in float: every node is grown by a margin of
+  /// 2^-16 of the ray origin's and the world's largest coordinate (rayTest's
+  /// aabbMin/aabbMax, meant for swept boxes), 256 float ulps of the
+  /// distances its slab test subtracts, so no object our double test hits
+  /// is culled. Rays Bullet cannot represent (a coordinate beyond float's
+  /// range, a direction component below float's normal range) and the sweep
+  /// without its tree are cast by testing every object. Throws InvalidRay.
+  template <class V>
+  QueryCost cast_ray(const Ray& r, V&& visitor) const {
+    require_valid(r);
+    if (!float_ray(r) || !has_ray_tree()) return Base::cast_ray(r, visitor);
+    RayVisitor<V> cb(store_, r, visitor);
+    cb.tmax = r.tmax;
+    if (clamped_count_ > 0) cb.clamped = clamped_;
+    const btVector3 from(static_cast<float>(r.origin.x), static_cast<float>(r.origin.y),
+                         static_cast<float>(r.origin.z));
+    for (int a = 0; a < 3; ++a) {
+      const float d = static_cast<float>(r.dir[a]);
+      cb.m_rayDirectionInverse[a] = d == 0 ? static_cast<btScalar>(BT_LARGE_FLOAT) : 1 / d;
+      cb.m_signs[a] = cb.m_rayDirectionInverse[a] < 0;
+    }
+    cb.m_lambda_max = RayVisitor<V>::lambda_above(r.tmax);
+    const double o_mag =
+        std::max({std::fabs(r.origin.x), std::fabs(r.origin.y), std::fabs(r.origin.z)});
+    const float m =
+        static_cast<float>((o_mag + scale_) * 0x1p-16) + std::numeric_limits<float>::min();
+    // rayTo is not read by either walk (btDbvt::rayTestInternal ignores it).
+    bp_->rayTest(from, from, cb, btVector3(-m, -m, -m), btVector3(m, m, m));
+    // Objects the sweep clamped into its box are not where the tree has them.
+    cb.walking = false;
+    for (std::uint32_t i = 0; clamped_count_ > 0 && i < clamped_.size() && !cb.cost.stopped; ++i)
+      if (clamped_[i]) cb.process(native_[i]);
+    return cb.cost;
+  }
+
+  /// Changes an object's group and mask: the proxy is made again with them
+  /// (Bullet reads the filter when pairs are added, so an existing proxy's
+  /// cached pairs would keep the old rule). O(log n) for the tree.
+  void set_filter(Handle h, Filter f) {
+    const std::uint32_t i = store_.set_filter(h, f);
+    bp_->destroyProxy(native_[i], nullptr);
+    native_[i] = create_proxy(i, store_.shape(i));
+  }
+
   /// Walks Bullet's overlapping-pair cache. The cache holds each pair once
   /// (a hash set of proxy pairs); the tree also keeps pairs whose fattened
   /// leaves still touch, which the exact test rejects.
@@ -116,10 +224,13 @@ class BulletBroadPhase : public PeerBase<btBroadphaseProxy*> {
   QueryCost for_each_pair(V&& visitor) const {
     PairFilter<V> filter(store_, visitor);
     btBroadphasePairArray& pairs = bp_->getOverlappingPairCache()->getOverlappingPairArray();
+    const bool unfiltered = this->unfiltered();
     for (int k = 0; k < pairs.size(); ++k) {
-      if (!filter(slot_of(pairs[k].m_pProxy0->m_clientObject),
-                  slot_of(pairs[k].m_pProxy1->m_clientObject)))
-        break;
+      const std::uint32_t a = slot_of(pairs[k].m_pProxy0->m_clientObject);
+      const std::uint32_t b = slot_of(pairs[k].m_pProxy1->m_clientObject);
+      // Bullet applied the group/mask; the user's pair filter is ours.
+      if (!unfiltered && !may_pair(a, b)) continue;
+      if (!filter(a, b)) break;
     }
     return filter.cost();
   }
@@ -160,6 +271,20 @@ class BulletBroadPhase : public PeerBase<btBroadphaseProxy*> {
   }
 
  private:
+  using Base = PeerBase<btBroadphaseProxy*>;
+
+  /// True when Bullet's float walk can take the ray (see cast_ray).
+  static bool float_ray(const Ray& r) {
+    constexpr double kBig = std::numeric_limits<float>::max() / 4;
+    constexpr double kSmall = std::numeric_limits<float>::min() * 4;
+    for (int a = 0; a < 3; ++a) {
+      if (!(std::fabs(r.origin[a]) < kBig) || !(std::fabs(r.dir[a]) < kBig)) return false;
+      if (r.dir[a] != 0 && std::fabs(r.dir[a]) < kSmall) return false;
+    }
+    return true;
+  }
+  bool has_ray_tree() const { return K == Kind::dbvt || accelerator_; }
+
   // Leaves room for the sweep's sentinel handle and its doubled edge count.
   static constexpr std::size_t kMaxHandles = 0x3ffffffe;
 
@@ -172,30 +297,50 @@ class BulletBroadPhase : public PeerBase<btBroadphaseProxy*> {
     }
   }
 
-  void bt_bounds(const Shape& s, btVector3& lo, btVector3& hi) const {
+  /// The bounds Bullet gets; true when the sweep clamped them.
+  bool bt_bounds(const Shape& s, btVector3& lo, btVector3& hi) const {
     AabbF b = bounds_f(s);
+    bool clamped = false;
     if constexpr (K == Kind::sweep) {
       for (int a = 0; a < 3; ++a) {
-        b.lo[a] = std::clamp(b.lo[a], clamp_lo_[a], clamp_hi_[a]);
-        b.hi[a] = std::clamp(b.hi[a], clamp_lo_[a], clamp_hi_[a]);
+        const float l = std::clamp(b.lo[a], clamp_lo_[a], clamp_hi_[a]);
+        const float h = std::clamp(b.hi[a], clamp_lo_[a], clamp_hi_[a]);
+        clamped = clamped || l != b.lo[a] || h != b.hi[a];
+        b.lo[a] = l;
+        b.hi[a] = h;
       }
     }
     lo = to_bt(b.lo);
     hi = to_bt(b.hi);
+    return clamped;
+  }
+
+  /// Bounds of object `slot` for Bullet, keeping the rays' bookkeeping:
+  /// the largest coordinate (the scale of cast_ray's margin) and the
+  /// objects the sweep clamped.
+  void proxy_bounds(std::uint32_t slot, const Shape& s, btVector3& lo, btVector3& hi) {
+    const bool clamped = bt_bounds(s, lo, hi);
+    for (int a = 0; a < 3; ++a)
+      scale_ = std::max({scale_, double{std::fabs(lo[a])}, double{std::fabs(hi[a])}});
+    if constexpr (K == Kind::sweep) {
+      if (clamped_.size() <= slot) clamped_.resize(slot + 1, 0);
+      clamped_count_ += static_cast<std::size_t>(clamped) - clamped_[slot];
+      clamped_[slot] = clamped;
+    }
   }
 
   btBroadphaseProxy* create_proxy(std::uint32_t slot, const Shape& s) {
     btVector3 lo, hi;
-    bt_bounds(s, lo, hi);
-    // Every object collides with every other: one filter group, all masks.
-    return bp_->createProxy(lo, hi, BOX_SHAPE_PROXYTYPE, tag_of(slot),
-                            btBroadphaseProxy::DefaultFilter, btBroadphaseProxy::AllFilter,
-                            nullptr);
+    proxy_bounds(slot, s, lo, hi);
+    // Bullet's filter words are ints with the same bits (C++20 conversion).
+    const Filter f = store_.filter(slot);
+    return bp_->createProxy(lo, hi, BOX_SHAPE_PROXYTYPE, tag_of(slot), static_cast<int>(f.group),
+                            static_cast<int>(f.mask), nullptr);
   }
 
   void set_aabb(std::uint32_t slot, const Shape& s) {
     btVector3 lo, hi;
-    bt_bounds(s, lo, hi);
+    proxy_bounds(slot, s, lo, hi);
     bp_->setAabb(native_[slot], lo, hi, nullptr);
   }
 
@@ -223,6 +368,9 @@ class BulletBroadPhase : public PeerBase<btBroadphaseProxy*> {
   unsigned capacity_ = 0;
   float clamp_lo_[3] = {}, clamp_hi_[3] = {};
   float world_lo_[3] = {}, world_hi_[3] = {};
+  double scale_ = 0;                   // largest |coordinate| Bullet was given
+  std::vector<std::uint8_t> clamped_;  // the sweep: slots whose bounds were clamped (1)
+  std::size_t clamped_count_ = 0;
 };
 
 }  // namespace
