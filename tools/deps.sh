@@ -6,7 +6,7 @@ packages=(
   build-essential cmake ninja-build git python3
   libcli11-dev nlohmann-json3-dev libgtest-dev libgmock-dev libbenchmark-dev
   python3-matplotlib python3-numpy python3-pil
-  libbullet-dev libfcl-dev libode-dev libcgal-dev
+  libbullet-dev libfcl-dev libode-dev libcgal-dev libembree-dev
   pybind11-dev python3-dev python3-scipy python3-sklearn python3-ase python3-rtree
   python3-pytest
   libopenmpi-dev openmpi-bin

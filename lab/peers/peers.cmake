@@ -9,6 +9,8 @@ if(PkgConfig_FOUND)
 endif()
 find_package(fcl QUIET)
 find_package(CGAL QUIET)
+# Intel Embree 3 (libembree-dev): a ray peer only (peers/ray_peers.hpp).
+find_package(embree 3 QUIET)
 
 # broadphase_add_peer(NAME SOURCE TARGET...): builds one adapter into the
 # lab (broadphase_lab_program). Each adapter is an object library of its own so that its
@@ -34,6 +36,16 @@ if(BROADPHASE_ODE_FOUND)
 endif()
 if(CGAL_FOUND)
   broadphase_add_peer(cgal cgal.cpp CGAL::CGAL)
+endif()
+if(embree_FOUND)
+  broadphase_add_peer(embree embree.cpp embree)
+elseif(BROADPHASE_BULLET_FOUND AND fcl_FOUND AND BROADPHASE_ODE_FOUND AND CGAL_FOUND)
+  # Every other peer of tools/deps.sh is here, so deps.sh ran, and it
+  # installs Embree too: a missing Embree means an old deps.sh run, not a
+  # choice; the lab's ray section would silently lose its reference.
+  message(FATAL_ERROR "broadphase: the peers of tools/deps.sh are installed but Intel Embree 3 "
+                      "(libembree-dev) is not: run tools/deps.sh again, or configure with "
+                      "-DBROADPHASE_WITH_PEERS=OFF to build no peer at all")
 endif()
 message(STATUS "broadphase: peer adapters:${BROADPHASE_PEERS_FOUND}")
 

@@ -1,5 +1,6 @@
 #include "peer_common.hpp"
 #include "peers.hpp"
+#include "ray_peers.hpp"
 
 namespace broadphase::app {
 
@@ -16,6 +17,14 @@ void register_peers([[maybe_unused]] Registry& r) {
 #ifdef BROADPHASE_HAVE_CGAL
   peers::register_cgal(r);
 #endif
+}
+
+std::vector<RayPeer> ray_peers() {
+  std::vector<RayPeer> peers;
+#ifdef BROADPHASE_HAVE_EMBREE
+  peers::add_embree(peers);
+#endif
+  return peers;
 }
 
 }  // namespace broadphase::app
