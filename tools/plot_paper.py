@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
 """Figures of `broadphase paper`: the study's figures 3.1 to 3.10 and the
-frame time up to a million objects, from results.csv.
+frame time up to a million objects, from results.csv; and the ray
+experiment's figure from rays.csv (beside results.csv, or given alone).
 
 Usage: plot_paper.py --csv results.csv --out DIR
+       plot_paper.py --rays rays.csv --out DIR
 
 Writes every figure as PNG and SVG into DIR. Prints only to stderr, so the
 command that runs it keeps stdout for its results. Needs matplotlib.
@@ -307,11 +309,86 @@ def frame_plots(rows, peers, out):
                     "line beats every peer)", "ratio", reference=1.0)
 
 
+RAY_KINDS = ("uniform", "clustered", "boxes", "mixed", "city")
+RAY_LINE = {"random": "-", "lidar": "--"}
+
+
+def rays_figure(path, out):
+    """rays.png: rays per second against the object count, one line per
+    structure or peer (the fastest of ours as one line whatever its name),
+    random rays solid and the lidar fan dashed; a row of panels per kind of
+    scene, the static world left and the moving one right."""
+    with open(path, newline="") as f:
+        rows = [r for r in csv.DictReader(f) if not r["error"] and float(r["rays_per_s"]) > 0]
+    if not rows:
+        print("plot_paper: " + path + " has no rays measured", file=sys.stderr)
+        return
+    kinds = [k for k in RAY_KINDS if any(r["kind"] == k for r in rows)]
+    kinds += sorted({r["kind"] for r in rows} - set(kinds))
+
+    def line_of(r):
+        return "fastest of ours" if r["role"] == "fastest-ours" else r["structure"]
+
+    lines = []
+    for r in rows:
+        if line_of(r) not in lines:
+            lines.append(line_of(r))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colour = {name: colours[i % len(colours)] for i, name in enumerate(lines)}
+    height = 2.8 * len(kinds) + 1.0  # inches: the panels, then the title and legend above
+    fig, axes = plt.subplots(len(kinds), 2, figsize=(10, height), squeeze=False, sharex=True,
+                             sharey=True)
+    for i, kind in enumerate(kinds):
+        for j, world in enumerate(("static", "moving")):
+            ax = axes[i][j]
+            for name in lines:
+                for rays, style in RAY_LINE.items():
+                    pts = sorted((int(r["n"]), float(r["rays_per_s"])) for r in rows
+                                 if r["kind"] == kind and r["world"] == world
+                                 and r["rays"] == rays and line_of(r) == name)
+                    if pts:
+                        ax.plot([p[0] for p in pts], [p[1] for p in pts], style, marker="o",
+                                markersize=3, color=colour[name],
+                                label=name if (rays == "random") else None)
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.grid(True, which="major", alpha=0.3)
+            ax.set_title(kind + ", " + world + (" (movers step between batches)"
+                                                 if world == "moving" else ""), fontsize=9)
+            if j == 0:
+                ax.set_ylabel("rays / s (one thread)")
+            if i == len(kinds) - 1:
+                ax.set_xlabel("objects")
+    handles, labels = [], []
+    for ax in axes.flat:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    fig.suptitle("Closest-hit rays per second (solid: random rays; dashed: lidar fan)",
+                 fontsize=10, y=1 - 0.1 / height)
+    fig.legend(handles, labels, loc="upper center", ncol=min(4, len(labels)), fontsize=8,
+               bbox_to_anchor=(0.5, 1 - 0.35 / height))
+    fig.tight_layout(rect=(0, 0, 1, 1 - 1.0 / height))
+    for ext in ("png", "svg"):
+        fig.savefig(os.path.join(out, "rays." + ext), dpi=110)
+    plt.close(fig)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--csv", required=True, help="results.csv written by broadphase paper")
+    ap.add_argument("--csv", help="results.csv written by broadphase paper")
+    ap.add_argument("--rays", help="rays.csv of the ray experiment (default: beside --csv)")
     ap.add_argument("--out", required=True, help="directory for the figures")
     a = ap.parse_args()
+    if not a.csv and not a.rays:
+        ap.error("give --csv, --rays or both")
+    os.makedirs(a.out, exist_ok=True)
+    rays = a.rays or os.path.join(os.path.dirname(a.csv), "rays.csv")
+    if os.path.exists(rays):
+        rays_figure(rays, a.out)
+    if not a.csv:
+        return 0
     rows = read_rows(a.csv)
     if not rows:
         print("plot_paper: " + a.csv + " has no rows", file=sys.stderr)
