@@ -296,7 +296,8 @@ Handle AabbTree::insert(const Shape& s, std::uint64_t user, Motion m) {
   if (!moved_[i]) {
     const Shape& me = store_.shape(i);
     for_each_overlapping_leaf(tight_[i], [&](std::uint32_t o) {
-      if (o != i && !moved_[o] && overlaps(me, store_.shape(o))) fixed_pairs_.insert(i, o);
+      if (o != i && !moved_[o] && may_pair(i, o) && overlaps(me, store_.shape(o)))
+        fixed_pairs_.insert(i, o);
     });
   }
   return h;
@@ -335,6 +336,29 @@ void AabbTree::make_dynamic(std::uint32_t i) {
   moved_[i] = 1;
   set_fixed_flags(leaf_[i]);
   discard_front();
+}
+
+void AabbTree::recache_fixed(std::uint32_t i) {
+  const Shape& me = store_.shape(i);
+  for_each_overlapping_leaf(tight_[i], [&](std::uint32_t o) {
+    if (o == i || moved_[o]) return;
+    if (may_pair(i, o) && overlaps(me, store_.shape(o))) {
+      fixed_pairs_.insert(i, o);
+    } else {
+      fixed_pairs_.erase(i, o);
+    }
+  });
+}
+
+void AabbTree::set_filter(Handle h, Filter f) {
+  const std::uint32_t i = store_.set_filter(h, f);
+  if (!moved_[i]) recache_fixed(i);
+}
+
+void AabbTree::set_pair_filter(PairFilter pf) {
+  pair_filter_ = std::move(pf);
+  for (std::uint32_t o = 0; o < store_.slot_count(); ++o)
+    if (store_.slots().alive(o) && !moved_[o]) recache_fixed(o);
 }
 
 void AabbTree::remove(Handle h) {
@@ -469,13 +493,14 @@ void AabbTree::validate() const {
   fixed_pairs_.validate();
   for (const auto& p : fixed_pairs_.pairs())
     if (!store_.slots().alive(p.a) || !store_.slots().alive(p.b) || moved_[p.a] || moved_[p.b] ||
-        !overlaps(store_.shape(p.a), store_.shape(p.b)))
+        !overlaps(store_.shape(p.a), store_.shape(p.b)) || !may_pair(p.a, p.b))
       fail("cached fixed pair is not an overlapping pair of fixed objects");
   std::size_t fixed_overlaps = 0;
   for (std::uint32_t o = 0; o < store_.slot_count(); ++o) {
     if (!store_.slots().alive(o) || moved_[o]) continue;
     for_each_overlapping_leaf(tight_[o], [&](std::uint32_t x) {
-      fixed_overlaps += x != o && !moved_[x] && overlaps(store_.shape(o), store_.shape(x));
+      fixed_overlaps +=
+          x != o && !moved_[x] && may_pair(o, x) && overlaps(store_.shape(o), store_.shape(x));
     });
   }
   if (fixed_overlaps != 2 * fixed_pairs_.size()) fail("cached fixed pairs incomplete");

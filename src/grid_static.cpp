@@ -288,10 +288,11 @@ void GridStatic::regrid(double cell) {
   rebuild(dyn_);
 }
 
-void GridStatic::cache_pairs_of(std::uint32_t i) {
+void GridStatic::cache_pairs_of(std::uint32_t i, std::uint32_t below) {
   const Shape& s = store_.shape(i);
   auto consider = [&](std::uint32_t b) {
-    if (b != i && kind_[b] == kFixed && box_[i].overlaps(box_[b]) && overlaps(s, store_.shape(b))) {
+    if (b != i && b < below && kind_[b] == kFixed && box_[i].overlaps(box_[b]) && may_pair(i, b) &&
+        overlaps(s, store_.shape(b))) {
       fixed_pairs_.emplace_back(i, b);
       ++degree_[i];
       ++degree_[b];
@@ -300,6 +301,21 @@ void GridStatic::cache_pairs_of(std::uint32_t i) {
   };
   visit_region(range_[i], 1u, consider);
   for (std::uint32_t o : overflow_) consider(o);
+}
+
+void GridStatic::set_filter(Handle h, Filter f) {
+  const std::uint32_t i = store_.set_filter(h, f);
+  if (kind_[i] != kFixed) return;
+  drop_pairs_of(i);
+  cache_pairs_of(i);
+}
+
+void GridStatic::set_pair_filter(PairFilter pf) {
+  pair_filter_ = std::move(pf);
+  fixed_pairs_.clear();
+  std::fill(degree_.begin(), degree_.end(), 0u);
+  for (std::uint32_t i = 0; i < store_.slot_count(); ++i)
+    if (kind_[i] == kFixed) cache_pairs_of(i, i);
 }
 
 void GridStatic::drop_pairs_of(std::uint32_t i) {
@@ -376,6 +392,7 @@ void GridStatic::validate() const {
     if (a == b || a >= slots || b >= slots || kind_[a] != kFixed || kind_[b] != kFixed)
       fail("cached pair of non-fixed objects");
     if (!overlaps(store_.shape(a), store_.shape(b))) fail("cached pair does not overlap");
+    if (!may_pair(a, b)) fail("cached pair fails the filters");
     ++degree[a];
     ++degree[b];
   }
@@ -384,7 +401,9 @@ void GridStatic::validate() const {
     if (kind_[i] != kFixed) continue;
     std::uint32_t want = 0;
     auto count = [&](std::uint32_t b) {
-      if (b != i && kind_[b] == kFixed && overlaps(store_.shape(i), store_.shape(b))) ++want;
+      if (b != i && kind_[b] == kFixed && may_pair(i, b) &&
+          overlaps(store_.shape(i), store_.shape(b)))
+        ++want;
       return true;
     };
     visit_region(range_[i], 1u, count);

@@ -85,10 +85,23 @@ void GridVerlet::set_filter(Handle h, Filter f) {
   const std::uint32_t s = index_of(h);
   if (filters_.empty() && f == Filter{}) return;
   if (filters_.size() < slots_.size()) filters_.resize(slots_.size());
+  if (filters_[s] == f) return;
   filters_[s] = f;
+  // Only the fixed grid's pairs are cached; movers' and loose objects'
+  // candidates are tested against the filters on every pass.
+  if (slots_[s].home == Home::fixed_grid) drop_fixed_cache();
 }
 
-void GridVerlet::set_pair_filter(PairFilter pf) { pair_filter_ = std::move(pf); }
+void GridVerlet::set_pair_filter(PairFilter pf) {
+  pair_filter_ = std::move(pf);
+  drop_fixed_cache();
+}
+
+void GridVerlet::drop_fixed_cache() {
+  if (!cache_built_) return;
+  fixed_pairs_.clear();
+  cache_built_ = false;
+}
 
 void GridVerlet::free_slot(std::uint32_t s) {
   slots_[s].home = Home::free;
@@ -449,17 +462,29 @@ void GridVerlet::build_fixed_cache() {
     fixed_pairs_.push_back({a, b});
     return true;
   };
-  grid_pairs(fixed_, 0, fixed_.entries.size(), emit, tests);
+  // The cache holds only pairs that pass the filters: a filter change
+  // drops it (set_filter, set_pair_filter).
+  if (unfiltered()) {
+    grid_pairs(fixed_, 0, fixed_.entries.size(), emit, tests);
+  } else {
+    auto gate = gated<true>(emit);
+    grid_pairs(fixed_, 0, fixed_.entries.size(), gate, tests);
+  }
   fixed_pairs_.shrink_to_fit();  // the cache is kept until the fixed set changes
   cache_built_ = true;
 }
 
 QueryCost GridVerlet::find_pairs(std::vector<HandlePair>& out) const {
+  return unfiltered() ? find_pairs_as<false>(out) : find_pairs_as<true>(out);
+}
+
+template <bool kFiltered>
+QueryCost GridVerlet::find_pairs_as(std::vector<HandlePair>& out) const {
   QueryCost cost;
-  auto emit_out = [&out](Handle a, Handle b) {
+  auto emit_out = gated<kFiltered>([&out](Handle a, Handle b) {
     out.push_back({a, b});
     return true;
-  };
+  });
   auto emit_fixed = [&] {
     if (cache_built_ && fixed_count_ == fixed_.entries.size()) {
       // Every cached handle is still current: a fixed object can only change
@@ -501,10 +526,10 @@ QueryCost GridVerlet::find_pairs(std::vector<HandlePair>& out) const {
         const unsigned c = job - 1;
         std::vector<HandlePair> buf = std::move(buffers[c]);
         buf.clear();
-        auto into = [&buf](Handle a, Handle b) {
+        auto into = gated<kFiltered>([&buf](Handle a, Handle b) {
           buf.push_back({a, b});
           return true;
-        };
+        });
         std::uint64_t n_tests = 0;
         const auto [begin, end] = slice(m, c, chunks);
         mover_pairs(begin, end, into, n_tests);
@@ -631,6 +656,7 @@ void GridVerlet::validate() const {
     if (slots_[a].gen != p.a.generation || slots_[b].gen != p.b.generation)
       fail("cached pair with a stale generation");
     if (!overlaps(shape_of(a), shape_of(b))) fail("cached pair no longer overlaps");
+    if (!may_pair(a, b)) fail("cached pair fails the filters");
   }
 }
 

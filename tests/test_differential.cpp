@@ -45,6 +45,22 @@ TEST_P(Differential, MatchesNaiveInAFarAwayWorld) {
   differential(GetParam(), World::far, 99, 800, c);
 }
 
+TEST_P(Differential, MatchesBruteForceWithFilters) {
+  // Random bits, and layered worlds (4 and 16 layers, each pairing with its
+  // own and its two neighbours only), filters changing between steps and a
+  // pair filter coming and going; every pair answer against brute force.
+  for (Filters f : {Filters::bits, Filters::layers4, Filters::layers16})
+    for (World w : {World::mixed, World::touching, World::huge}) {
+      const std::uint64_t seed = 31 * static_cast<std::uint64_t>(f) + static_cast<std::uint64_t>(w);
+      differential(GetParam(), w, seed, 600, {}, f);
+      if (HasFailure()) return;
+    }
+}
+
+TEST_P(Differential, MatchesBruteForceWithFiltersInACrowd) {
+  differential(GetParam(), World::crowded, 77, 1500, {}, Filters::layers16);
+}
+
 TEST_P(Differential, RejectsAnInvalidQueryShape) {
   // As an insert would: a clear error, not a crash or a silent empty answer.
   const double nan = std::numeric_limits<double>::quiet_NaN();

@@ -137,8 +137,20 @@ class AabbTree : public detail::StoreBase<AabbTree> {
     return for_each_pair(visitor, stats);
   }
   /// As `for_each_pair`, also reporting node tests and the front into `stats`.
+  /// The filters are tested at the leaf pairs: the front is a cut through
+  /// node pairs, which no filter changes.
   template <class V>
-  QueryCost for_each_pair(V&& visitor, TraversalStats& stats) const;
+  QueryCost for_each_pair(V&& visitor, TraversalStats& stats) const {
+    if (unfiltered()) return walk_pairs(visitor, stats);
+    detail::FilteredVisitor<std::remove_reference_t<V>> f(visitor, store_, pair_filter_);
+    return walk_pairs(f, stats);
+  }
+  /// Changes an object's filter (HasFilters); a never-moved fixed object's
+  /// cached pairs follow it (the cache holds only pairs that pass). Throws
+  /// InvalidHandle. O(log n + the leaves its box overlaps).
+  void set_filter(Handle h, Filter f);
+  /// Installs or removes the pair filter and re-caches the fixed pairs.
+  void set_pair_filter(PairFilter pf);
   /// Casts a ray (HasRayCast): front to back through the nodes whose fat
   /// boxes the ray enters before its live tmax (detail/ray_walk.hpp), each
   /// leaf culled by its object's own box. Throws InvalidRay.
@@ -216,6 +228,12 @@ class AabbTree : public detail::StoreBase<AabbTree> {
   // A fixed object moves for the first time: its cached pairs go, and the
   // traversal must now look at it.
   void make_dynamic(std::uint32_t slot);
+  // Brings the cached pairs of a never-moved fixed object in line with the
+  // filters.
+  void recache_fixed(std::uint32_t slot);
+  // The self-traversal behind for_each_pair; `visitor` may carry the filters.
+  template <class V>
+  QueryCost walk_pairs(V& visitor, TraversalStats& stats) const;
   void set_fixed_flags(std::uint32_t leaf);
 
   static bool boxes_overlap(const AabbF& a, const AabbF& b) { return a.overlaps(b); }
@@ -348,7 +366,7 @@ template <class V>
 bool AabbTree::leaf_pair(std::uint32_t x, std::uint32_t y, V& visitor, QueryCost& cost) const {
   if (nodes_[x].fixed && nodes_[y].fixed) return true;  // in fixed_pairs_
   const std::uint32_t ox = nodes_[x].object, oy = nodes_[y].object;
-  if (!boxes_overlap(tight_[ox], tight_[oy])) return true;
+  if (!boxes_overlap(tight_[ox], tight_[oy]) || !detail::admits(visitor, ox, oy)) return true;
   ++cost.tests;
   if (overlaps(store_.shape(ox), store_.shape(oy)) &&
       !visit(visitor, store_.handle(ox), store_.handle(oy))) {
@@ -483,7 +501,7 @@ bool AabbTree::descend(Task start, V& visitor, QueryCost& cost, TraversalStats& 
 }
 
 template <class V>
-QueryCost AabbTree::for_each_pair(V&& visitor, TraversalStats& stats) const {
+QueryCost AabbTree::walk_pairs(V& visitor, TraversalStats& stats) const {
   QueryCost cost;
   for (const detail::PairTable::Pair& p : fixed_pairs_.pairs()) {
     if (!visit(visitor, store_.handle(p.a), store_.handle(p.b))) {

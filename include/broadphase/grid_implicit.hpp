@@ -85,9 +85,10 @@ class GridImplicit : public detail::StoreBase<GridImplicit> {
     return cost;
   }
 
-  /// Visits every overlapping pair once (candidates b > a of each a).
+  /// The pair walk behind for_each_pair (StoreBase, which attaches the
+  /// filters): every overlapping pair once (candidates b > a of each a).
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const {
+  QueryCost walk_pairs(V& visitor) const {
     QueryCost cost;
     const std::uint32_t slots = store_.slot_count();
     for (std::uint32_t a = 0; a < slots; ++a) {

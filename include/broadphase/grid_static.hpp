@@ -89,6 +89,13 @@ class GridStatic : public detail::StoreBase<GridStatic> {
   /// Moves many objects with at most one rebuild. Every handle and shape is
   /// checked before anything changes. Throws InvalidHandle, InvalidShape.
   void update(std::span<const Move> moves);
+  /// Changes an object's filter (HasFilters) and, for a fixed object,
+  /// re-caches its fixed pairs: the cache holds only pairs that pass.
+  /// Throws InvalidHandle. O(cells of the object + its cached pairs).
+  void set_filter(Handle h, Filter f);
+  /// Installs or removes the pair filter and re-caches every fixed pair.
+  /// O(fixed objects' candidates).
+  void set_pair_filter(PairFilter pf);
 
   /// Casts a ray (HasRayCast): the overflowing objects, then a march
   /// through the cells the ray passes (detail/ray_walk.hpp) over both
@@ -138,11 +145,12 @@ class GridStatic : public detail::StoreBase<GridStatic> {
     return cost;
   }
 
-  /// Visits every overlapping pair once: the cached fixed pairs, then per
-  /// bucket the dynamic-dynamic and dynamic-fixed candidates, then the
-  /// overflowing objects.
+  /// The pair walk behind for_each_pair (StoreBase, which attaches the
+  /// filters): the cached fixed pairs (which hold only pairs that pass the
+  /// filters), then per bucket the dynamic-dynamic and dynamic-fixed
+  /// candidates, then the overflowing objects.
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const {
+  QueryCost walk_pairs(V& visitor) const {
     QueryCost cost;
     for (const auto& [a, b] : fixed_pairs_) {
       if (!visit(visitor, store_.handle(a), store_.handle(b))) {
@@ -179,6 +187,7 @@ class GridStatic : public detail::StoreBase<GridStatic> {
           if (!(d[i].key == f[j].key) || (d[i].tag & f[j].tag & 7u) != 0 || !ab.overlaps(fb[j]))
             continue;
           const std::uint32_t b = f[j].tag >> 3;
+          if (!detail::admits(visitor, a, b)) continue;
           ++cost.tests;
           if (overlaps(store_.shape(a), store_.shape(b)) &&
               !visit(visitor, store_.handle(a), store_.handle(b))) {
@@ -289,7 +298,9 @@ class GridStatic : public detail::StoreBase<GridStatic> {
   void remove_entries(Table& t, std::uint32_t i);
   void rebuild(Table& t);
   void finish_mutation();
-  void cache_pairs_of(std::uint32_t i);
+  // Caches i's overlapping fixed pairs that pass the filters, with the
+  // fixed objects below slot `below` only (all of them by default).
+  void cache_pairs_of(std::uint32_t i, std::uint32_t below = ~std::uint32_t{0});
   void drop_pairs_of(std::uint32_t i);
   void regrid(double cell);
   void grow_slots(std::uint32_t i);

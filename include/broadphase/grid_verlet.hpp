@@ -140,11 +140,14 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   /// Visits every object whose shape overlaps `q` exactly.
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const;
-  /// Visits every overlapping pair once, in a deterministic order.
+  /// Visits every overlapping pair that passes the filters once, in a
+  /// deterministic order. `query(shape)` is not filtered (its shape has no
+  /// filter).
   template <class V>
   QueryCost for_each_pair(V&& visitor) const;
-  /// Appends every overlapping pair once to `out`, using the configured
-  /// threads; the order equals for_each_pair's whatever the thread count.
+  /// Appends every overlapping pair that passes the filters once to `out`,
+  /// using the configured threads; the order equals for_each_pair's
+  /// whatever the thread count.
   QueryCost find_pairs(std::vector<HandlePair>& out) const;
 
   /// The number of live objects. O(1).
@@ -161,14 +164,17 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   const Shape& shape(Handle h) const { return shape_of(index_of(h)); }
   /// The user data given at insertion. Throws InvalidHandle.
   std::uint64_t user_data(Handle h) const { return user_[index_of(h)]; }
-  /// Changes an object's collision filter (HasFilters). Throws InvalidHandle.
+  /// Changes an object's collision filter (HasFilters); a fixed object's
+  /// change drops the cache of fixed pairs, which holds only pairs that pass
+  /// (the next settle() or bulk update rebuilds it). Throws InvalidHandle.
   void set_filter(Handle h, Filter f);
   /// An object's collision filter. Throws InvalidHandle.
   Filter filter(Handle h) const {
     const std::uint32_t i = index_of(h);
     return i < filters_.size() ? filters_[i] : Filter{};
   }
-  /// Installs the pair filter (structure.hpp's PairFilter); empty removes it.
+  /// Installs the pair filter (structure.hpp's PairFilter); empty removes
+  /// it. Drops the cache of fixed pairs, as set_filter does.
   void set_pair_filter(PairFilter pf);
   /// Casts a ray (HasRayCast); each hit once to `visitor`. Throws InvalidRay.
   template <class V>
@@ -300,6 +306,34 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   std::vector<Filter> filters_;
   PairFilter pair_filter_;
   Filter filter_of(std::uint32_t s) const { return s < filters_.size() ? filters_[s] : Filter{}; }
+  bool unfiltered() const { return filters_.empty() && !pair_filter_; }
+  /// The filter rule for slots `i`, `j`: the bits, then the pair filter.
+  bool may_pair(std::uint32_t i, std::uint32_t j) const {
+    return filters_pass(filter_of(i), filter_of(j)) &&
+           (!pair_filter_ || pair_filter_(handle_of(i), handle_of(j)));
+  }
+  /// An emitter with the filter test attached (detail::admits): the pair
+  /// walks test it on every candidate before the exact test.
+  template <class E>
+  struct Gated {
+    using PairGate = void;
+    E emit;
+    const GridVerlet* self;
+    bool operator()(Handle a, Handle b) { return emit(a, b); }
+    bool may_pair(std::uint32_t i, std::uint32_t j) const { return self->may_pair(i, j); }
+  };
+  /// `emit` as the walks of a world with (kFiltered) or without filters take it.
+  template <bool kFiltered, class E>
+  auto gated(E emit) const {
+    if constexpr (kFiltered) {
+      return Gated<E>{std::move(emit), this};
+    } else {
+      return emit;
+    }
+  }
+  template <bool kFiltered>
+  QueryCost find_pairs_as(std::vector<HandlePair>& out) const;
+  void drop_fixed_cache();
 
   std::vector<std::uint32_t> loose_;  // loose slots
   std::vector<AabbF> loose_bounds_;   // parallel to loose_
@@ -436,6 +470,7 @@ bool GridVerlet::grid_pairs(const Grid& g, std::size_t begin, std::size_t end, E
     const bool go = g.scan(me.box(), level, me_x, [&](std::uint32_t j) {
       const Entry& o = g.entries[j];
       if (j < level_end && (o.lo[0] < me_x || (o.lo[0] == me_x && j <= i))) return true;
+      if (!detail::admits(emit, me.slot, o.slot)) return true;
       ++tests;
       return !exact(sm, g.shapes[j]) || emit(me.handle(), o.handle());
     });
@@ -515,6 +550,7 @@ bool GridVerlet::mover_pairs(std::size_t begin, std::size_t end, E& emit,
         const Candidate* stop = c + std::min(kBatch, c_end - c);
         std::size_t n = 0;
         for (; c != stop; ++c) {
+          if (!detail::admits(emit, me.slot, c->handle.index)) continue;
           hits[n] = c->handle;
           if (c->r == c->r)
             n += spheres_overlap(p, r, {c->c[0], c->c[1], c->c[2]}, c->r);
@@ -528,6 +564,7 @@ bool GridVerlet::mover_pairs(std::size_t begin, std::size_t end, E& emit,
       for (; c != c_end; ++c) {
         // A fixed object that left has another home (its slot is held back).
         if (slots_[c->handle.index].home != Home::fixed_grid) continue;
+        if (!detail::admits(emit, me.slot, c->handle.index)) continue;
         if (exact(sm, fixed_.shapes[slots_[c->handle.index].pos]) && !emit(hm, c->handle))
           return false;
       }
@@ -547,6 +584,7 @@ bool GridVerlet::mover_pairs(std::size_t begin, std::size_t end, E& emit,
             (k < own_end && (k < moving_.cell_start[moving_.levels[level].first_cell] ||
                              o.lo[0] < me_x || (o.lo[0] == me_x && k < i))))
           return true;
+        if (!detail::admits(emit, me.slot, o.slot)) return true;
         ++tests;
         return !exact(sm, moving_.shapes[k]) || emit(hm, o.handle());
       };
@@ -571,6 +609,7 @@ bool GridVerlet::mover_pairs(std::size_t begin, std::size_t end, E& emit,
       if (o.home != Home::moving_grid || movers[o.pos].fast) continue;
       const std::uint32_t os = movers[o.pos].stamp;
       if (os > mv.stamp || (os == mv.stamp && *n < me.slot)) continue;
+      if (!detail::admits(emit, me.slot, *n)) continue;
       ++tests;
       if (exact(sm, moving_.shapes[o.pos]) && !emit(hm, Handle{*n, o.gen})) return false;
     }
@@ -596,6 +635,7 @@ bool GridVerlet::loose_pairs(E& emit, std::uint64_t& tests) const {
     const Shape& sh = loose_shapes_[i];
     for (const Grid* g : {&fixed_, &moving_}) {
       if (!g->scan(loose_bounds_[i], 0, kNoMinX, [&](std::uint32_t k) {
+            if (!detail::admits(emit, s, g->entries[k].slot)) return true;
             ++tests;
             return !overlaps(sh, g->shapes[k]) || emit(handle_of(s), g->entries[k].handle());
           }))
@@ -616,7 +656,7 @@ bool GridVerlet::loose_pairs(E& emit, std::uint64_t& tests) const {
     const AabbF& q = loose_bounds_[i];
     for (std::size_t b = a + 1; b < n && loose_bounds_[order[b]].lo[0] <= q.hi[0]; ++b) {
       const std::uint32_t j = order[b];
-      if (!loose_bounds_[j].overlaps(q)) continue;
+      if (!loose_bounds_[j].overlaps(q) || !detail::admits(emit, loose_[i], loose_[j])) continue;
       ++tests;
       if (overlaps(loose_shapes_[i], loose_shapes_[j]) &&
           !emit(handle_of(loose_[i]), handle_of(loose_[j])))
@@ -636,7 +676,12 @@ template <class V>
 QueryCost GridVerlet::for_each_pair(V&& visitor) const {
   QueryCost cost;
   auto emit = [&](Handle a, Handle b) { return visit(visitor, a, b); };
-  cost.stopped = !all_pairs(emit, cost.tests);
+  if (unfiltered()) {
+    cost.stopped = !all_pairs(emit, cost.tests);
+  } else {
+    auto gate = gated<true>(emit);
+    cost.stopped = !all_pairs(gate, cost.tests);
+  }
   return cost;
 }
 

@@ -127,9 +127,10 @@ class HGrid : public detail::StoreBase<HGrid> {
     return cast.cost;
   }
 
-  /// Visits every overlapping pair once.
+  /// The pair walk behind for_each_pair (StoreBase, which attaches the
+  /// filters): every overlapping pair once.
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const {
+  QueryCost walk_pairs(V& visitor) const {
     QueryCost cost;
     const AabbF* box = box_.data();
     const std::uint32_t slots = store_.slot_count();

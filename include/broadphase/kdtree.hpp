@@ -86,9 +86,10 @@ class KdTree : public detail::StoreBase<KdTree> {
   /// Visits every object overlapping `q`.
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const;
-  /// Visits every overlapping pair once.
+  /// The pair walk behind for_each_pair (StoreBase, which attaches the
+  /// filters): every overlapping pair once.
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const;
+  QueryCost walk_pairs(V& visitor) const;
   /// Casts a ray (HasRayCast): front to back through the nodes whose boxes
   /// the ray enters before its live tmax (detail/ray_walk.hpp). Throws
   /// InvalidRay.
@@ -174,7 +175,7 @@ QueryCost KdTree::query(const Shape& q, V&& visitor) const {
 }
 
 template <class V>
-QueryCost KdTree::for_each_pair(V&& visitor) const {
+QueryCost KdTree::walk_pairs(V& visitor) const {
   // Pairs of subtrees: (n, n) stands for the pairs inside n; (a, b) with
   // a != b for the pairs with one object in each. A node's two children are
   // disjoint, so every object pair descends to exactly one stack entry.

@@ -65,13 +65,16 @@ class Naive : public detail::StoreBase<Naive> {
     return cost;
   }
 
+  /// The pair walk behind for_each_pair (StoreBase): every pair of the
+  /// dense array, the filter test (detail::admits) before the exact one.
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const {
+  QueryCost walk_pairs(V& visitor) const {
     QueryCost cost;
     const std::size_t n = dense_.size();
     for (std::size_t a = 0; a < n; ++a) {
       const Shape& sa = store_.shape(dense_[a]);
       for (std::size_t b = a + 1; b < n; ++b) {
+        if (!detail::admits(visitor, dense_[a], dense_[b])) continue;
         ++cost.tests;
         if (overlaps(sa, store_.shape(dense_[b])) &&
             !visit(visitor, store_.handle(dense_[a]), store_.handle(dense_[b]))) {

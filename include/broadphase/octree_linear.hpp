@@ -65,9 +65,10 @@ class LinearOctree : public detail::StoreBase<LinearOctree> {
     require_valid(q);
     return detail::tree_query(*this, store_, q, visitor);
   }
-  /// Visits every overlapping pair once.
+  /// The pair walk behind for_each_pair (StoreBase, which attaches the
+  /// filters): every overlapping pair once.
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const {
+  QueryCost walk_pairs(V& visitor) const {
     return detail::nested_tree_pairs(*this, store_, visitor);
   }
   /// Casts a ray (HasRayCast): front to back through the nodes whose boxes

@@ -68,9 +68,10 @@ class LooseOctree : public detail::StoreBase<LooseOctree> {
     require_valid(q);
     return detail::tree_query(*this, store_, q, visitor);
   }
-  /// Visits every overlapping pair once.
+  /// The pair walk behind for_each_pair (StoreBase, which attaches the
+  /// filters): every overlapping pair once.
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const;
+  QueryCost walk_pairs(V& visitor) const;
   /// Casts a ray (HasRayCast): front to back through the nodes whose boxes
   /// the ray enters before its live tmax (detail/ray_walk.hpp); the root,
   /// which also holds the objects outside the cube, is always opened.
@@ -139,7 +140,7 @@ class LooseOctree : public detail::StoreBase<LooseOctree> {
 };
 
 template <class V>
-QueryCost LooseOctree::for_each_pair(V&& visitor) const {
+QueryCost LooseOctree::walk_pairs(V& visitor) const {
   // Loose cells overlap, so partners may sit in any subtree whose loose box
   // touches. The pairs are split into disjoint groups by a traversal of the
   // tree against itself:

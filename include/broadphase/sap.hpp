@@ -79,12 +79,15 @@ class Sap : public detail::StoreBase<Sap> {
     return cost;
   }
 
-  /// Visits every overlapping pair once: the exact predicate over the pairs
-  /// whose boxes overlap on all three axes.
+  /// The pair walk behind for_each_pair (StoreBase, which attaches the
+  /// filters): the exact predicate over the pairs whose boxes overlap on all
+  /// three axes. The box-pair set holds candidates whatever their filters, so
+  /// a changed filter invalidates nothing: the filters are tested here.
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const {
+  QueryCost walk_pairs(V& visitor) const {
     QueryCost cost;
     for (const detail::PairTable::Pair& p : pairs_.pairs()) {
+      if (!detail::admits(visitor, p.a, p.b)) continue;
       ++cost.tests;
       if (overlaps(store_.shape(p.a), store_.shape(p.b)) &&
           !visit(visitor, store_.handle(p.a), store_.handle(p.b))) {

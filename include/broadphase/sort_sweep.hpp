@@ -79,9 +79,10 @@ class SortSweep : public detail::StoreBase<SortSweep> {
     return cast.cost;
   }
 
-  /// Visits every overlapping pair once: sort, then sweep.
+  /// The pair walk behind for_each_pair (StoreBase, which attaches the
+  /// filters): every overlapping pair once: sort, then sweep.
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const {
+  QueryCost walk_pairs(V& visitor) const {
     QueryCost cost;
     const std::vector<Item>& s = sorted();
     const std::size_t n = s.size();
@@ -90,6 +91,7 @@ class SortSweep : public detail::StoreBase<SortSweep> {
       for (std::size_t j = i + 1; j < n && s[j].lo0 <= a.hi0; ++j) {
         const Item& b = s[j];
         if (a.lo1 > b.hi1 || b.lo1 > a.hi1 || a.lo2 > b.hi2 || b.lo2 > a.hi2) continue;
+        if (!detail::admits(visitor, a.slot, b.slot)) continue;
         ++cost.tests;
         if (overlaps(store_.shape(a.slot), store_.shape(b.slot)) &&
             !visit(visitor, store_.handle(a.slot), store_.handle(b.slot))) {

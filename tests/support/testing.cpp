@@ -106,6 +106,20 @@ const char* to_string(World w) {
   return "?";
 }
 
+const char* to_string(Filters f) {
+  switch (f) {
+    case Filters::none:
+      return "none";
+    case Filters::bits:
+      return "bits";
+    case Filters::layers4:
+      return "layers4";
+    case Filters::layers16:
+      return "layers16";
+  }
+  return "?";
+}
+
 namespace {
 
 // Draws shapes for one kind of world.
@@ -215,6 +229,46 @@ struct Live {
   std::uint64_t id;
 };
 
+// Draws filters for a differential run, and the pair filters it installs.
+class FilterSource {
+ public:
+  FilterSource(Filters f, Rng& rng) : f_(f), rng_(rng) {}
+
+  Filter draw() {
+    switch (f_) {
+      case Filters::none:
+        return {};
+      case Filters::bits: {
+        // Low bits decide; a group of 0 (pairs with nothing) and the
+        // default now and then.
+        if (rng_.below(8) == 0) return {};
+        const auto group = static_cast<std::uint32_t>(rng_.below(16));
+        const auto mask = static_cast<std::uint32_t>(rng_.next());
+        return {group, mask};
+      }
+      case Filters::layers4:
+      case Filters::layers16: {
+        const std::uint32_t n = f_ == Filters::layers4 ? 4 : 16;
+        const auto layer = static_cast<std::uint32_t>(rng_.below(n));
+        const std::uint32_t mask =
+            (1u << layer) | (1u << ((layer + 1) % n)) | (1u << ((layer + n - 1) % n));
+        return {1u << layer, mask};
+      }
+    }
+    return {};
+  }
+
+  // A symmetric pair filter over user ids: about a third of the pairs fail.
+  static bool pair_passes(std::uint64_t salt, std::uint64_t a, std::uint64_t b) {
+    const std::uint64_t lo = std::min(a, b), hi = std::max(a, b);
+    return splitmix64(salt ^ (lo * 0x9E3779B97F4A7C15ull) ^ (hi << 32 | hi >> 32)) % 3 != 0;
+  }
+
+ private:
+  Filters f_;
+  Rng& rng_;
+};
+
 std::vector<std::uint64_t> ids_of_query(const AnyBroadPhase& bp, const Shape& q) {
   std::vector<std::uint64_t> ids;
   bp.query(q, [&](Handle h) {
@@ -250,7 +304,10 @@ std::string describe_difference(const std::vector<T>& got, const std::vector<T>&
 std::string differential_run(const Factory& make, const std::string& name, World world,
                              std::uint64_t seed, int steps, const DifferentialOptions& options) {
   const std::string who =
-      name + " world=" + to_string(world) + " seed=" + std::to_string(seed) + ": ";
+      name + " world=" + to_string(world) + " seed=" + std::to_string(seed) +
+      (options.filters == Filters::none ? std::string()
+                                        : std::string(" filters=") + to_string(options.filters)) +
+      ": ";
   Rng rng(seed);
   ShapeSource source(world, rng);
   std::unique_ptr<AnyBroadPhase> bp;
@@ -261,6 +318,23 @@ std::string differential_run(const Factory& make, const std::string& name, World
   }
   Naive oracle;
   std::vector<Live> live;
+  // The filters as the harness keeps them, by user id, and the salt of the
+  // pair filter (0: none installed): the oracle gets no filters, so that
+  // every structure, naive included, is checked against this record.
+  FilterSource filter_source(options.filters, rng);
+  std::vector<Filter> filter_of;
+  std::uint64_t pair_salt = 0;
+  auto want_pairs = [&] {
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> want;
+    oracle.for_each_pair([&](Handle a, Handle b) {
+      std::uint64_t x = oracle.user_data(a), y = oracle.user_data(b);
+      if (!filters_pass(filter_of[x], filter_of[y])) return;
+      if (pair_salt != 0 && !FilterSource::pair_passes(pair_salt, x, y)) return;
+      want.emplace_back(std::min(x, y), std::max(x, y));
+    });
+    std::sort(want.begin(), want.end());
+    return want;
+  };
   std::uint64_t next_id = 0;
   Handle stale;  // the last handle removed, for bad moves
   const std::size_t target =
@@ -275,11 +349,51 @@ std::string differential_run(const Factory& make, const std::string& name, World
     const double insert_p = live.size() < target ? 0.45 : 0.2;
     std::string op;
     try {
+      if (options.filters != Filters::none && !live.empty() && rng.uniform() < 0.1) {
+        // A filter change (or a pair filter installed or removed), then the
+        // pairs at once: what the change dropped or brought must show.
+        if (rng.uniform() < 0.2) {
+          op = "set_pair_filter";
+          pair_salt = pair_salt == 0 || rng.uniform() < 0.3 ? rng.next() | 1 : 0;
+          PairFilter pf;
+          if (pair_salt != 0) {
+            const AnyBroadPhase* b = bp.get();
+            pf = [b, salt = pair_salt](Handle x, Handle y) {
+              return FilterSource::pair_passes(salt, b->user_data(x), b->user_data(y));
+            };
+          }
+          bp->set_pair_filter(std::move(pf));
+        } else {
+          // One change, or a few in a row (a cache dropped by the first
+          // must not be rebuilt before the others).
+          op = "set_filter";
+          const std::uint64_t changes = rng.uniform() < 0.7 ? 1 : 2 + rng.below(4);
+          for (std::uint64_t c = 0; c < changes; ++c) {
+            const Live& o = live[rng.below(live.size())];
+            const Filter f = filter_source.draw();
+            bp->set_filter(o.s, f);
+            filter_of[o.id] = f;
+            if (!(bp->filter(o.s) == f))
+              return who + "filter() does not return the filter set" + where;
+          }
+        }
+        // Settled or not: a cache the change invalidated is read either way.
+        if (rng.uniform() < 0.5) bp->settle();
+        bp->validate();
+        const auto got = ids_of_pairs(*bp);
+        const auto want = want_pairs();
+        if (got != want)
+          return who + "after " + op +
+                 ", pairs differ from brute force: " + describe_difference(got, want) + where;
+        continue;
+      }
       if (u < insert_p || live.empty()) {
         op = "insert";
         const Shape s = source.draw();
         const Motion m = rng.uniform() < 0.5 ? Motion::dynamic : Motion::fixed;
-        live.push_back({bp->insert(s, next_id, m), oracle.insert(s, next_id, m), next_id});
+        const Filter f = filter_source.draw();
+        live.push_back({bp->insert(s, next_id, m, f), oracle.insert(s, next_id, m), next_id});
+        filter_of.push_back(f);
         ++next_id;
       } else if (u < insert_p + 0.12) {
         op = "remove";
@@ -365,12 +479,7 @@ std::string differential_run(const Factory& make, const std::string& name, World
             }
             bp->validate();
             const auto got = ids_of_pairs(*bp);
-            std::vector<std::pair<std::uint64_t, std::uint64_t>> want;
-            oracle.for_each_pair([&](Handle a, Handle b) {
-              std::uint64_t x = oracle.user_data(a), y = oracle.user_data(b);
-              want.emplace_back(std::min(x, y), std::max(x, y));
-            });
-            std::sort(want.begin(), want.end());
+            const auto want = want_pairs();
             if (got != want) {
               return who + "after a refused " + op +
                      ", pairs differ from naive: " + describe_difference(got, want) + where;
@@ -409,12 +518,7 @@ std::string differential_run(const Factory& make, const std::string& name, World
       } else {
         op = "all pairs";
         const auto got = ids_of_pairs(*bp);
-        std::vector<std::pair<std::uint64_t, std::uint64_t>> want;
-        oracle.for_each_pair([&](Handle a, Handle b) {
-          std::uint64_t x = oracle.user_data(a), y = oracle.user_data(b);
-          want.emplace_back(std::min(x, y), std::max(x, y));
-        });
-        std::sort(want.begin(), want.end());
+        const auto want = want_pairs();
         if (got != want) {
           return who + "all pairs differ from naive: " + describe_difference(got, want) + where;
         }
@@ -454,9 +558,10 @@ std::string differential_run(const Factory& make, const std::string& name, World
 }
 
 void differential(const std::string& spec, World world, std::uint64_t seed, int steps,
-                  const Config& config) {
+                  const Config& config, Filters filters) {
   DifferentialOptions options;
   options.config = config;
+  options.filters = filters;
   const std::string failure = differential_run(
       [&](const Config& c) { return make_structure(spec, c); }, spec, world, seed, steps, options);
   if (!failure.empty()) ADD_FAILURE() << failure;

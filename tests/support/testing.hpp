@@ -105,11 +105,25 @@ const char* to_string(World w);
 /// Makes the structure under test from a Config.
 using Factory = std::function<std::unique_ptr<AnyBroadPhase>(const Config&)>;
 
+/// The collision filters a differential run draws (none: the defaults).
+enum class Filters {
+  none,      ///< every object keeps the default filter, no pair filter
+  bits,      ///< random group and mask bits (about half the pairs pass)
+  layers4,   ///< one group of 4 per object, its mask its own and the neighbouring groups
+  layers16,  ///< as layers4 with 16 groups: most groups ignore each other
+};
+const char* to_string(Filters f);
+
 /// What a differential run varies beyond the world and the seed.
 struct DifferentialOptions {
   Config config;                ///< given to the factory
   bool small_moves = false;     ///< updates move a few units only: no jumps, no resizes
   std::size_t max_objects = 0;  ///< live objects to grow to (0: the world's default)
+  /// With filters, objects are inserted with a drawn filter, steps also
+  /// change filters and install or remove a random symmetric pair filter,
+  /// and every pair answer is compared with a brute force over the
+  /// harness's own record of the filters.
+  Filters filters = Filters::none;
 };
 
 /// Runs `steps` random operations (insert, remove, single and bulk update,
@@ -124,6 +138,6 @@ std::string differential_run(const Factory& make, const std::string& name, World
 /// differential_run on a library structure `spec`, reporting a
 /// disagreement through GoogleTest.
 void differential(const std::string& spec, World world, std::uint64_t seed, int steps,
-                  const Config& config = {});
+                  const Config& config = {}, Filters filters = Filters::none);
 
 }  // namespace broadphase::testing

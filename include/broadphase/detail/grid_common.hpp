@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <broadphase/cell_size.hpp>
 #include <broadphase/detail/clamp_index.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/handle.hpp>
 #include <broadphase/structure.hpp>
 #include <cmath>
@@ -183,12 +184,13 @@ class CellMap {
   double hi_[3] = {0, 0, 0};
 };
 
-/// Tests one candidate pair: float boxes first, then the exact predicate.
-/// Returns false when the visitor asked to stop.
+/// Tests one candidate pair: float boxes first, then the filters (admits,
+/// structure_base.hpp), then the exact predicate. Returns false when the
+/// visitor asked to stop.
 template <class V>
 inline bool test_pair(const ObjectStore& store, const AabbF* box, std::uint32_t a, std::uint32_t b,
                       QueryCost& cost, V& visitor) {
-  if (!box[a].overlaps(box[b])) return true;
+  if (!box[a].overlaps(box[b]) || !admits(visitor, a, b)) return true;
   ++cost.tests;
   if (!overlaps(store.shape(a), store.shape(b))) return true;
   if (visit(visitor, store.handle(a), store.handle(b))) return true;

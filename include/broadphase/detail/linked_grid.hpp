@@ -144,13 +144,14 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
     return cast.cost;
   }
 
-  /// Visits every overlapping pair once. Each cell's (or bucket's) list is
+  /// The pair walk behind for_each_pair (StoreBase, which attaches the
+  /// filters). Each cell's (or bucket's) list is
   /// copied once into a small contiguous buffer, so the quadratic part of
   /// the pass reads contiguous memory instead of chasing links; a pair is
   /// kept only in its lowest shared cell. Lists longer than the buffer are
   /// walked in place.
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const {
+  QueryCost walk_pairs(V& visitor) const {
     if constexpr (kSorted) {
       return sweep_pairs(visitor);
     } else {
@@ -263,6 +264,7 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
           if constexpr (kHashed) {
             if (!(gi.key == gj.key)) continue;
           }
+          if (!admits(visitor, gi.obj, gj.obj)) continue;
           ++cost.tests;
           if (!overlaps(store_.shape(gi.obj), store_.shape(gj.obj))) continue;
           if (!visit(visitor, store_.handle(gi.obj), store_.handle(gj.obj))) {

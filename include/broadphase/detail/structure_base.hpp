@@ -41,6 +41,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <utility>
 
 namespace broadphase::detail {
@@ -57,6 +58,46 @@ class InvariantFailure {
  private:
   std::string_view structure_;
 };
+
+/// A pair visitor carrying the filter test of a filtered world: the pair
+/// walks call `admits(visitor, i, j)` on each candidate after its box test
+/// and before the exact test, so a filtered-out pair costs neither the exact
+/// test nor a report. A walk over a plain visitor (an unfiltered world) finds
+/// `admits` a constant `true`: the walk is instantiated twice, and the
+/// unfiltered one has no filter code in its loops at all. Any visitor that
+/// names a `PairGate` type and has `may_pair(i, j)` is tested the same way
+/// (GridVerlet's emitters).
+template <class V>
+class FilteredVisitor {
+ public:
+  using PairGate = void;
+  FilteredVisitor(V& visitor, const ObjectStore& store, const PairFilter& pair_filter)
+      : visitor_(visitor), store_(store), pair_filter_(pair_filter) {}
+  bool operator()(Handle a, Handle b) { return visit(visitor_, a, b); }
+  /// The rule: the bits first, then the pair filter (structure.hpp).
+  bool may_pair(std::uint32_t i, std::uint32_t j) const {
+    return store_.may_pair(i, j) &&
+           (!pair_filter_ || pair_filter_(store_.handle(i), store_.handle(j)));
+  }
+
+ private:
+  V& visitor_;
+  const ObjectStore& store_;
+  const PairFilter& pair_filter_;
+};
+
+/// True when the candidate pair of slots `i`, `j` may be reported: by the
+/// filter rule for a visitor with a PairGate, always (compiled away) for
+/// any other.
+template <class V>
+inline bool admits(const V& v, std::uint32_t i, std::uint32_t j) {
+  if constexpr (requires { typename V::PairGate; }) {
+    return v.may_pair(i, j);
+  } else {
+    (void)v, (void)i, (void)j;
+    return true;
+  }
+}
 
 /// The root of every structure (`S` is the structure).
 template <class S>
@@ -93,6 +134,19 @@ class StoreBase : public StructureBase<S> {
   Filter filter(Handle h) const { return store_.filter_of(h); }
   /// Installs the pair filter (structure.hpp's PairFilter); empty removes it.
   void set_pair_filter(PairFilter pf) { pair_filter_ = std::move(pf); }
+
+  /// Visits every overlapping pair that passes the filters once
+  /// (Structure). `query(shape)` is not filtered: its shape is no object and
+  /// has no filter of its own. The walk itself is the structure's
+  /// `walk_pairs(visitor)`, instantiated once for a plain visitor (a world
+  /// without filters: no filter test anywhere in its loops) and once with the
+  /// filter test attached (FilteredVisitor, tested through `admits`).
+  template <class V>
+  QueryCost for_each_pair(V&& visitor) const {
+    if (unfiltered()) return this->self().walk_pairs(visitor);
+    FilteredVisitor<std::remove_reference_t<V>> f(visitor, store_, pair_filter_);
+    return this->self().walk_pairs(f);
+  }
 
   /// Casts a ray by testing every object (HasRayCast): the fallback of a
   /// structure without a walk of its own, and the oracle the walks are

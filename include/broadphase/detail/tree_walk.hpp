@@ -9,6 +9,7 @@
 #include <array>
 #include <broadphase/detail/inline_stack.hpp>
 #include <broadphase/detail/node_items.hpp>
+#include <broadphase/detail/structure_base.hpp>
 #include <broadphase/structure.hpp>
 #include <cmath>
 #include <cstddef>
@@ -220,7 +221,7 @@ bool test_against(const ObjectStore& store, const OctItem& a, std::span<const Oc
     const bool touch = (a.box.lo[0] <= b.box.hi[0]) & (b.box.lo[0] <= a.box.hi[0]) &
                        (a.box.lo[1] <= b.box.hi[1]) & (b.box.lo[1] <= a.box.hi[1]) &
                        (a.box.lo[2] <= b.box.hi[2]) & (b.box.lo[2] <= a.box.hi[2]);
-    if (!touch) continue;
+    if (!touch || !admits(visitor, a.slot, b.slot)) continue;
     ++cost.tests;
     if (overlaps(sa, store.shape(b.slot)) &&
         !visit(visitor, store.handle(a.slot), store.handle(b.slot))) {

@@ -87,9 +87,10 @@ class HGridPaper : public detail::StoreBase<HGridPaper> {
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const;
 
-  /// Visits every overlapping pair exactly once.
+  /// The pair walk behind for_each_pair (StoreBase, which attaches the
+  /// filters): every overlapping pair exactly once.
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const;
+  QueryCost walk_pairs(V& visitor) const;
 
   /// The store, the per-object entries and remembered buckets, the bucket
   /// heads and the oversize list, by capacity.
@@ -261,7 +262,7 @@ QueryCost HGridPaper::query(const Shape& q, V&& visitor) const {
 }
 
 template <class V>
-QueryCost HGridPaper::for_each_pair(V&& visitor) const {
+QueryCost HGridPaper::walk_pairs(V& visitor) const {
   QueryCost cost;
   const std::uint32_t slots = store_.slot_count();
   for (std::uint32_t i = 0; i < slots; ++i) {
@@ -274,6 +275,7 @@ QueryCost HGridPaper::for_each_pair(V&& visitor) const {
     // probe_forward); partners at coarser levels never probe finer ones, so
     // they are found from this side only.
     auto test = [&](std::uint32_t j) {
+      if (!detail::admits(visitor, i, j)) return true;
       ++cost.tests;
       return !overlaps(si, store_.shape(j)) || visit(visitor, store_.handle(i), store_.handle(j));
     };
@@ -293,6 +295,7 @@ QueryCost HGridPaper::for_each_pair(V&& visitor) const {
     const std::uint32_t i = oversize_[p];
     const Shape& si = store_.shape(i);
     auto test = [&](std::uint32_t j) {
+      if (!detail::admits(visitor, i, j)) return true;
       ++cost.tests;
       return !overlaps(si, store_.shape(j)) || visit(visitor, store_.handle(i), store_.handle(j));
     };

@@ -89,9 +89,10 @@ class OctreePaper : public detail::StoreBase<OctreePaper> {
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const;
 
-  /// Visits every overlapping pair exactly once.
+  /// The pair walk behind for_each_pair (StoreBase, which attaches the
+  /// filters): every overlapping pair exactly once.
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const;
+  QueryCost walk_pairs(V& visitor) const;
 
   /// Casts a ray (HasRayCast): front to back through the nodes whose cubes
   /// the ray enters before its live tmax (detail/ray_walk.hpp); the root,
@@ -237,7 +238,7 @@ QueryCost OctreePaper::cast_ray(const Ray& r, V&& visitor) const {
 }
 
 template <class V>
-QueryCost OctreePaper::for_each_pair(V&& visitor) const {
+QueryCost OctreePaper::walk_pairs(V& visitor) const {
   QueryCost cost;
   for (std::uint32_t node = 0; node < kNodeCount; ++node) {
     const std::vector<std::uint32_t>& list = lists_[node];
@@ -248,6 +249,7 @@ QueryCost OctreePaper::for_each_pair(V&& visitor) const {
       const std::uint32_t ia = list[a];
       const Shape& sa = store_.shape(ia);
       for (std::size_t b = a + 1; b < list.size(); ++b) {
+        if (!detail::admits(visitor, ia, list[b])) continue;
         ++cost.tests;
         if (overlaps(sa, store_.shape(list[b])) &&
             !visit(visitor, store_.handle(ia), store_.handle(list[b]))) {
@@ -263,6 +265,7 @@ QueryCost OctreePaper::for_each_pair(V&& visitor) const {
       if (r.empty) continue;
       auto test_node = [&](std::uint32_t d) {
         for (std::uint32_t j : lists_[d]) {
+          if (!detail::admits(visitor, ia, j)) continue;
           ++cost.tests;
           if (overlaps(sa, store_.shape(j)) && !visit(visitor, store_.handle(ia), store_.handle(j)))
             return false;
