@@ -74,8 +74,10 @@ class CgalBoxIntersection : public detail::StoreBase<CgalBoxIntersection> {
     return filter.cost();
   }
 
+  /// The pair walk behind for_each_pair (StoreBase, which attaches the
+  /// filters, tested in PairFilter).
   template <class V>
-  QueryCost for_each_pair(V&& visitor) const {
+  QueryCost walk_pairs(V& visitor) const {
     PairFilter<V> filter(store_, visitor);
     fill_scratch();
     try {

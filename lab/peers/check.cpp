@@ -5,7 +5,8 @@
 // worlds that stress the adapters: mixed sizes and boxes, exact touching and
 // coincident centres, a crowded cell, coordinates near 1e7, objects larger
 // than or far outside the world, and enough objects to outgrow Bullet's
-// axis sweep.
+// axis sweep; then with collision filters (random bits, 16 layers) and a
+// pair filter changing between steps.
 // Usage: peers_check [--small-moves] [name...]   (default: every peer). Exit
 // status 1 on the first disagreement of each peer, printed with the world,
 // seed and step.
@@ -49,6 +50,20 @@ int main(int argc, char** argv) {
         ok = failure.empty();
       }
     }
+    // Filters (random bits, 16 layers) changing between steps, and a pair
+    // filter coming and going, against brute force.
+    for (const testing::Filters f : {testing::Filters::bits, testing::Filters::layers16})
+      for (const World w : {World::mixed, World::touching}) {
+        if (!ok) break;
+        testing::DifferentialOptions filtered = options;
+        filtered.config.expected_objects = 0;
+        filtered.max_objects = 250;
+        filtered.filters = f;
+        const std::string failure = testing::differential_run(
+            info.make, info.name, w, 3 + static_cast<std::uint64_t>(f), 600, filtered);
+        if (!failure.empty()) std::printf("FAIL %s\n", failure.c_str());
+        ok = failure.empty();
+      }
     std::printf("%s %s\n", ok ? "ok  " : "FAIL", info.name.c_str());
     failures += !ok;
   }

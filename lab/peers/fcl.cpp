@@ -172,6 +172,10 @@ class FclBroadPhase : public PeerBase<std::unique_ptr<FclObject>> {
 
   template <class V>
   QueryCost for_each_pair(V&& visitor) const {
+    return this->with_filters(visitor, [this](auto& v) { return walk_pairs(v); });
+  }
+  template <class V>
+  QueryCost walk_pairs(V& visitor) const {
     PairFilter<V> filter(store_, visitor);
     prepare();
     manager_->collide(&filter, &pair_callback<PairFilter<V>>);

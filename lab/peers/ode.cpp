@@ -130,6 +130,10 @@ class OdeBroadPhase : public PeerBase<dGeomID> {
 
   template <class V>
   QueryCost for_each_pair(V&& visitor) const {
+    return this->with_filters(visitor, [this](auto& v) { return walk_pairs(v); });
+  }
+  template <class V>
+  QueryCost walk_pairs(V& visitor) const {
     PairFilter<V> filter(store_, visitor);
     dSpaceCollide(space_, &filter, &pair_callback<PairFilter<V>>);
     return filter.cost();

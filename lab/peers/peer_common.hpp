@@ -32,8 +32,10 @@ inline std::uint32_t slot_of(const void* tag) {
   return static_cast<std::uint32_t>(reinterpret_cast<std::uintptr_t>(tag) - 1);
 }
 
-/// Filters a library's candidate pairs by the exact predicate and forwards
-/// the overlapping ones to a visitor. Counts every candidate as one test.
+/// Filters a library's candidate pairs by the collision filters (when the
+/// visitor carries them: PeerBase::with_filters) and the exact predicate, and
+/// forwards the overlapping ones to a visitor. Counts every candidate tested
+/// exactly as one test.
 /// Once the visitor asks to stop, later candidates are ignored (for libraries
 /// whose callbacks cannot stop a traversal).
 template <class V>
@@ -44,6 +46,7 @@ class PairFilter {
   /// Tests candidate (a, b); returns false once the visitor has asked to stop.
   bool operator()(std::uint32_t a, std::uint32_t b) {
     if (cost_.stopped) return false;
+    if (!detail::admits(visitor_, a, b)) return true;
     ++cost_.tests;
     if (overlaps(store_.shape(a), store_.shape(b)) &&
         !visit(visitor_, store_.handle(a), store_.handle(b)))
@@ -98,6 +101,18 @@ class PeerBase : public detail::StoreBase<PeerBase<Native>> {
     h = store_.insert(s, user);
     if (h.index >= native_.size()) native_.resize(h.index + 1);
     return h.index;
+  }
+  /// Runs an adapter's pair walk `walk(visitor)` with the collision filters
+  /// attached to the visitor (detail::FilteredVisitor, tested by PairFilter
+  /// in the library's pair callback), or on the plain visitor when no filter
+  /// is set. The peers' own group/mask schemes (Bullet's, FCL's, ODE's
+  /// category bits) are not used: a changed filter would need every proxy
+  /// re-created for their pair caches to follow.
+  template <class V, class Walk>
+  QueryCost with_filters(V& visitor, Walk&& walk) const {
+    if (this->unfiltered()) return walk(visitor);
+    detail::FilteredVisitor<V> f(visitor, store_, this->pair_filter_);
+    return walk(f);
   }
   /// Frees the slot and returns the library object it held.
   Native take(Handle h) {
