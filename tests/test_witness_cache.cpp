@@ -51,5 +51,28 @@ TEST(WitnessCache, StaleWitnessesMiss) {
   EXPECT_THROW(cache.touching(n, b), InvalidHandle);
 }
 
+TEST(WitnessCache, FollowsTheFilters) {
+  // Touching counts only objects the filters let pair; a witness whose
+  // filter changed is not trusted.
+  for (const std::string& name : testing::library_structures()) {
+    SCOPED_TRACE(name);
+    auto bp = make_structure(name);
+    const Handle a = bp->insert(Shape::sphere({10, 10, 10}, 1), 0, Motion::dynamic, {1, 0x3u});
+    const Handle b = bp->insert(Shape::sphere({11, 10, 10}, 1), 1, Motion::dynamic, {2, 0x3u});
+    const Handle c = bp->insert(Shape::sphere({9, 10, 10}, 1), 2, Motion::dynamic, {4, 0x4u});
+    bp->settle();
+    WitnessCache cache;
+    EXPECT_TRUE(cache.touching(*bp, a));   // by b, not c
+    EXPECT_FALSE(cache.touching(*bp, c));  // c pairs only with group 4
+    bp->set_filter(b, {8, 0xffu});         // the witness b leaves a's mask
+    EXPECT_FALSE(cache.touching(*bp, a));
+    bp->set_filter(b, {2, 0x3u});
+    bp->set_pair_filter([&](Handle x, Handle y) { return !(x == a || y == a); });
+    EXPECT_FALSE(cache.touching(*bp, a));
+    bp->set_pair_filter({});
+    EXPECT_TRUE(cache.touching(*bp, a));
+  }
+}
+
 }  // namespace
 }  // namespace broadphase

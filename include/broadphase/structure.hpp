@@ -268,6 +268,9 @@ class AnyBroadPhase {
   virtual Filter filter(Handle h) const = 0;
   /// Installs the pair filter (PairFilter), or removes it when empty.
   virtual void set_pair_filter(PairFilter pf) = 0;
+  /// True when objects `a` and `b` may pair: their filters pass, and so
+  /// does the pair filter. Throws InvalidHandle.
+  virtual bool pair_passes(Handle a, Handle b) const = 0;
   /// Visits every object whose shape overlaps `s` exactly.
   virtual QueryCost query(const Shape& s, FunctionRef<bool(Handle)> visitor) const = 0;
   /// Casts a ray (HasRayCast): every hit to `visitor`, which returns the
@@ -339,6 +342,13 @@ class Erased final : public AnyBroadPhase {
   void set_filter(Handle h, Filter f) override { s_.set_filter(h, f); }
   Filter filter(Handle h) const override { return s_.filter(h); }
   void set_pair_filter(PairFilter pf) override { s_.set_pair_filter(std::move(pf)); }
+  bool pair_passes(Handle a, Handle b) const override {
+    if constexpr (requires { s_.pair_passes(a, b); }) {
+      return s_.pair_passes(a, b);
+    } else {
+      return filters_pass(s_.filter(a), s_.filter(b));
+    }
+  }
   QueryCost query(const Shape& s, FunctionRef<bool(Handle)> v) const override {
     return s_.query(s, v);
   }

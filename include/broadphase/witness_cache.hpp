@@ -14,7 +14,10 @@ namespace broadphase {
 /// Per-object witnesses for yes/no contact queries against any structure
 /// (a concrete one or AnyBroadPhase). Keyed by the handle's slot index; a
 /// witness whose handle went stale, or the object itself being replaced in
-/// its slot, is detected and simply misses.
+/// its slot, is detected and simply misses. "Touching" follows the
+/// structure's collision filters: an object overlapping only objects it may
+/// not pair with (Filter, PairFilter) touches nothing, and a witness whose
+/// filters changed is tested again before it answers.
 ///
 /// touching(): O(1) on a hit, one early-out query on a miss. Memory: one
 /// entry per slot index seen. Not thread-safe (it updates its witnesses).
@@ -27,7 +30,7 @@ class WitnessCache {
     const Shape me = s.shape(h);
     if (h.index >= entries_.size()) entries_.resize(h.index + 1);
     Entry& e = entries_[h.index];
-    if (e.self == h && !e.witness.is_null() && s.contains(e.witness)) {
+    if (e.self == h && !e.witness.is_null() && s.contains(e.witness) && may_pair(s, h, e.witness)) {
       ++tests_;
       if (overlaps(me, s.shape(e.witness))) {
         ++hits_;
@@ -37,7 +40,7 @@ class WitnessCache {
     ++misses_;
     Handle found;
     const QueryCost c = s.query(me, [&](Handle o) {
-      if (o == h) return true;
+      if (o == h || !may_pair(s, h, o)) return true;
       found = o;
       return false;
     });
@@ -65,6 +68,15 @@ class WitnessCache {
   std::size_t memory_bytes() const { return entries_.capacity() * sizeof(Entry); }
 
  private:
+  // The structure's filter rule (a structure without filters pairs all).
+  template <class S>
+  static bool may_pair(const S& s, Handle a, Handle b) {
+    if constexpr (requires { s.pair_passes(a, b); }) {
+      return s.pair_passes(a, b);
+    } else {
+      return true;
+    }
+  }
   struct Entry {
     Handle self;     // the object the witness belongs to
     Handle witness;  // null: it touched nothing last time

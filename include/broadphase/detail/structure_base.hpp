@@ -134,6 +134,11 @@ class StoreBase : public StructureBase<S> {
   Filter filter(Handle h) const { return store_.filter_of(h); }
   /// Installs the pair filter (structure.hpp's PairFilter); empty removes it.
   void set_pair_filter(PairFilter pf) { pair_filter_ = std::move(pf); }
+  /// True when objects `a` and `b` may pair by the filters and the pair
+  /// filter. Throws InvalidHandle. O(1) plus the pair filter.
+  bool pair_passes(Handle a, Handle b) const {
+    return may_pair(store_.index_of(a), store_.index_of(b));
+  }
 
   /// Visits every overlapping pair that passes the filters once
   /// (Structure). `query(shape)` is not filtered: its shape is no object and
