@@ -56,6 +56,60 @@ TEST(Arrays, OneShotMatchesOracleInEveryLayoutOnEveryThreadCount) {
   }
 }
 
+TEST(Arrays, OneShotWithFilterColumnsMatchesOracle) {
+  // Random bits, 4 and 16 layers; the sphere kernel and the box grid; one
+  // order on every thread count; sorted output filtered too.
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(3)); ++seed)
+    for (World w : kWorlds)
+      for (int layers : {0, 4, 16}) {
+        Rng rng(seed * 3000 + static_cast<std::uint64_t>(w) * 17 +
+                static_cast<std::uint64_t>(layers));
+        const std::size_t n = 1 + rng.below(seed % 2 ? 300 : 2500);
+        const std::vector<Shape> shapes = random_world(w, n, rng);
+        const Layout layout = kLayouts[seed % std::size(kLayouts)];
+        SCOPED_TRACE(::testing::Message() << "seed " << seed << " world " << name(w) << " n " << n
+                                          << " layers " << layers);
+        Storage st(shapes, layout);
+        const FilterColumns fc(n, layers, rng);
+        fc.attach(st.objects);
+        const auto want = oracle(st.objects);
+        std::vector<IndexPair> first;
+        for (unsigned threads : {1u, 2u, 3u}) {
+          std::vector<IndexPair> got;
+          ArrayOptions opt;
+          opt.threads = threads;
+          opt.sorted = threads == 3;
+          const ArrayCallStats stats = find_pairs(st.objects, got, opt);
+          ASSERT_EQ(stats.pairs, got.size());
+          ASSERT_EQ(sorted(got), want) << "threads " << threads;
+          if (threads == 1)
+            first = got;
+          else if (threads == 2)
+            ASSERT_EQ(got, first) << "order differs on " << threads << " threads";
+          else
+            ASSERT_EQ(got, want) << "sorted";
+        }
+      }
+}
+
+TEST(Arrays, FilterColumnsOfTheWrongLengthAreRefused) {
+  const std::vector<Shape> shapes = {Shape::sphere({0, 0, 0}, 1), Shape::sphere({1, 0, 0}, 1)};
+  Storage st(shapes, Layout::soa_double);
+  const std::vector<std::uint32_t> one = {1}, two = {1, 1};
+  std::vector<IndexPair> out;
+  for (auto [g, m] : {std::pair{&one, &two}, std::pair{&two, &one}}) {
+    st.objects.groups = *g;
+    st.objects.masks = *m;
+    EXPECT_THROW(find_pairs(st.objects, out), InvalidObjects);
+    EXPECT_THROW(PairTracker().find_pairs(st.objects, out), InvalidObjects);
+    EXPECT_THROW(find_pairs(st.objects, st.objects, out), InvalidObjects);
+  }
+  st.objects.groups = two;
+  st.objects.masks = {};
+  EXPECT_THROW(find_pairs(st.objects, out), InvalidObjects);
+  EXPECT_TRUE(out.empty());
+}
+
 TEST(Arrays, ScalarRadiusAndSortedOutput) {
   Rng rng(77);
   std::vector<Shape> shapes;
@@ -528,6 +582,10 @@ TEST(Arrays, BipartiteMatchesOracle) {
     SCOPED_TRACE(::testing::Message() << "seed " << seed << " world " << name(w));
     Storage a(sa, Layout::soa_double);
     Storage b(sb, Layout::aos_float);
+    // Filters on a, on b, on both, or none (the other set's default).
+    const FilterColumns fa(sa.size(), 4, rng), fb(sb.size(), 4, rng);
+    if (seed % 4 == 1 || seed % 4 == 3) fa.attach(a.objects);
+    if (seed % 4 == 2 || seed % 4 == 3) fb.attach(b.objects);
     const auto want = oracle(a.objects, b.objects);
     std::vector<IndexPair> first;
     for (unsigned threads : {1u, 2u, 3u}) {

@@ -181,6 +181,42 @@ TEST(Arrays, TrackerMatchesOracleUnderRandomChanges) {
   }
 }
 
+// The tracker with filter columns: objects move (listed), and masks change
+// between calls without being listed (the filters are read at every
+// hand-over), in worlds that take the index and in movers mode.
+TEST(Arrays, TrackerWithFilterColumnsMatchesOracle) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(4)); ++seed) {
+    Rng rng(seed * 6151);
+    const World w = kWorlds[seed % std::size(kWorlds)];
+    const int layers = seed % 3 == 0 ? 0 : (seed % 3 == 1 ? 4 : 16);
+    std::vector<Shape> shapes = random_world(w, 200 + rng.below(600), rng);
+    FilterColumns fc(shapes.size(), layers, rng);
+    std::vector<std::uint32_t> movers = pick_movers(rng, shapes.size(), 10);
+    PairTracker trackers[3];
+    on_threads(trackers);
+    for (int frame = 0; frame < 15; ++frame) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << " world " << name(w) << " layers "
+                                        << layers << " frame " << frame);
+      std::vector<std::uint32_t> changed;
+      for (std::uint32_t i : movers) {
+        const Vec3 d{rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)};
+        shapes[i].center = shapes[i].center + d * rng.uniform(0, 2);
+        changed.push_back(i);
+      }
+      const int flips = frame == 0 ? 0 : static_cast<int>(rng.below(12));
+      for (int k = 0; k < flips; ++k) fc.draw(rng.below(shapes.size()), layers, rng);
+      Storage st(shapes, Layout::soa_double);
+      fc.attach(st.objects);
+      const auto want = oracle(st.objects);
+      const bool tell_all = frame == 0 || rng.below(8) == 0;
+      ArrayCallStats stats;
+      ASSERT_NO_FATAL_FAILURE(
+          call_on_each(trackers, st.objects,
+                       tell_all ? Changes::everything() : Changes::only(changed), want, stats));
+    }
+  }
+}
+
 // Movers in movers mode running through rows of quiet spheres, head on, in
 // small steps (a fortieth of their skin and more): each sphere begins to
 // touch its mover at some step, at every distance from where the mover's

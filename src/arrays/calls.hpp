@@ -38,16 +38,37 @@ inline unsigned thread_count(unsigned requested) {
 // quiet objects, which it does not read).
 void check_listed(const Objects& o, const std::vector<std::uint64_t>& listed);
 
+// The caller's filter columns over the pairs a call hands over: pair (i, j)
+// reads i's group and mask from the first set, j's from the second (the
+// same set in a one-set call). Empty: no filters.
+struct PairFilterColumns {
+  std::span<const std::uint32_t> gi, mi, gj, mj;
+  bool active() const { return !gi.empty(); }
+  bool pass(const IndexPair& p) const {
+    return (gi[p.i] & mj[p.j]) != 0 && (gj[p.j] & mi[p.i]) != 0;
+  }
+  static PairFilterColumns of(const Objects& o) { return {o.groups, o.masks, o.groups, o.masks}; }
+};
+
+// Throws InvalidObjects unless the filter columns are both empty or both
+// hold one value an object.
+void check_filter_columns(const Objects& o, const char* what);
+
 struct PairChunk {
   std::vector<IndexPair> pairs;
   std::uint64_t tests = 0;
 };
 
 // Hands the chunks to the sink (sorted at the end if asked), counting.
+// With filter columns, the pairs that fail them are dropped here, the one
+// place every pair of a call passes before the caller sees it: pairs a
+// tracker keeps between calls (its quiet pairs, its cells' pairs) are kept
+// whatever the filters, so a mask the caller changes needs no renewal. A
+// call without filters pays one test a chunk.
 class Emitter {
  public:
-  Emitter(const PairSink& sink, bool sorted, ArrayCallStats& stats)
-      : sink_(sink), sorted_(sorted), stats_(stats) {}
+  Emitter(const PairSink& sink, bool sorted, ArrayCallStats& stats, PairFilterColumns filters = {})
+      : sink_(sink), sorted_(sorted), stats_(stats), filters_(filters) {}
 
   bool deliver(PairChunk& c) {
     stats_.tests += c.tests;
@@ -55,6 +76,12 @@ class Emitter {
   }
   // Pairs the caller keeps valid until the sink returns (no copy).
   bool deliver(std::span<const IndexPair> pairs) {
+    if (filters_.active()) {
+      passed_.clear();
+      for (const IndexPair& p : pairs)
+        if (filters_.pass(p)) passed_.push_back(p);
+      pairs = passed_;
+    }
     stats_.pairs += pairs.size();
     if (sorted_) {
       all_.insert(all_.end(), pairs.begin(), pairs.end());
@@ -94,6 +121,8 @@ class Emitter {
   const PairSink& sink_;
   bool sorted_;
   ArrayCallStats& stats_;
+  PairFilterColumns filters_;
+  std::vector<IndexPair> passed_;  // a filtered chunk, valid until the sink returns
   std::vector<IndexPair> all_;
 };
 
@@ -110,11 +139,13 @@ inline IndexPair ordered(std::uint32_t p, std::uint32_t q) {
 
 // The pairs of the spheres sorted into `cells`, handed over in order (and,
 // with `keep`, appended to it as they are handed over).
+// `keep` takes the pairs whatever the filters.
 inline ArrayCallStats cell_pairs(const detail::SphereCells& cells, const PairSink& sink,
                                  const ArrayOptions& options,
-                                 std::vector<IndexPair>* keep = nullptr) {
+                                 std::vector<IndexPair>* keep = nullptr,
+                                 PairFilterColumns filters = {}) {
   ArrayCallStats stats;
-  Emitter emit(sink, options.sorted, stats);
+  Emitter emit(sink, options.sorted, stats, filters);
   run_in_order<PairChunk>(
       cells.cell_count(), thread_count(options.threads),
       [&](std::size_t begin, std::size_t end, PairChunk& out) {

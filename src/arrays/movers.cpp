@@ -263,7 +263,7 @@ ArrayCallStats Movers::call(const Objects& o, const std::vector<std::uint64_t>& 
     xyzr[4 * k + 2] = read[from].z;
     xyzr[4 * k + 3] = read[from].r;
   }
-  Emitter emit(sink, options.sorted, stats);
+  Emitter emit(sink, options.sorted, stats, PairFilterColumns::of(o));
   const unsigned threads = thread_count(options.threads);
   // The quiet pairs as they stand (without those of woken objects).
   bool go_on = quiet.deliver(emit, threads, !woken.empty());

@@ -65,7 +65,30 @@ ArrayCallStats one_shot(const Source& src, bool bipartite, const PairSink& sink,
   // the row-by-row layout on most levels (see ArrayGrid::build).
   grid.build(boxes, 8);
 
-  Emitter emit(sink, options.sorted, stats);
+  // A bipartite call where one set has filters and the other not: the
+  // other's objects take the default filter.
+  PairFilterColumns filters;
+  std::vector<std::uint32_t> default_group, default_mask;
+  if (!bipartite) {
+    filters = PairFilterColumns::of(*src.a);
+  } else if (!src.a->groups.empty() || !src.b->groups.empty()) {
+    const Filter d;
+    auto side = [&](const Objects& o, std::span<const std::uint32_t>& g,
+                    std::span<const std::uint32_t>& m) {
+      if (!o.groups.empty()) {
+        g = o.groups;
+        m = o.masks;
+        return;
+      }
+      default_group.assign(o.count, d.group);
+      default_mask.assign(o.count, d.mask);
+      g = default_group;
+      m = default_mask;
+    };
+    side(*src.a, filters.gi, filters.mi);
+    side(*src.b, filters.gj, filters.mj);
+  }
+  Emitter emit(sink, options.sorted, stats, filters);
   const auto na = static_cast<std::uint32_t>(src.na);
   // The shapes in the probing order, so that a probe's exact tests read
   // its partners from nearby memory rather than from the caller's order
@@ -116,6 +139,7 @@ void check_columns(const Objects& o, const char* what) {
                              " objects, more than 32-bit indices can name (" +
                              std::to_string(kMaxObjects) + ")",
                          SIZE_MAX);
+  detail::check_filter_columns(o, what);
   if (o.count == 0) return;
   auto missing = [&](const char* column) {
     throw InvalidObjects(std::string(what) + ": column " + column + " is missing", SIZE_MAX);
@@ -175,6 +199,16 @@ void check_objects(const Objects& o, const char* what) {
 
 namespace detail {
 
+void check_filter_columns(const Objects& o, const char* what) {
+  if (o.groups.empty() && o.masks.empty()) return;
+  if (o.groups.size() != o.count || o.masks.size() != o.count)
+    throw InvalidObjects(std::string(what) + ": the filter columns hold " +
+                             std::to_string(o.groups.size()) + " groups and " +
+                             std::to_string(o.masks.size()) + " masks for " +
+                             std::to_string(o.count) + " objects",
+                         SIZE_MAX);
+}
+
 void check_listed(const Objects& o, const std::vector<std::uint64_t>& listed) {
   check_columns(o, "objects");
   for (std::size_t w = 0; w < listed.size(); ++w)
@@ -187,11 +221,13 @@ void check_listed(const Objects& o, const std::vector<std::uint64_t>& listed) {
 ArrayCallStats find_pairs(const Objects& objects, const PairSink& sink,
                           const ArrayOptions& options) {
   options.check();
+  detail::check_filter_columns(objects, "objects");
   // The sphere kernel checks the values it reads in its first pass; a set
   // it refuses, for a bad value or another reason, is checked here.
   {
     detail::SphereCells cells;
-    if (cells.build(objects)) return cell_pairs(cells, sink, options);
+    if (cells.build(objects))
+      return cell_pairs(cells, sink, options, nullptr, PairFilterColumns::of(objects));
   }
   check_objects(objects);
   Source src{&objects, nullptr, objects.count, objects.count};

@@ -34,7 +34,8 @@ std::optional<ArrayCallStats> PairTracker::Impl::afresh_while_outrun(const Objec
     const std::uint32_t left = outran ? kAfreshCalls : afresh_left - 1;
     reset();
     afresh_left = left;
-    ArrayCallStats stats = cell_pairs(cells, sink, options);
+    ArrayCallStats stats =
+        cell_pairs(cells, sink, options, nullptr, detail::PairFilterColumns::of(objects));
     stats.afresh = true;
     return stats;
   }
@@ -68,7 +69,8 @@ std::optional<ArrayCallStats> PairTracker::Impl::afresh_pending(const Objects& o
     // 15-20 ms more in copies and fresh pages.
     std::vector<IndexPair> all;
     all.reserve(std::min<std::size_t>(4 * objects.count, std::size_t{1} << 26));
-    ArrayCallStats stats = cell_pairs(cells, sink, options, &all);
+    ArrayCallStats stats =
+        cell_pairs(cells, sink, options, &all, detail::PairFilterColumns::of(objects));
     quiet.after = quiet_after;
     mode = Mode::pending;
     count = objects.count;
@@ -107,6 +109,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& s
     checked = true;
   };
   if (!listed_only) check_objects(objects);
+  detail::check_filter_columns(objects, "objects");
   if (objects.count > kMaxTracked)
     throw InvalidObjects("objects: " + std::to_string(objects.count) +
                              " objects, more than a tracker can name (" +

@@ -305,7 +305,7 @@ void TrackerIndex::scan(const Objects& o, bool all, const std::vector<std::uint6
 
   const std::size_t rows = offset.size() - 1;
   const bool any_renewed = !renewed_list.empty();
-  Emitter emit(sink, options.sorted, stats);
+  Emitter emit(sink, options.sorted, stats, PairFilterColumns::of(o));
   const unsigned threads = thread_count(options.threads);
   // The scan over the rows, then over the renewed objects' candidates in
   // the order they were found, with shapes from `rd`.

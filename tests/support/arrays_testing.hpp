@@ -106,11 +106,19 @@ inline bool less(const IndexPair& a, const IndexPair& b) {
   return a.i != b.i ? a.i < b.i : a.j < b.j;
 }
 
+// Object i's filter: from the filter columns, else the default.
+inline Filter filter_of(const Objects& o, std::uint32_t i) {
+  if (o.groups.empty()) return {};
+  return {o.groups[i], o.masks[i]};
+}
+
+// Brute force over overlaps() and the filter rule.
 inline std::vector<IndexPair> oracle(const Objects& o) {
   std::vector<IndexPair> out;
   for (std::uint32_t i = 0; i < o.count; ++i)
     for (std::uint32_t j = i + 1; j < o.count; ++j)
-      if (overlaps(o.shape(i), o.shape(j))) out.push_back({i, j});
+      if (filters_pass(filter_of(o, i), filter_of(o, j)) && overlaps(o.shape(i), o.shape(j)))
+        out.push_back({i, j});
   return out;
 }
 
@@ -118,9 +126,37 @@ inline std::vector<IndexPair> oracle(const Objects& a, const Objects& b) {
   std::vector<IndexPair> out;
   for (std::uint32_t i = 0; i < a.count; ++i)
     for (std::uint32_t j = 0; j < b.count; ++j)
-      if (overlaps(a.shape(i), b.shape(j))) out.push_back({i, j});
+      if (filters_pass(filter_of(a, i), filter_of(b, j)) && overlaps(a.shape(i), b.shape(j)))
+        out.push_back({i, j});
   return out;
 }
+
+// Filter columns for n objects: random bits (layers 0), or `layers` groups
+// each pairing with itself and its two neighbouring groups only.
+struct FilterColumns {
+  std::vector<std::uint32_t> groups, masks;
+  FilterColumns(std::size_t n, int layers, Rng& rng) { redraw(n, layers, rng); }
+  void redraw(std::size_t n, int layers, Rng& rng) {
+    groups.resize(n);
+    masks.resize(n);
+    for (std::size_t i = 0; i < n; ++i) draw(i, layers, rng);
+  }
+  void draw(std::size_t i, int layers, Rng& rng) {
+    if (layers == 0) {
+      groups[i] = static_cast<std::uint32_t>(rng.below(16));
+      masks[i] = static_cast<std::uint32_t>(rng.next());
+      return;
+    }
+    const auto n = static_cast<std::uint32_t>(layers);
+    const auto l = static_cast<std::uint32_t>(rng.below(n));
+    groups[i] = 1u << l;
+    masks[i] = (1u << l) | (1u << ((l + 1) % n)) | (1u << ((l + n - 1) % n));
+  }
+  void attach(Objects& o) const {
+    o.groups = groups;
+    o.masks = masks;
+  }
+};
 
 inline std::vector<IndexPair> sorted(std::vector<IndexPair> v) {
   std::sort(v.begin(), v.end(), less);

@@ -89,6 +89,14 @@ struct Objects {
   Column half_x, half_y, half_z;  ///< box half-extents
   const std::uint8_t* kind = nullptr;
   std::ptrdiff_t kind_stride = 1;
+  /// Collision filters, optional: object i's group bits `groups[i]` and
+  /// mask bits `masks[i]` (Filter, geometry.hpp: i and j pair only when
+  /// `groups[i] & masks[j]` and `groups[j] & masks[i]` are both non-zero).
+  /// Both empty (the default): no filters. Otherwise both hold `count`
+  /// values (InvalidObjects). Read on every call, at the hand-over of the
+  /// pairs: a tracker's caller may change them between calls without
+  /// listing the objects as changed.
+  std::span<const std::uint32_t> groups, masks;
 
   /// Spheres, centres as n×3 rows (`xyz[3i + a]`), radii one per object
   /// (or `radius_stride` 0 for one radius shared by all).
