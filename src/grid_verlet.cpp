@@ -87,9 +87,13 @@ void GridVerlet::set_filter(Handle h, Filter f) {
   if (filters_.size() < slots_.size()) filters_.resize(slots_.size());
   if (filters_[s] == f) return;
   filters_[s] = f;
-  // Only the fixed grid's pairs are cached; movers' and loose objects'
-  // candidates are tested against the filters on every pass.
+  // The cache of fixed pairs holds only pairs that pass; the movers' lists
+  // leave out candidates that failed: both are incomplete now. The lists
+  // are all renewed at the next rebuild, and until then the frames do
+  // without them.
   if (slots_[s].home == Home::fixed_grid) drop_fixed_cache();
+  lists_.fixed_grid_rebuilt(fixed_);
+  lists_stale_ = true;
 }
 
 void GridVerlet::set_pair_filter(PairFilter pf) {
@@ -419,7 +423,8 @@ void GridVerlet::rebuild(bool fixed_too) {
   });
   point_slots(moving_, Home::moving_grid);
   moving_count_ = moving_.entries.size();
-  lists_.renew(fixed_, moving_, totals, shares_);
+  lists_.renew(fixed_, moving_, totals, shares_, filters_);
+  lists_stale_ = false;  // every list not renewed now was renewed since the last filter change
   // The loose list can grow to an eighth of the objects while a scene is
   // inserted; kept after the build it would hold 11 bytes per object for
   // single inserts that seldom come.
@@ -498,7 +503,11 @@ QueryCost GridVerlet::find_pairs_as(std::vector<HandlePair>& out) const {
 
   const std::size_t m = moving_.entries.size();
   const unsigned t = shares_.shares_for(m);
-  if (t <= 1) {
+  if (lists_stale_) {
+    // Rare (a filter changed since the last rebuild): on the calling thread.
+    emit_fixed();
+    pairs_without_lists(emit_out, cost.tests);
+  } else if (t <= 1) {
     emit_fixed();
     mover_pairs(0, m, emit_out, cost.tests);
   } else {
@@ -643,10 +652,13 @@ void GridVerlet::validate() const {
   };
   check_grid(fixed_, Home::fixed_grid, fixed_count_, "fixed grid");
   check_grid(moving_, Home::moving_grid, moving_count_, "moving grid");
-  lists_.validate(fixed_, moving_, slots, [this](std::uint32_t s) -> std::optional<std::uint32_t> {
-    if (slots_[s].home != Home::fixed_grid) return std::nullopt;
-    return slots_[s].pos;
-  });
+  lists_.validate(
+      fixed_, moving_, slots,
+      [this](std::uint32_t s) -> std::optional<std::uint32_t> {
+        if (slots_[s].home != Home::fixed_grid) return std::nullopt;
+        return slots_[s].pos;
+      },
+      filters_, !lists_stale_);
   if (fixed_count_ + moving_count_ + loose_.size() != live_) fail("objects lost between lists");
   if (!cache_built_ && !fixed_pairs_.empty()) fail("a stale pair cache");
   for (const HandlePair& p : fixed_pairs_) {

@@ -176,6 +176,9 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   /// Installs the pair filter (structure.hpp's PairFilter); empty removes
   /// it. Drops the cache of fixed pairs, as set_filter does.
   void set_pair_filter(PairFilter pf);
+  /// True when objects `a` and `b` may pair by the filters and the pair
+  /// filter. Throws InvalidHandle.
+  bool pair_passes(Handle a, Handle b) const { return may_pair(index_of(a), index_of(b)); }
   /// Casts a ray (HasRayCast); each hit once to `visitor`. Throws InvalidRay.
   template <class V>
   QueryCost cast_ray(const Ray& r, V&& visitor) const;
@@ -272,6 +275,12 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   bool loose_pairs(E& emit, std::uint64_t& tests) const;
   template <class E>
   bool all_pairs(E& emit, std::uint64_t& tests) const;
+  /// The movers' pairs without their lists, which a filter change left
+  /// incomplete until the next rebuild renews them (lists_stale_): each
+  /// mover probes the fixed grid, and the moving grid's pairs as the fixed
+  /// grid's are found.
+  template <class E>
+  bool pairs_without_lists(E& emit, std::uint64_t& tests) const;
 
   /// The threads (option threads=N) and the split of every pass (option
   /// grain=N: moving objects per share at least).
@@ -307,6 +316,10 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   PairFilter pair_filter_;
   Filter filter_of(std::uint32_t s) const { return s < filters_.size() ? filters_[s] : Filter{}; }
   bool unfiltered() const { return filters_.empty() && !pair_filter_; }
+  // The movers' lists leave out candidates by the filters they were renewed
+  // with: after a filter changes they are incomplete until every list is
+  // renewed (at the next rebuild), and the frames do without them.
+  bool lists_stale_ = false;
   /// The filter rule for slots `i`, `j`: the bits, then the pair filter.
   bool may_pair(std::uint32_t i, std::uint32_t j) const {
     return filters_pass(filter_of(i), filter_of(j)) &&
@@ -667,8 +680,28 @@ bool GridVerlet::loose_pairs(E& emit, std::uint64_t& tests) const {
 }
 
 template <class E>
+bool GridVerlet::pairs_without_lists(E& emit, std::uint64_t& tests) const {
+  const std::vector<Mover>& movers = lists_.movers();
+  for (std::size_t i = 0; i < moving_.entries.size(); ++i) {
+    const Entry& me = moving_.entries[i];
+    if (me.dead()) continue;
+    const Shape& sm = moving_.shapes[i];
+    const bool go = fixed_.scan(movers[i].cur, 0, kNoMinX, [&](std::uint32_t k) {
+      const Entry& o = fixed_.entries[k];
+      if (!detail::admits(emit, me.slot, o.slot)) return true;
+      ++tests;
+      return !exact(sm, fixed_.shapes[k]) || emit(me.handle(), o.handle());
+    });
+    if (!go) return false;
+  }
+  return grid_pairs(moving_, 0, moving_.entries.size(), emit, tests);
+}
+
+template <class E>
 bool GridVerlet::all_pairs(E& emit, std::uint64_t& tests) const {
   const std::size_t m = moving_.entries.size();
+  if (lists_stale_)
+    return fixed_pairs(emit, tests) && pairs_without_lists(emit, tests) && loose_pairs(emit, tests);
   return fixed_pairs(emit, tests) && mover_pairs(0, m, emit, tests) && loose_pairs(emit, tests);
 }
 

@@ -181,7 +181,7 @@ void VerletLists::make_room(const LevelGrid& moving, const Totals& totals) {
 }
 
 void VerletLists::renew(const LevelGrid& fixed, const LevelGrid& moving, const Totals& totals,
-                        const WorkShares& shares) {
+                        const WorkShares& shares, std::span<const Filter> filters) {
   count_slow(moving, shares);
   const std::size_t m = moving.entries.size();
   const unsigned chunks = shares.chunks_for(m);
@@ -215,7 +215,7 @@ void VerletLists::renew(const LevelGrid& fixed, const LevelGrid& moving, const T
     }
     renewed.clear();
     const auto [begin, end] = slice(m, c, chunks);
-    renew_range(fixed, moving, begin, end, part, near, renewed);
+    renew_range(fixed, moving, begin, end, part, near, renewed, filters);
     part_home = std::move(part);
     near_home = std::move(near);
     renewed_[c] = std::move(renewed);
@@ -255,8 +255,13 @@ void VerletLists::renew(const LevelGrid& fixed, const LevelGrid& moving, const T
 
 void VerletLists::renew_range(const LevelGrid& fixed, const LevelGrid& moving, std::size_t begin,
                               std::size_t end, std::vector<Candidate>& part,
-                              std::vector<std::uint32_t>& near,
-                              std::vector<std::uint32_t>& renewed) {
+                              std::vector<std::uint32_t>& near, std::vector<std::uint32_t>& renewed,
+                              std::span<const Filter> filters) {
+  // Candidates whose bits fail are left out of the lists: a world of 16
+  // layers that mostly ignore each other then reads lists as short as its
+  // layers apart would, 1.00-1.03 times their pair time, where testing the
+  // bits of every candidate of the full lists took 2.6-4.6 times
+  // (bench/filters/layers_bench.cpp, docs/architecture.md).
   const double nan = std::numeric_limits<double>::quiet_NaN();
   for (std::size_t i = begin; i < end; ++i) {
     const GridEntry& e = moving.entries[i];
@@ -270,6 +275,7 @@ void VerletLists::renew_range(const LevelGrid& fixed, const LevelGrid& moving, s
     mv.stamp = stamp_;
     mv.list_begin = static_cast<std::uint32_t>(part.size());
     fixed.scan(mv.fat, 0, LevelGrid::kNoMinX, [&](std::uint32_t k) {
+      if (!bits_pass(filters, e.slot, fixed.entries[k].slot)) return true;
       const Shape& s = fixed.shapes[k];
       part.push_back({{s.center.x, s.center.y, s.center.z},
                       s.kind == ShapeKind::sphere ? s.half.x : nan,
@@ -282,7 +288,8 @@ void VerletLists::renew_range(const LevelGrid& fixed, const LevelGrid& moving, s
     mv.near_begin = static_cast<std::uint32_t>(near.size());
     if (!mv.fast)
       moving.scan(mv.fat, 0, LevelGrid::kNoMinX, [&](std::uint32_t k) {
-        if (k != i && !movers_[k].fast) near.push_back(moving.entries[k].slot);
+        if (k != i && !movers_[k].fast && bits_pass(filters, e.slot, moving.entries[k].slot))
+          near.push_back(moving.entries[k].slot);
         return true;
       });
     mv.near_count = static_cast<std::uint32_t>(near.size()) - mv.near_begin;
@@ -302,13 +309,15 @@ std::size_t VerletLists::memory_bytes() const {
 
 void VerletLists::validate(
     const LevelGrid& fixed, const LevelGrid& moving, std::size_t slot_count,
-    const std::function<std::optional<std::uint32_t>(std::uint32_t)>& fixed_entry) const {
+    const std::function<std::optional<std::uint32_t>(std::uint32_t)>& fixed_entry,
+    std::span<const Filter> filters, bool current) const {
   auto fail = [](const std::string& what) { throw std::logic_error("grid-verlet: " + what); };
   if (movers_.size() != moving.entries.size()) fail("mover states and moving grid differ");
   for (std::size_t k = 0; k < movers_.size(); ++k) {
     const Mover& mv = movers_[k];
     if (moving.entries[k].dead()) continue;
-    if (mv.epoch != epoch_ || mv.stamp > stamp_) fail("a mover's lists were not renewed");
+    if ((current && mv.epoch != epoch_) || mv.stamp > stamp_)
+      fail("a mover's lists were not renewed");
     if (static_cast<std::size_t>(mv.near_begin) + mv.near_count > near_pool_.size())
       fail("near list out of the pool");
     if (static_cast<std::size_t>(mv.list_begin) + mv.list_count > list_pool_.size())
@@ -324,8 +333,11 @@ void VerletLists::validate(
           sh.center.z != c.c[2] || (sh.is_sphere() ? sh.half.x != c.r : c.r == c.r))
         fail("candidate copy differs from its fixed object");
       if (!o.overlaps(mv.fat)) fail("candidate outside its list's box");
+      if (current && !bits_pass(filters, moving.entries[k].slot, c.handle.index))
+        fail("candidate whose filter fails");
     }
   }
+  if (!current) return;  // the lists are renewed at the next rebuild
   // Every two movers whose fat boxes overlap are in the near list of the
   // one renewed last (the lower slot on a tie): that is what makes the
   // frames exact.
@@ -333,7 +345,8 @@ void VerletLists::validate(
     const GridEntry& me = moving.entries[i];
     if (me.dead() || movers_[i].fast) continue;
     moving.scan(movers_[i].fat, 0, LevelGrid::kNoMinX, [&](std::uint32_t j) {
-      if (j == i || movers_[j].fast) return true;
+      if (j == i || movers_[j].fast || !bits_pass(filters, me.slot, moving.entries[j].slot))
+        return true;
       const Mover& a = movers_[i];
       const Mover& b = movers_[j];
       const std::uint32_t sa = me.slot, sb = moving.entries[j].slot;

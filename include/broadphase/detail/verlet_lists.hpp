@@ -151,17 +151,23 @@ class VerletLists {
   /// and renews the lists of the movers whose boxes are new (all of them
   /// after a fixed-grid rebuild) from the two grids, `totals` being what
   /// refresh_boxes returned. The pools are the same for every thread count.
+  /// With `filters` (by slot; empty: none) a list leaves out the candidates
+  /// whose group/mask bits fail against its mover's: such lists hold until
+  /// a filter changes (the owner then renews them all, fixed_grid_rebuilt).
   void renew(const LevelGrid& fixed, const LevelGrid& moving, const Totals& totals,
-             const WorkShares& shares);
+             const WorkShares& shares, std::span<const Filter> filters = {});
 
   /// Bytes held by the records, pools and scratch.
   std::size_t memory_bytes() const;
   /// Checks the lists against the grids; `fixed_entry(slot)` is the fixed
   /// grid's entry of a slot's object when it is there. Throws
   /// std::logic_error naming what is wrong.
-  void validate(
-      const LevelGrid& fixed, const LevelGrid& moving, std::size_t slot_count,
-      const std::function<std::optional<std::uint32_t>(std::uint32_t)>& fixed_entry) const;
+  /// `filters` as renew() was given them; with `current` false (a filter
+  /// changed since), only the lists' layout is checked, not that they are
+  /// complete.
+  void validate(const LevelGrid& fixed, const LevelGrid& moving, std::size_t slot_count,
+                const std::function<std::optional<std::uint32_t>(std::uint32_t)>& fixed_entry,
+                std::span<const Filter> filters = {}, bool current = true) const;
 
  private:
   struct alignas(64) ShareTotals {  // on lines of its own: each share writes its own
@@ -178,7 +184,14 @@ class VerletLists {
   /// `renewed`.
   void renew_range(const LevelGrid& fixed, const LevelGrid& moving, std::size_t begin,
                    std::size_t end, std::vector<Candidate>& part, std::vector<std::uint32_t>& near,
-                   std::vector<std::uint32_t>& renewed);
+                   std::vector<std::uint32_t>& renewed, std::span<const Filter> filters);
+  /// The filter rule over slots, `filters` by slot (missing: the default).
+  static bool bits_pass(std::span<const Filter> filters, std::uint32_t a, std::uint32_t b) {
+    if (filters.empty()) return true;
+    const Filter fa = a < filters.size() ? filters[a] : Filter{};
+    const Filter fb = b < filters.size() ? filters[b] : Filter{};
+    return filters_pass(fa, fb);
+  }
 
   std::vector<Mover> movers_;                           // parallel to the moving grid's entries
   std::vector<Mover> old_movers_;                       // the records before a rebuild
