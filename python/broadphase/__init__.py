@@ -16,6 +16,11 @@ Arrays in, arrays out:
 - Pairs come back as an int64 (M, 2) array that owns its memory.
 - NaN, infinities, negative radii and wrong shapes raise ValueError naming
   the argument and the index.
+- Collision filters, optional on every call that builds pairs: ``groups``
+  and ``masks``, (N,) arrays of 32-bit bits; objects i and j pair only when
+  ``groups[i] & masks[j]`` and ``groups[j] & masks[i]`` are both non-zero
+  (Bullet's group/mask, Box2D's category/mask). One of the two alone takes
+  the default for the other (group 1, mask 0xffffffff).
 - Every call releases the GIL while it runs.
 
 >>> import numpy as np, broadphase
@@ -99,6 +104,42 @@ def _ids(ids):
     return np.ascontiguousarray(a, dtype=np.int64)
 
 
+def _filter_column(a, name: str):
+    if a is None:
+        return None
+    a = np.asarray(a)
+    if a.dtype.kind not in "iu":
+        raise ValueError(f"{name}: expected integers (32-bit filter bits), got dtype {a.dtype}")
+    if a.ndim != 1:
+        raise ValueError(f"{name}: expected shape (N,), got {a.shape}")
+    if a.size:
+        bad = np.flatnonzero((a < 0) | (a > 0xFFFFFFFF))
+        if len(bad):
+            raise ValueError(f"{name}[{bad[0]}] is {a[bad[0]]} (filter bits are 0 to 2**32 - 1)")
+    return np.ascontiguousarray(a, dtype=np.uint32)
+
+
+def _filters(groups, masks, n: int, prefix: str = ""):
+    """(groups, masks) as uint32 (n,) arrays, or (None, None) for no filters."""
+    if groups is None and masks is None:
+        return None, None
+    g = _filter_column(groups, prefix + "groups")
+    m = _filter_column(masks, prefix + "masks")
+    if g is None:
+        g = np.ones(n, dtype=np.uint32)
+    if m is None:
+        m = np.full(n, 0xFFFFFFFF, dtype=np.uint32)
+    for a, name in ((g, "groups"), (m, "masks")):
+        if a.shape[0] != n:
+            raise ValueError(
+                f"{prefix}{name}: expected {n} values (one per object), got {a.shape[0]}")
+    return g, m
+
+
+def _rows(centers) -> int:
+    return int(centers.shape[0]) if centers.ndim >= 1 else 0
+
+
 def _out(buf) -> np.ndarray:
     # numpy wraps the module's buffer without a copy; the buffer object is
     # the array's base and keeps the memory alive.
@@ -113,6 +154,8 @@ def pairs(
     *,
     sorted: bool = False,
     threads: int = 1,
+    groups=None,
+    masks=None,
 ) -> np.ndarray:
     """All overlapping pairs of a set of spheres and/or boxes.
 
@@ -125,27 +168,36 @@ def pairs(
         sorted: sort the pairs by i, then j (otherwise a deterministic
             order that does not depend on ``threads``).
         threads: threads to use (1: the calling thread only; 0: every core).
+        groups, masks: (N,) collision filter bits (see the module's
+            documentation); None: every pair passes.
 
     Returns:
         int64 array of shape (M, 2), each row ``i < j``.
 
     Raises:
-        ValueError: a wrong shape, NaN, infinity or negative size (the
+        ValueError: a wrong shape, NaN, infinity or negative size, filter
+            columns of another length or of a non-integer dtype (the
             message names the argument and the index).
     """
+    c = _centers(centers)
+    g, m = _filters(groups, masks, _rows(c))
     return _out(
         _broadphase.find_pairs(
-            _centers(centers),
+            c,
             _radii(radii),
             None if half_extents is None else _real(half_extents, "half_extents"),
             _kinds(kinds),
             bool(sorted),
             int(threads),
+            g,
+            m,
         )
     )
 
 
-def sphere_pairs(centers, radii, *, sorted: bool = False, threads: int = 1) -> np.ndarray:
+def sphere_pairs(
+    centers, radii, *, sorted: bool = False, threads: int = 1, groups=None, masks=None
+) -> np.ndarray:
     """All overlapping pairs of spheres: ``|ci - cj|^2 <= (ri + rj)^2``.
 
     Args:
@@ -153,16 +205,19 @@ def sphere_pairs(centers, radii, *, sorted: bool = False, threads: int = 1) -> n
         radii: a scalar (one radius for all) or an (N,) array; 0 is a point.
         sorted: sort the pairs by i, then j.
         threads: threads to use (1: the calling thread; 0: every core).
+        groups, masks: (N,) collision filter bits; None: every pair passes.
 
     Returns:
         int64 array of shape (M, 2), each row ``i < j``; touching counts.
     """
     if radii is None:
         raise ValueError("radii: give a scalar or one radius per sphere")
-    return pairs(centers, radii, sorted=sorted, threads=threads)
+    return pairs(centers, radii, sorted=sorted, threads=threads, groups=groups, masks=masks)
 
 
-def box_pairs(lo, hi, *, sorted: bool = False, threads: int = 1) -> np.ndarray:
+def box_pairs(
+    lo, hi, *, sorted: bool = False, threads: int = 1, groups=None, masks=None
+) -> np.ndarray:
     """All overlapping pairs of axis-aligned boxes ``[lo, hi]``.
 
     The library holds a box as centre ``(lo + hi) / 2`` and half-extent
@@ -173,7 +228,7 @@ def box_pairs(lo, hi, *, sorted: bool = False, threads: int = 1) -> np.ndarray:
 
     Args:
         lo, hi: (N, 3) corners, ``hi >= lo``.
-        sorted, threads: as for :func:`sphere_pairs`.
+        sorted, threads, groups, masks: as for :func:`sphere_pairs`.
 
     Returns:
         int64 array of shape (M, 2), each row ``i < j``; touching counts.
@@ -188,7 +243,8 @@ def box_pairs(lo, hi, *, sorted: bool = False, threads: int = 1) -> np.ndarray:
         if len(bad):
             i, a = bad[0]
             raise ValueError(f"hi[{i}, {a}] < lo[{i}, {a}] ({hi[i, a]!r} < {lo[i, a]!r})")
-    return pairs((lo + hi) / 2, half_extents=(hi - lo) / 2, sorted=sorted, threads=threads)
+    return pairs((lo + hi) / 2, half_extents=(hi - lo) / 2, sorted=sorted, threads=threads,
+                 groups=groups, masks=masks)
 
 
 def pairs_between(
@@ -202,8 +258,15 @@ def pairs_between(
     other_half_extents=None,
     other_kinds=None,
     threads: int = 1,
+    groups=None,
+    masks=None,
+    other_groups=None,
+    other_masks=None,
 ) -> np.ndarray:
     """Overlapping pairs between two sets (bipartite), one-shot.
+
+    ``groups``/``masks`` and ``other_groups``/``other_masks`` are each set's
+    collision filter bits (None: the default filter for that set).
 
     Returns:
         int64 (M, 2) array of ``(i, j)``, i a row of the first set, j of
@@ -211,17 +274,25 @@ def pairs_between(
     """
     if other_centers is None:
         raise ValueError("other_centers: the second set is missing")
+    c = _centers(centers)
+    oc = _centers(other_centers, "other_centers")
+    g, m = _filters(groups, masks, _rows(c))
+    og, om = _filters(other_groups, other_masks, _rows(oc), "other_")
     return _out(
         _broadphase.find_pairs_between(
-            _centers(centers),
+            c,
             _radii(radii),
             None if half_extents is None else _real(half_extents, "half_extents"),
             _kinds(kinds),
-            _centers(other_centers, "other_centers"),
+            oc,
             _radii(other_radii, "other_radii"),
             None if other_half_extents is None else _real(other_half_extents, "other_half_extents"),
             _kinds(other_kinds),
             int(threads),
+            g,
+            m,
+            og,
+            om,
         )
     )
 
@@ -315,6 +386,8 @@ class Index:
         threads: int = 1,
         skin: float = 0.0,
         spare_bytes: int = 0,
+        groups=None,
+        masks=None,
     ):
         """Builds the index and finds its pairs.
 
@@ -333,6 +406,9 @@ class Index:
                 objects overlap often (0: the library's default, 16 MiB;
                 ``ArrayOptions::spare_bytes``, docs/arrays.md). More is
                 faster on large crowded worlds if the memory is there.
+            groups, masks: (N,) collision filter bits (copied; change them
+                with :meth:`set_filters`); None: every pair passes. The
+                index's :meth:`query` is not filtered.
 
         Raises:
             ValueError: bad arrays (see :func:`find_pairs`), a negative
@@ -341,10 +417,13 @@ class Index:
         """
         # The compiled index holds buffer views of the arrays it borrows,
         # which keep them alive (and numpy from resizing them).
+        c = _centers(centers)
+        g, m = _filters(groups, masks, _rows(c))
         self._core = _IndexCore(
-            _centers(centers), _radii(radii),
+            c, _radii(radii),
             None if half_extents is None else _real(half_extents, "half_extents"), _kinds(kinds),
-            structure or "", int(threads), float(skin), _byte_count(spare_bytes, "spare_bytes"))
+            structure or "", int(threads), float(skin), _byte_count(spare_bytes, "spare_bytes"),
+            g, m)
 
     # -- what it is -------------------------------------------------------
 
@@ -413,12 +492,29 @@ class Index:
             return
         self._core.update_ids(_ids(a), _centers(b), r, hx)
 
-    def insert(self, centers, radii=None, half_extents=None, kinds=None) -> np.ndarray:
+    def insert(
+        self, centers, radii=None, half_extents=None, kinds=None, *, groups=None, masks=None
+    ) -> np.ndarray:
         """Adds objects; returns their new ids (int64). Makes the index owning
-        (the lean path copies your arrays once)."""
+        (the lean path copies your arrays once). ``groups``/``masks``: the new
+        objects' collision filter bits (None: the default filter)."""
+        c = _centers(centers)
+        g, m = _filters(groups, masks, _rows(c))
         return _out(self._core.insert(
-            _centers(centers), _radii(radii),
-            None if half_extents is None else _real(half_extents, "half_extents"), _kinds(kinds)))
+            c, _radii(radii),
+            None if half_extents is None else _real(half_extents, "half_extents"), _kinds(kinds),
+            g, m))
+
+    def set_filters(self, ids=None, *, groups=None, masks=None) -> None:
+        """Changes collision filters: object ``ids[k]`` takes ``groups[k]``
+        and ``masks[k]`` (with ``ids`` None, every live object in increasing
+        id order); one of the two alone leaves the default for the other.
+        The pairs are found again at once (a mutation, as :meth:`update`)."""
+        n = len(self) if ids is None else _ids(ids).shape[0]
+        g, m = _filters(groups, masks, n)
+        if g is None:
+            raise ValueError("set_filters: give groups, masks or both")
+        self._core.set_filters(None if ids is None else _ids(ids), g, m)
 
     def remove(self, ids) -> None:
         """Removes the objects ``ids`` (their ids are not reused). Makes the

@@ -23,6 +23,8 @@ def find_pairs(
     kinds: Optional[Any],
     sorted: bool,
     threads: int,
+    groups: Optional[Any] = None,
+    masks: Optional[Any] = None,
 ) -> IntArray: ...
 def find_pairs_between(
     centers: Any,
@@ -34,6 +36,10 @@ def find_pairs_between(
     other_half_extents: Optional[Any],
     other_kinds: Optional[Any],
     threads: int,
+    groups: Optional[Any] = None,
+    masks: Optional[Any] = None,
+    other_groups: Optional[Any] = None,
+    other_masks: Optional[Any] = None,
 ) -> IntArray: ...
 def structures() -> List[Tuple[str, str]]: ...
 def scratch_bytes() -> int: ...
@@ -51,6 +57,8 @@ class IndexCore:
         threads: int,
         skin: float,
         spare_bytes: int,
+        groups: Optional[Any] = None,
+        masks: Optional[Any] = None,
     ) -> None: ...
     def size(self) -> int: ...
     def borrowing(self) -> bool: ...
@@ -62,8 +70,15 @@ class IndexCore:
         self, ids: Any, centers: Any, radii: Optional[Any], half_extents: Optional[Any]
     ) -> None: ...
     def insert(
-        self, centers: Any, radii: Optional[Any], half_extents: Optional[Any], kinds: Optional[Any]
+        self,
+        centers: Any,
+        radii: Optional[Any],
+        half_extents: Optional[Any],
+        kinds: Optional[Any],
+        groups: Optional[Any] = None,
+        masks: Optional[Any] = None,
     ) -> IntArray: ...
+    def set_filters(self, ids: Optional[Any], groups: Any, masks: Any) -> None: ...
     def remove(self, ids: Any) -> None: ...
     def pairs(self, sorted: bool) -> IntArray: ...
     def count_pairs(self) -> int: ...

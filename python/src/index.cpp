@@ -28,9 +28,11 @@ IntArray PairChunks::next() {
 
 IndexCore::IndexCore(const py::buffer& centers, const py::object& radii, const py::object& half,
                      const py::object& kinds, const std::string& structure, unsigned threads,
-                     double skin, std::size_t spare_bytes)
+                     double skin, std::size_t spare_bytes, const py::object& groups,
+                     const py::object& masks)
     : spec_(structure), threads_(threads) {
   ObjectArrays o = object_arrays(centers, radii, half, kinds);
+  attach_filters(o, groups, masks);
   const std::size_t n = o.objects.count;
   id_of_slot_.resize(n);
   std::iota(id_of_slot_.begin(), id_of_slot_.end(), 0u);
@@ -41,8 +43,11 @@ IndexCore::IndexCore(const py::buffer& centers, const py::object& radii, const p
     bp::ArrayOptions options = array_options(threads, false, skin);
     options.spare_bytes = spare_bytes;
     tracker_ = std::make_unique<bp::PairTracker>(options);
+    group_ = std::move(o.groups);
+    mask_ = std::move(o.masks);
     borrowed_ = std::move(o);
     borrowed_py_ = {radii, half, kinds};
+    bind_filters();
     refresh_lean(bp::Changes::everything());
     return;
   }
@@ -54,6 +59,7 @@ IndexCore::IndexCore(const py::buffer& centers, const py::object& radii, const p
   handle_of_id_.reserve(n);
   for (std::size_t i = 0; i < n; ++i) {
     const bp::Handle h = structure_->insert(o.objects.shape(i), i);
+    if (!o.groups.empty()) structure_->set_filter(h, {o.groups[i], o.masks[i]});
     handle_of_id_.push_back(h);
     set_id_of_index(h.index, static_cast<std::uint32_t>(i));
   }
@@ -84,6 +90,7 @@ void IndexCore::update_all(const py::buffer& centers, const py::object& radii,
                      " rows; insert and remove give an owning index that can change it");
     borrowed_ = std::move(o);
     borrowed_py_ = {r, h, borrowed_py_[2]};
+    bind_filters();
     refresh_lean(bp::Changes::everything());
     return;
   }
@@ -124,9 +131,11 @@ void IndexCore::update_ids(const py::object& ids, const py::buffer& centers,
 }
 
 IntArray IndexCore::insert(const py::buffer& centers, const py::object& radii,
-                           const py::object& half, const py::object& kinds) {
+                           const py::object& half, const py::object& kinds,
+                           const py::object& groups, const py::object& masks) {
   UseCounter::Writing w(use_);
   ObjectArrays o = object_arrays(centers, radii, half, kinds);
+  attach_filters(o, groups, masks);
   const std::size_t n = o.objects.count;
   if (static_cast<std::uint64_t>(next_id_) + n >= std::numeric_limits<std::uint32_t>::max())
     throw BadInput("insert: more ids than 32 bits can name");
@@ -138,6 +147,7 @@ IntArray IndexCore::insert(const py::buffer& centers, const py::object& radii,
     for (std::size_t k = 0; k < n; ++k) {
       const std::uint32_t id = next_id_++;
       const bp::Handle h = structure_->insert(o.objects.shape(k), id);
+      if (!o.groups.empty()) structure_->set_filter(h, {o.groups[k], o.masks[k]});
       handle_of_id_.push_back(h);
       set_id_of_index(h.index, id);
       slot_of_id_.push_back(0);
@@ -148,11 +158,19 @@ IntArray IndexCore::insert(const py::buffer& centers, const py::object& radii,
     return out;
   }
   own();
+  if (!o.groups.empty() && group_.empty()) {
+    group_.assign(id_of_slot_.size(), bp::Filter{}.group);
+    mask_.assign(id_of_slot_.size(), bp::Filter{}.mask);
+  }
   {
     py::gil_scoped_release nogil;
     for (std::size_t k = 0; k < n; ++k) {
       const std::uint32_t id = next_id_++;
       const std::uint32_t slot = static_cast<std::uint32_t>(id_of_slot_.size());
+      if (!group_.empty()) {
+        group_.push_back(o.groups.empty() ? bp::Filter{}.group : o.groups[k]);
+        mask_.push_back(o.groups.empty() ? bp::Filter{}.mask : o.masks[k]);
+      }
       push_shape(o.objects.shape(k));
       identity_ = identity_ && slot == id;
       id_of_slot_.push_back(id);
@@ -205,6 +223,32 @@ void IndexCore::remove(const py::object& ids) {
   refresh_lean(bp::Changes::everything());
 }
 
+void IndexCore::set_filters(const py::object& ids, const py::buffer& groups,
+                            const py::buffer& masks) {
+  UseCounter::Writing w(use_);
+  const std::vector<std::uint32_t> id_list = ids.is_none() ? live_ids() : id_vector(ids);
+  const std::vector<std::uint32_t> g = filter_column(groups, "groups", id_list.size());
+  const std::vector<std::uint32_t> m = filter_column(masks, "masks", id_list.size());
+  if (structure_) {
+    py::gil_scoped_release nogil;
+    for (std::size_t k = 0; k < id_list.size(); ++k)
+      structure_->set_filter(handle_of_id_[id_list[k]], {g[k], m[k]});
+    dirty_ = true;
+    return;
+  }
+  if (group_.empty()) {
+    group_.assign(id_of_slot_.size(), bp::Filter{}.group);
+    mask_.assign(id_of_slot_.size(), bp::Filter{}.mask);
+  }
+  for (std::size_t k = 0; k < id_list.size(); ++k) {
+    group_[slot_of_id_[id_list[k]]] = g[k];
+    mask_[slot_of_id_[id_list[k]]] = m[k];
+  }
+  bind_filters();
+  // The tracker reads the filters as it hands the pairs over: nothing moved.
+  refresh_lean(bp::Changes::only({}));
+}
+
 IntArray IndexCore::pairs(bool sorted) {
   UseCounter::Reading r(use_);
   std::shared_ptr<const PairVec> snap = snapshot();
@@ -246,7 +290,11 @@ IntArray IndexCore::query(const py::buffer& centers, const py::object& radii,
         for (std::uint32_t id : hits) out.push_back({static_cast<std::uint32_t>(q), id});
       }
     } else {
-      bp::find_pairs(o.objects, lean_objects(), out, array_options(threads_, true));
+      // A query's objects have no filters: the index's are not applied.
+      bp::Objects mine = lean_objects();
+      mine.groups = {};
+      mine.masks = {};
+      bp::find_pairs(o.objects, mine, out, array_options(threads_, true));
       if (!identity_) {
         for (bp::IndexPair& p : out) p.j = id_of_slot_[p.j];
         sort_pairs(out, o.objects.count);
@@ -494,11 +542,19 @@ void IndexCore::push_shape(const bp::Shape& sh) {
 void IndexCore::copy_slot(std::size_t from, std::size_t to) {
   (kind_[to] == 0 ? spheres_ : boxes_)--;
   set_shape_raw(to, owned_shape(from), true);
+  if (!group_.empty()) {
+    group_[to] = group_[from];
+    mask_[to] = mask_[from];
+  }
 }
 
 void IndexCore::pop_slot() {
   const std::size_t s = r_.size() - 1;
   (kind_[s] == 0 ? spheres_ : boxes_)--;
+  if (!group_.empty()) {
+    group_.resize(s);
+    mask_.resize(s);
+  }
   xyz_.resize(3 * s);
   r_.resize(s);
   half_.resize(3 * s);
@@ -525,11 +581,23 @@ void IndexCore::rebind_owned() {
     static const double kNone = 0;
     o.radius = bp::Column::of(&kNone, 0);
   }
+  bind_filters();
+}
+
+void IndexCore::bind_filters() {
+  const std::span<const std::uint32_t> g = group_, m = mask_;
+  owned_objects_.groups = g;
+  owned_objects_.masks = m;
+  if (borrowed_) {
+    borrowed_->objects.groups = g;
+    borrowed_->objects.masks = m;
+  }
 }
 
 std::size_t IndexCore::owned_bytes() const {
   return xyz_.capacity() * 8 + r_.capacity() * 8 + half_.capacity() * 8 + kind_.capacity() +
-         id_of_slot_.capacity() * 4 + slot_of_id_.capacity() * 4;
+         (group_.capacity() + mask_.capacity()) * 4 + id_of_slot_.capacity() * 4 +
+         slot_of_id_.capacity() * 4;
 }
 
 bp::Aabb IndexCore::world_of(const bp::Objects& o) {

@@ -99,7 +99,7 @@ class IndexCore {
  public:
   IndexCore(const py::buffer& centers, const py::object& radii, const py::object& half,
             const py::object& kinds, const std::string& structure, unsigned threads, double skin,
-            std::size_t spare_bytes);
+            std::size_t spare_bytes, const py::object& groups, const py::object& masks);
 
   std::size_t size() const { return live_; }
   bool borrowing() const { return structure_ == nullptr && borrowed_.has_value(); }
@@ -124,7 +124,11 @@ class IndexCore {
   /// Adds objects; returns their new ids. Turns a borrowing index into an
   /// owning one.
   IntArray insert(const py::buffer& centers, const py::object& radii, const py::object& half,
-                  const py::object& kinds);
+                  const py::object& kinds, const py::object& groups, const py::object& masks);
+
+  /// Objects `ids` (all live ids in increasing order when None) take the
+  /// collision filters `groups[k]`, `masks[k]`; the pairs are found again.
+  void set_filters(const py::object& ids, const py::buffer& groups, const py::buffer& masks);
 
   /// Removes objects by id. Turns a borrowing index into an owning one.
   void remove(const py::object& ids);
@@ -209,6 +213,9 @@ class IndexCore {
   /// query after a change, one thread doing so while the others wait.
   std::shared_ptr<const PairVec> snapshot();
 
+  /// Points the lean objects at the filter columns (none when empty).
+  void bind_filters();
+
   std::string spec_;
   unsigned threads_ = 1;
   UseCounter use_;
@@ -229,6 +236,9 @@ class IndexCore {
   std::vector<py::object> borrowed_py_;  // radii, half-extents, kinds borrowed (or None)
   std::vector<double> xyz_, r_, half_;
   std::vector<std::uint8_t> kind_;
+  // lean: the collision filters by slot (copies, borrowing or owning); empty
+  // until an object gets one
+  std::vector<std::uint32_t> group_, mask_;
   std::size_t spheres_ = 0, boxes_ = 0;
   bp::Objects owned_objects_;
 

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 
 namespace broadphase_python {
@@ -159,6 +160,35 @@ ObjectArrays object_arrays(const py::buffer& centers, const py::object& radii,
     ob.kind_stride = o.kinds->stride;
   }
   return o;
+}
+
+std::vector<std::uint32_t> filter_column(const py::buffer& b, const char* name, std::size_t n) {
+  const py::buffer_info info = b.request();
+  std::string fmt = info.format;
+  if (!fmt.empty() && (fmt[0] == '<' || fmt[0] == '=' || fmt[0] == '@')) fmt = fmt.substr(1);
+  if (info.itemsize != 4 || !(fmt == "I" || fmt == "L"))
+    throw BadInput(std::string(name) + ": expected uint32 values, got buffer format '" +
+                   info.format + "' (the broadphase package converts other integer types first)");
+  if (info.ndim != 1 || static_cast<std::size_t>(info.shape[0]) != n)
+    throw BadInput(std::string(name) + ": expected shape (" + std::to_string(n) +
+                   ",), one value per object, got " + shape_text(info));
+  std::vector<std::uint32_t> out(n);
+  const auto* p = static_cast<const unsigned char*>(info.ptr);
+  for (std::size_t i = 0; i < n; ++i)
+    std::memcpy(&out[i], p + static_cast<std::ptrdiff_t>(i) * info.strides[0], 4);
+  return out;
+}
+
+void attach_filters(ObjectArrays& o, const py::object& groups, const py::object& masks,
+                    const char* groups_name, const char* masks_name) {
+  if (groups.is_none() && masks.is_none()) return;
+  if (groups.is_none() || masks.is_none())
+    throw BadInput(std::string("give both ") + groups_name + " and " + masks_name);
+  const std::size_t n = o.objects.count;
+  o.groups = filter_column(groups.cast<py::buffer>(), groups_name, n);
+  o.masks = filter_column(masks.cast<py::buffer>(), masks_name, n);
+  o.objects.groups = o.groups;
+  o.objects.masks = o.masks;
 }
 
 bp::Shape checked_box(const std::vector<double>& lo, const std::vector<double>& hi) {

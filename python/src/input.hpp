@@ -75,8 +75,20 @@ struct ObjectArrays {
   RealArray centers;
   std::optional<RealArray> radii, half;
   std::optional<KindArray> kinds;
+  // Collision filters, copied (8 bytes an object): empty, or one group and
+  // one mask per object; `objects.groups`/`masks` view them.
+  std::vector<std::uint32_t> groups, masks;
   bp::Objects objects;
 };
+
+/// Reads a uint32 (N,) column of filter bits (the package converts and
+/// range-checks other integer types first).
+std::vector<std::uint32_t> filter_column(const py::buffer& b, const char* name, std::size_t n);
+
+/// Reads `groups` and `masks` (both None: no filters; the package fills one
+/// that is missing with the default) into `o` and points its objects at them.
+void attach_filters(ObjectArrays& o, const py::object& groups, const py::object& masks,
+                    const char* groups_name = "groups", const char* masks_name = "masks");
 
 /// Reads and checks one set of objects (the GIL is held while the buffers
 /// are requested, and released for the value checks).

@@ -82,10 +82,13 @@ PYBIND11_MODULE(_broadphase, m) {
 
   m.def("find_pairs", &find_pairs_once, py::arg("centers"), py::arg("radii"),
         py::arg("half_extents"), py::arg("kinds"), py::arg("sorted"), py::arg("threads"),
-        "Overlapping pairs of one set of objects (int64 (M, 2), i < j).");
+        py::arg("groups") = py::none(), py::arg("masks") = py::none(),
+        "Overlapping pairs of one set of objects (int64 (M, 2), i < j) that pass the filters.");
   m.def("find_pairs_between", &find_pairs_between, py::arg("centers"), py::arg("radii"),
         py::arg("half_extents"), py::arg("kinds"), py::arg("other_centers"), py::arg("other_radii"),
         py::arg("other_half_extents"), py::arg("other_kinds"), py::arg("threads"),
+        py::arg("groups") = py::none(), py::arg("masks") = py::none(),
+        py::arg("other_groups") = py::none(), py::arg("other_masks") = py::none(),
         "Overlapping pairs (i in the first set, j in the second), sorted.");
   m.def(
       "scratch_bytes", [] { return bp::scratch_bytes() + broadphase_python::kept_output_bytes(); },
@@ -113,12 +116,14 @@ PYBIND11_MODULE(_broadphase, m) {
   py::class_<IndexCore>(m, "IndexCore", "The compiled index behind broadphase.Index.")
       .def(py::init([](const py::buffer& centers, const py::object& radii, const py::object& half,
                        const py::object& kinds, const std::string& structure, unsigned threads,
-                       double skin, std::size_t spare_bytes) {
+                       double skin, std::size_t spare_bytes, const py::object& groups,
+                       const py::object& masks) {
              return std::make_unique<IndexCore>(centers, radii, half, kinds, structure, threads,
-                                                skin, spare_bytes);
+                                                skin, spare_bytes, groups, masks);
            }),
            py::arg("centers"), py::arg("radii"), py::arg("half_extents"), py::arg("kinds"),
-           py::arg("structure"), py::arg("threads"), py::arg("skin"), py::arg("spare_bytes"))
+           py::arg("structure"), py::arg("threads"), py::arg("skin"), py::arg("spare_bytes"),
+           py::arg("groups") = py::none(), py::arg("masks") = py::none())
       .def("size", &IndexCore::size)
       .def("borrowing", &IndexCore::borrowing)
       .def("structure", &IndexCore::structure)
@@ -127,7 +132,11 @@ PYBIND11_MODULE(_broadphase, m) {
                             const py::object& half) { c.update_all(centers, radii, half); })
       .def("update_in_place", &IndexCore::update_in_place)
       .def("update_ids", &IndexCore::update_ids)
-      .def("insert", &IndexCore::insert)
+      .def("insert", &IndexCore::insert, py::arg("centers"), py::arg("radii"),
+           py::arg("half_extents"), py::arg("kinds"), py::arg("groups") = py::none(),
+           py::arg("masks") = py::none())
+      .def("set_filters", &IndexCore::set_filters, py::arg("ids"), py::arg("groups"),
+           py::arg("masks"))
       .def("remove", &IndexCore::remove)
       .def("pairs", &IndexCore::pairs)
       .def("count_pairs", &IndexCore::count_pairs)

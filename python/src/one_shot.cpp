@@ -38,8 +38,10 @@ IntArray pairs_array(Find&& find) {
 }  // namespace
 
 IntArray find_pairs_once(const py::buffer& centers, const py::object& radii, const py::object& half,
-                         const py::object& kinds, bool sorted, unsigned threads) {
+                         const py::object& kinds, bool sorted, unsigned threads,
+                         const py::object& groups, const py::object& masks) {
   ObjectArrays o = object_arrays(centers, radii, half, kinds);
+  attach_filters(o, groups, masks);
   return pairs_array([&](const bp::PairSink& sink) {
     bp::find_pairs(o.objects, sink, array_options(threads, sorted));
   });
@@ -48,11 +50,15 @@ IntArray find_pairs_once(const py::buffer& centers, const py::object& radii, con
 IntArray find_pairs_between(const py::buffer& a_centers, const py::object& a_radii,
                             const py::object& a_half, const py::object& a_kinds,
                             const py::buffer& b_centers, const py::object& b_radii,
-                            const py::object& b_half, const py::object& b_kinds, unsigned threads) {
+                            const py::object& b_half, const py::object& b_kinds, unsigned threads,
+                            const py::object& a_groups, const py::object& a_masks,
+                            const py::object& b_groups, const py::object& b_masks) {
   ObjectArrays a =
       object_arrays(a_centers, a_radii, a_half, a_kinds, "centers", "radii", "half_extents");
   ObjectArrays b = object_arrays(b_centers, b_radii, b_half, b_kinds, "other_centers",
                                  "other_radii", "other_half_extents");
+  attach_filters(a, a_groups, a_masks);
+  attach_filters(b, b_groups, b_masks, "other_groups", "other_masks");
   return pairs_array([&](const bp::PairSink& sink) {
     bp::find_pairs(a.objects, b.objects, sink, array_options(threads, true));
   });

@@ -18,12 +18,15 @@ bp::ArrayOptions array_options(unsigned threads, bool sorted, double skin = 0);
 
 /// One-shot: the overlapping pairs of one set as an int64 (M, 2) array.
 IntArray find_pairs_once(const py::buffer& centers, const py::object& radii, const py::object& half,
-                         const py::object& kinds, bool sorted, unsigned threads);
+                         const py::object& kinds, bool sorted, unsigned threads,
+                         const py::object& groups, const py::object& masks);
 
 /// One-shot bipartite: pairs (i in a, j in b), sorted by i then j.
 IntArray find_pairs_between(const py::buffer& a_centers, const py::object& a_radii,
                             const py::object& a_half, const py::object& a_kinds,
                             const py::buffer& b_centers, const py::object& b_radii,
-                            const py::object& b_half, const py::object& b_kinds, unsigned threads);
+                            const py::object& b_half, const py::object& b_kinds, unsigned threads,
+                            const py::object& a_groups, const py::object& a_masks,
+                            const py::object& b_groups, const py::object& b_masks);
 
 }  // namespace broadphase_python
