@@ -1,6 +1,7 @@
 // `broadphase run --arrays`: replays a scene through the lean path
-// (PairTracker over the scene's objects held as the caller's arrays),
-// printing the same `frame pairs hash` lines as any structure.
+// (PairTracker over the scene's objects held as the caller's arrays, with
+// their filter columns), printing the same `frame pairs hash` lines as any
+// structure.
 #include <broadphase/arrays/arrays.hpp>
 #include <broadphase/scenes/array_caller.hpp>
 #include <broadphase/scenes/scene.hpp>
@@ -17,14 +18,12 @@ namespace broadphase::app {
 
 void run_arrays(const std::string& path, int frames, bool json) {
   Scene scene = read_scene(path);
-  // The lean path has no filters nor rays yet: refuse rather than print
-  // lines that ignore them.
-  if (scene.has_filters() || scene.has_rays())
-    throw SceneError(path + ": the lean path (--arrays) does not take " +
-                     (scene.has_filters() && scene.has_rays() ? "filters and rays"
-                      : scene.has_filters()                   ? "filters"
-                                                              : "rays") +
-                     " yet; run this scene with --algo NAME");
+  // The lean path casts no rays yet: refuse rather than print lines
+  // without the hits.
+  if (scene.has_rays())
+    throw SceneError(path +
+                     ": the lean path (--arrays) does not cast rays yet; run this scene "
+                     "with --algo NAME");
   ArrayCaller caller(std::move(scene));
   const std::size_t n = caller.size();
   const Objects objects = caller.objects();

@@ -22,6 +22,14 @@ ArrayCaller::ArrayCaller(const Scene& scene) : world_(scene.world), boxes_(scene
     }
     if (scene.is_moving(i)) movers_.push_back(static_cast<std::uint32_t>(i));
   }
+  if (scene.has_filters()) {
+    groups_.reserve(n);
+    masks_.reserve(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      groups_.push_back(scene.filter(i).group);
+      masks_.push_back(scene.filter(i).mask);
+    }
+  }
   // Only the movers' velocities are kept, in the movers' order.
   for (auto* v : {&vx_, &vy_, &vz_}) v->reserve(movers_.size());
   for (std::uint32_t i : movers_) {
@@ -44,6 +52,8 @@ Objects ArrayCaller::objects() const {
     o.half_z = Column::of(hz_.data());
     o.kind = kind_.data();
   }
+  o.groups = groups_;
+  o.masks = masks_;
   return o;
 }
 
@@ -61,7 +71,8 @@ std::size_t ArrayCaller::step() {
 }
 
 std::size_t ArrayCaller::bytes() const {
-  return x_.size() * (boxes_ ? 6 * sizeof(double) + 1 : 4 * sizeof(double));
+  return x_.size() * (boxes_ ? 6 * sizeof(double) + 1 : 4 * sizeof(double)) +
+         (groups_.size() + masks_.size()) * sizeof(std::uint32_t);
 }
 
 }  // namespace broadphase

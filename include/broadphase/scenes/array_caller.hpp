@@ -17,8 +17,9 @@ namespace broadphase {
 /// The caller's arrays of one scene. Spheres only: x, y, z and a radius
 /// column (32 bytes per object). With boxes: x, y, z, three half-extent
 /// columns (a sphere's radius is its half_x) and a kind byte (57 bytes per
-/// object). The velocities are the caller's too, but the lean path never
-/// reads them, so `bytes()` leaves them out.
+/// object). With filters (version 3), a group and a mask column too (8
+/// bytes more per object). The velocities are the caller's too, but the
+/// lean path never reads them, so `bytes()` leaves them out.
 class ArrayCaller {
  public:
   explicit ArrayCaller(const Scene& scene);
@@ -31,7 +32,8 @@ class ArrayCaller {
   /// Returns the first mover whose centre is no longer finite (its motion
   /// overflowed a double), or SIZE_MAX.
   std::size_t step();
-  /// Bytes of the columns the lean path reads (centres, sizes, kinds).
+  /// Bytes of the columns the lean path reads (centres, sizes, kinds,
+  /// filters).
   std::size_t bytes() const;
   std::size_t size() const { return x_.size(); }
 
@@ -40,6 +42,7 @@ class ArrayCaller {
   bool boxes_ = false;
   std::vector<double> x_, y_, z_, hx_, hy_, hz_, vx_, vy_, vz_;
   std::vector<std::uint8_t> kind_;
+  std::vector<std::uint32_t> groups_, masks_;  // empty without filters
   std::vector<std::uint32_t> movers_;
 };
 
