@@ -177,11 +177,14 @@ struct Stats {
   double local_seconds = 0;         ///< the local structure's build and pairs
 };
 
-/// What travels for one object in the ghost exchange: its shape and
-/// global id (64 bytes).
+/// What travels for one object in the ghost exchange: its shape, global
+/// id and collision filter (72 bytes). The filter travels with every copy,
+/// so that the rank which reports a pair (the pair rule above) tests both
+/// objects' own bits, whichever ranks own them.
 struct GhostRecord {
   Shape shape;
   std::uint32_t id = 0;
+  Filter filter;
 };
 
 /// A borrowed view (arrays.hpp) of `count` shapes laid out every
@@ -281,8 +284,20 @@ class Domain {
   /// message names the rank and the id) or any rank failed.
   void find_pairs(std::span<const std::uint32_t> ids, std::span<const Shape> shapes,
                   std::vector<IdPair>& out);
+  /// The same with collision filters: object i's group bits `groups[i]`
+  /// and mask bits `masks[i]` (Filter, geometry.hpp), as the lean path's
+  /// `Objects::groups` and `masks`: a pair is reported only when
+  /// `filters_pass` holds for its two objects. Both empty: every object has
+  /// the default Filter. Otherwise both hold one value per shape (else
+  /// MpiError on every rank, naming the rank). The bits may change from one
+  /// call to the next; each call sends them with the ghosts.
+  void find_pairs(std::span<const std::uint32_t> ids, std::span<const Shape> shapes,
+                  std::span<const std::uint32_t> groups, std::span<const std::uint32_t> masks,
+                  std::vector<IdPair>& out);
   /// The same over a borrowed view of the caller's arrays: object i of
-  /// `objects` has global id `ids[i]`.
+  /// `objects` has global id `ids[i]`, and the filter of
+  /// `objects.groups[i]`, `objects.masks[i]` when those columns are given
+  /// (both or neither, one value per object: else MpiError on every rank).
   void find_pairs(std::span<const std::uint32_t> ids, const Objects& objects,
                   std::vector<IdPair>& out);
 
@@ -327,6 +342,7 @@ class Domain {
   // find_pairs over any reader of this rank's shapes.
   template <class ShapeAt>
   void find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count, ShapeAt shape_at,
+                     std::span<const std::uint32_t> groups, std::span<const std::uint32_t> masks,
                      std::vector<IdPair>& out);
   // Makes room for `count` records in local_ from `used` on without
   // shrinking it (so a frame like the last one writes no fresh pages).
@@ -343,6 +359,9 @@ class Domain {
   // and what is sent.
   std::vector<GhostRecord> local_, sent_, shared_mine_;
   std::vector<std::uint32_t> local_ids_;
+  // The filters of local_'s records as the lean path's columns, filled
+  // only when some record's filter is not the default.
+  std::vector<std::uint32_t> local_groups_, local_masks_;
   std::vector<int> dest_;
   std::vector<std::byte> send_buffer_;
   std::size_t local_used_ = 0;
@@ -382,7 +401,10 @@ class PairTracker {
   /// beyond its skin on some rank, or new cuts.
   bool rebuild_due(const Objects& objects);
   /// Collective. As Domain::find_pairs: every overlapping pair of the
-  /// world once, on one rank; MpiError on every rank for bad input.
+  /// world once, on one rank; MpiError on every rank for bad input. The
+  /// filters of `objects.groups` and `masks` (optional, as there) may
+  /// change between calls without a rebuild: a ghost whose filter changed
+  /// travels along the kept lists as one whose shape changed does.
   void find_pairs(std::span<const std::uint32_t> ids, const Objects& objects,
                   std::vector<IdPair>& out);
   /// What the last find_pairs did on this rank.
@@ -397,9 +419,12 @@ class PairTracker {
   void rebuild(std::span<const std::uint32_t> ids, const Objects& objects);
   // Copies this rank's shapes in and says whether a rebuild is due here.
   bool take(const Objects& objects);
-  // Sends the shapes that changed along the kept ghost lists, and the
-  // shared list whole.
+  // Sends the shapes and filters that changed along the kept ghost lists,
+  // and the shared list whole.
   void refresh();
+  // The lean path's filter columns over the rank's objects and ghosts, when
+  // any has a filter (`own`: the caller gave this rank's).
+  void fill_filters(bool own);
   Domain& domain_;
   double skin_;
   Stats stats_;

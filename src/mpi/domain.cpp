@@ -409,24 +409,32 @@ void Domain::find_pairs(std::span<const std::uint32_t> ids, const Objects& objec
   agree(ids.size() != objects.count
             ? "rank " + std::to_string(rank_) + ": " + std::to_string(ids.size()) + " ids for " +
                   std::to_string(objects.count) + " objects"
-            : std::string());
+            : detail::filter_columns_error(rank_, objects.groups, objects.masks, objects.count));
   find_pairs_of(
-      ids, objects.count, [&](std::size_t i) { return objects.shape(i); }, out);
+      ids, objects.count, [&](std::size_t i) { return objects.shape(i); }, objects.groups,
+      objects.masks, out);
 }
 
 void Domain::find_pairs(std::span<const std::uint32_t> ids, std::span<const Shape> shapes,
                         std::vector<IdPair>& out) {
+  find_pairs(ids, shapes, {}, {}, out);
+}
+
+void Domain::find_pairs(std::span<const std::uint32_t> ids, std::span<const Shape> shapes,
+                        std::span<const std::uint32_t> groups, std::span<const std::uint32_t> masks,
+                        std::vector<IdPair>& out) {
   agree(ids.size() != shapes.size()
             ? "rank " + std::to_string(rank_) + ": " + std::to_string(ids.size()) + " ids for " +
                   std::to_string(shapes.size()) + " shapes"
-            : std::string());
+            : detail::filter_columns_error(rank_, groups, masks, shapes.size()));
   find_pairs_of(
-      ids, shapes.size(), [&](std::size_t i) { return shapes[i]; }, out);
+      ids, shapes.size(), [&](std::size_t i) { return shapes[i]; }, groups, masks, out);
 }
 
 template <class ShapeAt>
 void Domain::find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count, ShapeAt shape_at,
-                           std::vector<IdPair>& out) {
+                           std::span<const std::uint32_t> groups,
+                           std::span<const std::uint32_t> masks, std::vector<IdPair>& out) {
   stats_ = Stats{};
   stats_.owned = count;
   const auto t0 = std::chrono::steady_clock::now();
@@ -457,8 +465,9 @@ void Domain::find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count
       break;
     }
     const Aabb box = bounds(s);
+    const Record record{s, ids[i], detail::filter_at(groups, masks, i)};
     if (partition_.alone(rank_, box, margin)) {
-      inner[used] = {s, ids[i]};
+      inner[used] = record;
       local_ids_[used] = ids[i];
       ++used;
       continue;
@@ -466,14 +475,14 @@ void Domain::find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count
     reach.clear();
     partition_.ranks_meeting(box, margin, reach);
     if (static_cast<int>(reach.size()) > options_.max_ghost_ranks) {
-      shared_mine_.push_back({s, ids[i]});
+      shared_mine_.push_back(record);
       continue;
     }
     for (int r : reach)
       if (r == rank_) {
-        near_self.push_back({s, ids[i]});
+        near_self.push_back(record);
       } else {
-        sent_.push_back({s, ids[i]});
+        sent_.push_back(record);
         dest_.push_back(r);
       }
   }
@@ -503,7 +512,23 @@ void Domain::find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count
   used += static_cast<std::size_t>(total) / sizeof(Record);
   MPI_Allgatherv(shared_mine_.data(), mine, MPI_BYTE, grow_local(before, used - before),
                  counts.data(), displs.data(), MPI_BYTE, comm_);
-  for (std::size_t i = anchored; i < used; ++i) local_ids_[i] = local_[i].id;
+  // The lean path is given filter columns only when some record here has
+  // a filter other than the default: this rank's own objects when the
+  // caller gave columns, or a ghost or shared object that came with one
+  // (a rank without columns of its own may still hold filtered ghosts).
+  bool filtered = !groups.empty();
+  for (std::size_t i = anchored; i < used; ++i) {
+    local_ids_[i] = local_[i].id;
+    filtered = filtered || !(local_[i].filter == Filter{});
+  }
+  if (filtered) {
+    local_groups_.resize(used);
+    local_masks_.resize(used);
+    for (std::size_t i = 0; i < used; ++i) {
+      local_groups_[i] = local_[i].filter.group;
+      local_masks_[i] = local_[i].filter.mask;
+    }
+  }
   local_used_ = used;
   stats_.shared = static_cast<std::uint64_t>(total) / sizeof(Record);
   stats_.ghosts += stats_.shared - shared_mine_.size();
@@ -531,9 +556,13 @@ void Domain::find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count
       // The lean path reads the records in place (arrays.hpp): no
       // structure is built and no copy made.
       // (A rank with nothing local has no record to point into.)
-      const Objects view = used == 0 ? Objects{}
-                                     : shapes_view(&local[0].shape, used,
-                                                   static_cast<std::ptrdiff_t>(sizeof(Record)));
+      Objects view = used == 0 ? Objects{}
+                               : shapes_view(&local[0].shape, used,
+                                             static_cast<std::ptrdiff_t>(sizeof(Record)));
+      if (filtered && used > 0) {
+        view.groups = {local_groups_.data(), used};
+        view.masks = {local_masks_.data(), used};
+      }
       broadphase::find_pairs(view, [&](std::span<const IndexPair> chunk) {
         for (const IndexPair& p : chunk)
           if (!keep(p.i, p.j)) return false;
@@ -552,7 +581,10 @@ void Domain::find_pairs_of(std::span<const std::uint32_t> ids, std::size_t count
       if (usable) config.world = clipped;
       config.expected_objects = used;
       auto structure = make_structure(options_.algo, config);
-      for (std::size_t i = 0; i < used; ++i) structure->insert(local[i].shape, i);
+      // The filters inside the structure's own walk (set_filter when not
+      // the default), as on one process.
+      for (std::size_t i = 0; i < used; ++i)
+        structure->insert(local[i].shape, i, Motion::dynamic, local[i].filter);
       std::vector<HandlePair> pairs;
       structure->find_pairs(pairs);
       for (const HandlePair& p : pairs)

@@ -33,6 +33,16 @@ bool inside(const Aabb& in, const Aabb& out) {
          out.lo.z <= in.lo.z && in.hi.z <= out.hi.z;
 }
 
+// What a refresh sends of an object whose copies it keeps: its shape and
+// filter (64 bytes), without the id the receiver already knows.
+struct Placed {
+  Shape shape;
+  Filter filter;
+  friend bool operator==(const Placed&, const Placed&) = default;
+};
+
+Placed placed(const GhostRecord& r) { return {r.shape, r.filter}; }
+
 }  // namespace
 
 // What is kept between rebuilds. local holds this rank's objects at their
@@ -46,15 +56,19 @@ struct PairTracker::State {
   std::vector<std::uint32_t> send_index;          // objects sent, in send order
   std::vector<int> send_dest;                     // and where
   std::vector<std::uint32_t> shared_index;        // this rank's objects in the shared list
-  std::vector<int> shared_counts, shared_displs;  // bytes of Shapes per rank
+  std::vector<int> shared_counts, shared_displs;  // bytes of Placed per rank
   std::size_t ghosts = 0, shared_others = 0, shared_total = 0;
   std::vector<GhostRecord> local;
   std::vector<std::uint32_t> local_ids;
   std::vector<std::uint8_t> alone;  // bounds stay inside this subdomain
-  std::vector<Shape> shared_mine, shared_all;
-  // The shape each listed ghost had when it was last sent (what its
-  // receiver holds), and the changed ones of a refresh with their ids.
-  std::vector<Shape> sent;
+  // The filters of `local` as the lean path's columns, filled when some
+  // record's filter is not the default (`filtered`).
+  std::vector<std::uint32_t> groups, masks;
+  bool filtered = false;
+  std::vector<Placed> shared_mine, shared_all;
+  // The shape and filter each listed ghost had when it was last sent (what
+  // its receiver holds), and the changed ones of a refresh with their ids.
+  std::vector<Placed> sent;
   std::vector<GhostRecord> changed;
   std::vector<int> changed_dest;
   // The ghosts received, (id, slot in local) by id: where a changed one goes.
@@ -86,12 +100,15 @@ bool PairTracker::beyond_skin(const Objects& objects) const {
 bool PairTracker::take(const Objects& objects) {
   State& st = *state_;
   if (!st.valid || objects.count != st.count || domain_.cuts() != st.cuts) return true;
-  // One pass: the copy a refresh needs and the skin check (a rebuild
-  // overwrites the copy).
+  // One pass: the copy a refresh needs (shape and filter: a filter that
+  // changed travels as a changed shape does, and needs no rebuild since
+  // the ghost lists depend on the bounds alone) and the skin check (a
+  // rebuild overwrites the copy).
   bool beyond = false;
   for (std::size_t i = 0; i < objects.count; ++i) {
     const Shape s = objects.shape(i);
     st.local[i].shape = s;
+    st.local[i].filter = detail::filter_at(objects.groups, objects.masks, i);
     beyond |= !is_valid(s) || !inside(bounds(s), st.fat[i]);
   }
   return beyond;
@@ -106,10 +123,11 @@ bool PairTracker::rebuild_due(const Objects& objects) {
 void PairTracker::find_pairs(std::span<const std::uint32_t> ids, const Objects& objects,
                              std::vector<IdPair>& out) {
   const int rank = domain_.rank();
-  domain_.agree(ids.size() != objects.count
-                    ? "rank " + std::to_string(rank) + ": " + std::to_string(ids.size()) +
-                          " ids for " + std::to_string(objects.count) + " objects"
-                    : std::string());
+  domain_.agree(
+      ids.size() != objects.count
+          ? "rank " + std::to_string(rank) + ": " + std::to_string(ids.size()) + " ids for " +
+                std::to_string(objects.count) + " objects"
+          : detail::filter_columns_error(rank, objects.groups, objects.masks, objects.count));
   stats_ = Stats{};
   stats_.owned = objects.count;
   const Stats before = domain_.stats();
@@ -122,14 +140,16 @@ void PairTracker::find_pairs(std::span<const std::uint32_t> ids, const Objects& 
     rebuild(ids, objects);
   else
     refresh();
+  fill_filters(!objects.groups.empty());
   stats_.rebuilt = any != 0;
   stats_.ghosts = st.ghosts + st.shared_others;
   stats_.shared = st.shared_total;
   stats_.bytes_sent = domain_.stats().bytes_sent - before.bytes_sent;
   stats_.messages_sent = domain_.stats().messages_sent - before.messages_sent;
   if (!st.shared_index.empty() && domain_.size() > 1) {
-    // The shared list goes to every other rank: records, then shapes.
-    const std::size_t each = stats_.rebuilt ? sizeof(GhostRecord) : sizeof(Shape);
+    // The shared list goes to every other rank: records, then shapes with
+    // their filters.
+    const std::size_t each = stats_.rebuilt ? sizeof(GhostRecord) : sizeof(Placed);
     const auto others = static_cast<std::uint64_t>(domain_.size() - 1);
     stats_.bytes_sent += st.shared_index.size() * each * others;
     stats_.messages_sent += others;
@@ -153,9 +173,13 @@ void PairTracker::find_pairs(std::span<const std::uint32_t> ids, const Objects& 
       return detail::keep_pair(partition, rank, local, local_id, i, j, (alone[i] | alone[j]) != 0,
                                out, error);
     };
-    const Objects view =
+    Objects view =
         n == 0 ? Objects{}
                : shapes_view(&local[0].shape, n, static_cast<std::ptrdiff_t>(sizeof(GhostRecord)));
+    if (st.filtered && n > 0) {
+      view.groups = {st.groups.data(), n};
+      view.masks = {st.masks.data(), n};
+    }
     const PairSink sink = [&](std::span<const IndexPair> chunk) {
       for (const IndexPair& p : chunk)
         if (!keep(p.i, p.j)) return false;
@@ -207,7 +231,7 @@ void PairTracker::rebuild(std::span<const std::uint32_t> ids, const Objects& obj
     const Shape s = objects.shape(i);
     const Aabb fat = grown(bounds(s), skin_);
     st.fat[i] = fat;
-    st.local[i] = {s, ids[i]};
+    st.local[i] = {s, ids[i], detail::filter_at(objects.groups, objects.masks, i)};
     const bool alone = partition.alone(me, fat, margin);
     st.alone[i] = alone ? 1 : 0;
     if (alone) continue;
@@ -231,7 +255,7 @@ void PairTracker::rebuild(std::span<const std::uint32_t> ids, const Objects& obj
   st.ghosts = received.size();
   st.local.insert(st.local.end(), received.begin(), received.end());
   st.sent.resize(records.size());
-  for (std::size_t k = 0; k < records.size(); ++k) st.sent[k] = records[k].shape;
+  for (std::size_t k = 0; k < records.size(); ++k) st.sent[k] = placed(records[k]);
   st.ghost_slot.resize(received.size());
   for (std::size_t g = 0; g < received.size(); ++g)
     st.ghost_slot[g] = {received[g].id, static_cast<std::uint32_t>(n + g)};
@@ -258,9 +282,9 @@ void PairTracker::rebuild(std::span<const std::uint32_t> ids, const Objects& obj
   st.shared_displs.resize(counts.size());
   for (std::size_t r = 0; r < counts.size(); ++r) {
     st.shared_counts[r] =
-        counts[r] / static_cast<int>(sizeof(GhostRecord)) * static_cast<int>(sizeof(Shape));
+        counts[r] / static_cast<int>(sizeof(GhostRecord)) * static_cast<int>(sizeof(Placed));
     st.shared_displs[r] =
-        displs[r] / static_cast<int>(sizeof(GhostRecord)) * static_cast<int>(sizeof(Shape));
+        displs[r] / static_cast<int>(sizeof(GhostRecord)) * static_cast<int>(sizeof(Placed));
     if (static_cast<int>(r) == me) continue;  // this rank's are at their own index
     const auto* from = all.data() + displs[r] / static_cast<int>(sizeof(GhostRecord));
     st.local.insert(st.local.end(), from, from + counts[r] / static_cast<int>(sizeof(GhostRecord)));
@@ -276,15 +300,16 @@ void PairTracker::rebuild(std::span<const std::uint32_t> ids, const Objects& obj
 void PairTracker::refresh() {
   State& st = *state_;
   st.valid = false;  // until this refresh ends
-  // Only the ghosts whose shape changed since they were last sent, each
-  // with its id (a rank's movers are a fifth of its objects in the lab's
-  // scenes, and its quiet ghosts need nothing). They arrive by source rank.
+  // Only the ghosts whose shape or filter changed since they were last
+  // sent, each with its id (a rank's movers are a fifth of its objects in
+  // the lab's scenes, and its quiet ghosts need nothing). They arrive by
+  // source rank.
   st.changed.clear();
   st.changed_dest.clear();
   for (std::size_t k = 0; k < st.send_index.size(); ++k) {
     const GhostRecord& g = st.local[st.send_index[k]];
-    if (g.shape == st.sent[k]) continue;
-    st.sent[k] = g.shape;
+    if (placed(g) == st.sent[k]) continue;
+    st.sent[k] = placed(g);
     st.changed.push_back(g);
     st.changed_dest.push_back(st.send_dest[k]);
   }
@@ -300,26 +325,49 @@ void PairTracker::refresh() {
       break;
     }
     st.local[at->second].shape = g.shape;
+    st.local[at->second].filter = g.filter;
   }
   domain_.agree(error);
-  auto place = [&](std::size_t slot, const Shape& s) { st.local[slot].shape = s; };
+  auto place = [&](std::size_t slot, const Placed& p) {
+    st.local[slot].shape = p.shape;
+    st.local[slot].filter = p.filter;
+  };
 
   const int me = domain_.rank();
   st.shared_mine.resize(st.shared_index.size());
   for (std::size_t k = 0; k < st.shared_mine.size(); ++k)
-    st.shared_mine[k] = st.local[st.shared_index[k]].shape;
+    st.shared_mine[k] = placed(st.local[st.shared_index[k]]);
   st.shared_all.resize(st.shared_total);
-  MPI_Allgatherv(st.shared_mine.data(), static_cast<int>(st.shared_mine.size() * sizeof(Shape)),
+  MPI_Allgatherv(st.shared_mine.data(), static_cast<int>(st.shared_mine.size() * sizeof(Placed)),
                  MPI_BYTE, st.shared_all.data(), st.shared_counts.data(), st.shared_displs.data(),
                  MPI_BYTE, domain_.comm());
   std::size_t slot = st.count + st.ghosts;
   for (std::size_t r = 0; r < st.shared_counts.size(); ++r) {
     if (static_cast<int>(r) == me) continue;
-    const std::size_t from = static_cast<std::size_t>(st.shared_displs[r]) / sizeof(Shape);
-    const std::size_t k = static_cast<std::size_t>(st.shared_counts[r]) / sizeof(Shape);
+    const std::size_t from = static_cast<std::size_t>(st.shared_displs[r]) / sizeof(Placed);
+    const std::size_t k = static_cast<std::size_t>(st.shared_counts[r]) / sizeof(Placed);
     for (std::size_t q = 0; q < k; ++q) place(slot++, st.shared_all[from + q]);
   }
   st.valid = true;
+}
+
+void PairTracker::fill_filters(bool own) {
+  // Columns for the lean path only when some record's filter is not the
+  // default: this rank's objects when the caller gave columns, or a ghost
+  // or shared object that came with one.
+  State& st = *state_;
+  const std::size_t n = st.local.size();
+  bool filtered = own;
+  for (std::size_t i = st.count; !filtered && i < n; ++i)
+    filtered = !(st.local[i].filter == Filter{});
+  st.filtered = filtered;
+  if (!filtered) return;
+  st.groups.resize(n);
+  st.masks.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    st.groups[i] = st.local[i].filter.group;
+    st.masks[i] = st.local[i].filter.mask;
+  }
 }
 
 }  // namespace broadphase::mpi
