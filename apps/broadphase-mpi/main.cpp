@@ -5,11 +5,12 @@
 //   mpirun -np P broadphase-mpi check --scene F... [--nasty]   (tests: one process vs P ranks)
 //   broadphase-mpi gen --gen KIND --n N --seed S --out F        (a counter-generated scene file)
 //
-// Rank 0 prints what `broadphase run` prints. Errors: a failure agreed by
-// every rank (a bad scene, a bad option, an invalid object, a rank that
-// threw inside a collective step) prints the message on rank 0 and every
-// rank exits with status 1; anything else prints on the rank that failed
-// and aborts the whole job (MPI_Abort), so no run can hang.
+// Rank 0 prints what `broadphase run` prints, with version 3 scenes'
+// collision filters; scenes with rays are refused (not cast over MPI yet).
+// Errors: a failure agreed by every rank (a bad scene, a bad option, an
+// invalid object, a rank that threw inside a collective step) prints the
+// message on rank 0 and every rank exits with status 1; anything else prints on the rank that
+// failed and aborts the whole job (MPI_Abort), so no run can hang.
 #include <mpi.h>
 
 #include <CLI/CLI.hpp>

@@ -40,10 +40,15 @@ std::uint64_t block_begin(std::uint64_t n, int rank, int size) {
 Share scatter_share(MPI_Comm comm, const Scene& scene) {
   const int rank = rank_of(comm), size = size_of(comm);
   Share s;
-  double head[2] = {scene.world, static_cast<double>(scene.size())};
-  MPI_Bcast(head, 2, MPI_DOUBLE, 0, comm);
+  double head[4] = {scene.world, static_cast<double>(scene.size()), scene.has_filters() ? 1.0 : 0.0,
+                    scene.has_rays() ? 1.0 : 0.0};
+  MPI_Bcast(head, 4, MPI_DOUBLE, 0, comm);
   s.world = head[0];
   s.n = static_cast<std::uint64_t>(head[1]);
+  s.filtered = head[2] != 0;
+  agree(comm, head[3] != 0 ? "the scene has rays, which broadphase-mpi does not cast yet "
+                             "(`broadphase run` casts them on one process)"
+                           : "");
   std::string error;
   if (s.n > std::numeric_limits<std::uint32_t>::max())
     error = "the scene has more objects than 32-bit ids can name";
@@ -60,7 +65,8 @@ Share scatter_share(MPI_Comm comm, const Scene& scene) {
   if (rank == 0) {
     all.resize(s.n);
     for (std::size_t i = 0; i < s.n; ++i)
-      all[i] = {scene.objects[i], scene.velocity[i], static_cast<std::uint32_t>(i)};
+      all[i] = {scene.objects[i], scene.velocity[i], static_cast<std::uint32_t>(i),
+                scene.filter(i)};
   }
   // Byte displacements are ints: the whole scene must stay below 2 GB here.
   agree(comm, rank == 0 && static_cast<double>(s.n) * sizeof(Body) > 2e9
@@ -105,7 +111,7 @@ Share generate_share(MPI_Comm comm, Distribution d, std::uint64_t n, std::uint64
   agree(comm, error);
   s.bodies.reserve(shapes.size());
   for (std::size_t i = 0; i < shapes.size(); ++i)
-    s.bodies.push_back({shapes[i], velocity[i], static_cast<std::uint32_t>(b + i)});
+    s.bodies.push_back({shapes[i], velocity[i], static_cast<std::uint32_t>(b + i), Filter{}});
   return s;
 }
 
@@ -114,7 +120,8 @@ MpiReplay::MpiReplay(MPI_Comm comm, Share share, const mpi::Options& options, do
       world_(share.world),
       domain_(comm, Aabb{{0, 0, 0}, {share.world, share.world, share.world}}, options),
       skin_(skin),
-      bodies_(std::move(share.bodies)) {
+      bodies_(std::move(share.bodies)),
+      filtered_(share.filtered) {
   if (skin > 0) {
     agree(comm, options.algo != mpi::kLeanPath
                     ? "a skin works with the lean path (--algo arrays) only"
@@ -141,8 +148,8 @@ MpiReplay::MpiReplay(MPI_Comm comm, Share share, const mpi::Options& options, do
   FrameReport unused;
   migrate(unused);
   // Room for arrivals: a rank that receives more than it sends would
-  // otherwise grow its bodies by a copy of all of them (80 MB at 1 024 000
-  // objects) in the middle of a frame, which showed as 25-30 ms of
+  // otherwise grow its bodies by a copy of all of them (98 MB at 1 024 000
+  // objects of 96 bytes) in the middle of a frame, which showed as 25-30 ms of
   // "migration" in the mean over 10-20 frames of the weak-scaling runs.
   bodies_.reserve(bodies_.size() + bodies_.size() / 16 + 1024);
 }
@@ -211,11 +218,17 @@ FrameReport MpiReplay::next() {
   // (with a skin, between rebuilds: within the skin of it).
   t = std::chrono::steady_clock::now();
   ids_.clear();
+  groups_.clear();
+  masks_.clear();
   std::uint64_t local[3] = {bodies_.size(), 0, 0}, x = 0;
   const double slack = r.rebuilt ? 0 : skin_;
   const Aabb& region = domain_.partition().region(rank);
   for (const Body& b : bodies_) {
     ids_.push_back(b.id);
+    if (filtered_) {
+      groups_.push_back(b.filter.group);
+      masks_.push_back(b.filter.mask);
+    }
     local[1] += b.id;
     x ^= b.id;
     if (slack == 0) {
@@ -259,10 +272,13 @@ FrameReport MpiReplay::next() {
   r.phases.reduction = since(t);
 
   pairs_.clear();
+  Objects objects = view();
+  objects.groups = groups_;
+  objects.masks = masks_;
   if (tracker_)
-    tracker_->find_pairs(ids_, view(), pairs_);
+    tracker_->find_pairs(ids_, objects, pairs_);
   else
-    domain_.find_pairs(ids_, view(), pairs_);
+    domain_.find_pairs(ids_, objects, pairs_);
   const mpi::Stats& s = tracker_ ? tracker_->stats() : domain_.stats();
   r.stats.owned = s.owned;
   r.stats.ghosts = s.ghosts;
@@ -290,7 +306,7 @@ FrameDigest MpiReplay::digest_through_arrays() {
   const std::size_t n = bodies_.size();
   std::vector<double> x(n), y(n), z(n), r(n), hx(n), hy(n), hz(n);
   std::vector<std::uint8_t> kind(n);
-  std::vector<std::uint32_t> ids(n);
+  std::vector<std::uint32_t> ids(n), groups, masks;
   for (std::size_t i = 0; i < n; ++i) {
     const Shape& s = bodies_[i].shape;
     x[i] = s.center.x;
@@ -302,6 +318,10 @@ FrameDigest MpiReplay::digest_through_arrays() {
     hz[i] = s.half.z;
     kind[i] = s.is_sphere() ? 0 : 1;
     ids[i] = bodies_[i].id;
+    if (filtered_) {
+      groups.push_back(bodies_[i].filter.group);
+      masks.push_back(bodies_[i].filter.mask);
+    }
   }
   Objects o;
   o.count = n;
@@ -313,6 +333,8 @@ FrameDigest MpiReplay::digest_through_arrays() {
   o.half_y = Column::of(hy.data());
   o.half_z = Column::of(hz.data());
   o.kind = kind.data();
+  o.groups = groups;
+  o.masks = masks;
   std::vector<mpi::IdPair> pairs;
   domain_.find_pairs(ids, o, pairs);
   FrameDigest mine;

@@ -13,25 +13,31 @@
 
 namespace broadphase::mpi_app {
 
-/// One object as it travels between ranks.
+/// One object as it travels between ranks, with its collision filter
+/// (version 3 scenes; the default otherwise).
 struct Body {
   Shape shape;
   Vec3 velocity;
   std::uint32_t id;
+  Filter filter;
 };
 
 /// This rank's share of a scene.
 struct Share {
   double world = 1000;
-  std::uint64_t n = 0;  ///< objects in the whole scene
+  std::uint64_t n = 0;    ///< objects in the whole scene
+  bool filtered = false;  ///< some object of the scene has a filter other than the default
   std::vector<Body> bodies;
 };
 
 /// Collective. Rank 0 reads `path` and scatters it in blocks of ids; a bad
-/// file throws MpiError (the reader's message) on every rank.
+/// file throws MpiError (the reader's message) on every rank, and so does
+/// a scene with rays (not cast over MPI yet).
 Share read_share(MPI_Comm comm, const std::string& path);
-/// Collective. Rank 0's `scene` scattered in blocks of ids (other ranks'
-/// argument is ignored).
+/// Collective. Rank 0's `scene` scattered in blocks of ids, with the
+/// objects' filters (other ranks' argument is ignored). A scene with rays
+/// throws MpiError on every rank: `broadphase run` casts them, the ranks
+/// do not yet.
 Share scatter_share(MPI_Comm comm, const Scene& scene);
 /// Local. Block [rank * n / P, (rank + 1) * n / P) of the counter-generated
 /// scene (lab/generate.hpp): no file, no message.
@@ -87,6 +93,10 @@ class MpiReplay {
   std::unique_ptr<mpi::PairTracker> tracker_;
   std::vector<Body> bodies_;
   std::vector<std::uint32_t> ids_;
+  // This rank's filters as the columns of Objects (filled each frame with
+  // ids_, after migration), when the scene has filters.
+  bool filtered_ = false;
+  std::vector<std::uint32_t> groups_, masks_;
   std::vector<mpi::IdPair> pairs_;
   int frame_ = 0;
   int fail_rank_ = -1, fail_frame_ = -1;
