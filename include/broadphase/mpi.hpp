@@ -23,6 +23,10 @@
 ///   in both objects' bounds whenever they overlap, so both objects reach
 ///   that rank, and exactly one rank keeps the pair: no message, no
 ///   duplicate removal.
+/// - Collision filters (optional groups and masks, the rule of
+///   `filters_pass`) travel with every copy of an object, ghosts and the
+///   shared list included, and each rank's local search applies them: the
+///   rank that keeps a pair tests both objects' own bits.
 ///
 /// Exactness does not depend on which rank holds which object: ownership
 /// (the rank of an object's centre, see `destinations`) only balances work.
