@@ -26,6 +26,21 @@ def find_pairs(
     groups: Optional[Any] = None,
     masks: Optional[Any] = None,
 ) -> IntArray: ...
+def ray_cast(
+    centers: Any,
+    radii: Optional[Any],
+    half: Optional[Any],
+    kinds: Optional[Any],
+    groups: Optional[Any],
+    masks: Optional[Any],
+    origins: Any,
+    directions: Any,
+    tmax: Optional[Any],
+    ray_masks: Optional[Any],
+    all_hits: bool,
+    threads: int,
+    structure: str,
+) -> Tuple[IntArray, ...]: ...
 def find_pairs_between(
     centers: Any,
     radii: Optional[Any],
@@ -87,5 +102,14 @@ class IndexCore:
         self, centers: Any, radii: Optional[Any], half_extents: Optional[Any], kinds: Optional[Any]
     ) -> IntArray: ...
     def query_box(self, lo: Sequence[float], hi: Sequence[float]) -> IntArray: ...
+    def ray_cast(
+        self,
+        origins: Any,
+        directions: Any,
+        tmax: Optional[Any],
+        ray_masks: Optional[Any],
+        all_hits: bool,
+        threads: int,
+    ) -> Tuple[IntArray, ...]: ...
     def memory_bytes(self) -> int: ...
     def validate(self) -> None: ...

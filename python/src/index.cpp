@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "one_shot.hpp"
+#include "rays.hpp"
 
 namespace broadphase_python {
 
@@ -323,6 +324,28 @@ IntArray IndexCore::query_box(const std::vector<double>& lo, const std::vector<d
     std::sort(ids.begin(), ids.end());
   }
   return ids_array(ids);
+}
+
+py::tuple IndexCore::ray_cast(const py::buffer& origins, const py::buffer& directions,
+                              const py::object& tmax, const py::object& ray_masks, bool all_hits,
+                              unsigned threads) {
+  UseCounter::Reading r(use_);
+  const std::vector<bp::Ray> rays = ray_arrays(origins, directions, tmax, ray_masks);
+  if (structure_) return cast(*structure_, rays, all_hits, threads, &id_of_index_);
+  const bp::Objects& o = lean_objects();
+  bp::Config config;
+  config.expected_objects = o.count;
+  config.world = world_of(o);
+  std::unique_ptr<bp::AnyBroadPhase> tree = bp::make_structure(kRayStructure, config);
+  {
+    py::gil_scoped_release nogil;
+    for (std::size_t s = 0; s < o.count; ++s) {
+      const bp::Handle h =
+          tree->insert(o.shape(s), identity_ ? s : id_of_slot_[s], bp::Motion::fixed);
+      if (!o.groups.empty()) tree->set_filter(h, {o.groups[s], o.masks[s]});
+    }
+  }
+  return cast(*tree, rays, all_hits, threads, nullptr);
 }
 
 std::size_t IndexCore::memory_bytes() {

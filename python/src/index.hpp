@@ -148,6 +148,16 @@ class IndexCore {
   /// The ids of the objects that overlap the box [lo, hi], increasing.
   IntArray query_box(const std::vector<double>& lo, const std::vector<double>& hi);
 
+  /// Casts rays (rays.hpp): closest hits as (ids, t bits), or every hit as
+  /// (offsets, ids, t bits). The lean back end has no structure to walk: it
+  /// builds a k-d tree over its objects for the call.
+  py::tuple ray_cast(const py::buffer& origins, const py::buffer& directions,
+                     const py::object& tmax, const py::object& ray_masks, bool all_hits,
+                     unsigned threads);
+
+  /// The world hint of a structure built over `o`: the objects' bounding box.
+  static bp::Aabb world_of(const bp::Objects& o);
+
   std::size_t memory_bytes();
 
   void validate();
@@ -204,8 +214,6 @@ class IndexCore {
   std::size_t owned_bytes() const;
 
   // --- the structure back end --------------------------------------------
-
-  static bp::Aabb world_of(const bp::Objects& o);
 
   void set_id_of_index(std::uint32_t index, std::uint32_t id);
 

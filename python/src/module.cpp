@@ -31,6 +31,7 @@
 #include "input.hpp"
 #include "one_shot.hpp"
 #include "output.hpp"
+#include "rays.hpp"
 
 namespace py = pybind11;
 namespace bp = broadphase;
@@ -53,6 +54,8 @@ PYBIND11_MODULE(_broadphase, m) {
     } catch (const bp::InvalidObjects& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const bp::InvalidShape& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const bp::InvalidRay& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const bp::InvalidConfig& e) {  // UnknownStructure too
       PyErr_SetString(PyExc_ValueError, e.what());
@@ -84,6 +87,10 @@ PYBIND11_MODULE(_broadphase, m) {
         py::arg("half_extents"), py::arg("kinds"), py::arg("sorted"), py::arg("threads"),
         py::arg("groups") = py::none(), py::arg("masks") = py::none(),
         "Overlapping pairs of one set of objects (int64 (M, 2), i < j) that pass the filters.");
+  m.def("ray_cast", &broadphase_python::ray_cast_once, py::arg("centers"), py::arg("radii"),
+        py::arg("half"), py::arg("kinds"), py::arg("groups"), py::arg("masks"), py::arg("origins"),
+        py::arg("directions"), py::arg("tmax"), py::arg("ray_masks"), py::arg("all_hits"),
+        py::arg("threads"), py::arg("structure"));
   m.def("find_pairs_between", &find_pairs_between, py::arg("centers"), py::arg("radii"),
         py::arg("half_extents"), py::arg("kinds"), py::arg("other_centers"), py::arg("other_radii"),
         py::arg("other_half_extents"), py::arg("other_kinds"), py::arg("threads"),
@@ -143,6 +150,7 @@ PYBIND11_MODULE(_broadphase, m) {
       .def("iter_pairs", &IndexCore::iter_pairs)
       .def("query", &IndexCore::query)
       .def("query_box", &IndexCore::query_box)
+      .def("ray_cast", &IndexCore::ray_cast)
       .def("memory_bytes", &IndexCore::memory_bytes)
       .def("validate", &IndexCore::validate);
 }
