@@ -9,10 +9,8 @@ pass=0
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
-check() {  # check NAME CONDITION...
-  local name=$1; shift
-  if "$@"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: $name"; fi
-}
+# shellcheck source=support/cli_checks.sh
+. "$(dirname "$0")/support/cli_checks.sh"
 
 # Every structure of `list` reproduces every reference scene exactly.
 algos=$("$cli" list | awk '{print $1}')
@@ -33,16 +31,6 @@ for s in "$data"/scenes/*.scene; do
 done
 
 # Bad input: a message naming the file and line, a non-zero exit, no crash.
-expect_error() {  # expect_error NAME PATTERN ARGS...
-  local name=$1 pattern=$2; shift 2
-  "$cli" "$@" >"$tmp/out" 2>"$tmp/err"
-  local rc=$?
-  if [ $rc -ne 0 ] && [ $rc -lt 128 ] && grep -q -- "$pattern" "$tmp/err" && [ ! -s "$tmp/out" ]; then
-    pass=$((pass + 1))
-  else
-    fail=$((fail + 1)); echo "FAIL: $name (exit $rc): $(cat "$tmp/err")"
-  fi
-}
 bad() {  # bad NAME PATTERN CONTENT
   printf '%b' "$3" >"$tmp/bad.scene"
   expect_error "$1" "$2" run --scene "$tmp/bad.scene" --algo naive --frames 1

@@ -18,10 +18,8 @@ pass=0
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
-check() {  # check NAME CONDITION...
-  local name=$1; shift
-  if "$@"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: $name"; fi
-}
+# shellcheck source=support/cli_checks.sh
+. "$(dirname "$0")/support/cli_checks.sh"
 
 has_filters() { grep -q '^\(sphere\|box\) .* filter ' "$1"; }
 
@@ -46,16 +44,6 @@ replay_all() {  # replay_all rays|filters
   done
 }
 
-expect_error() {  # expect_error NAME PATTERN ARGS...
-  local name=$1 pattern=$2; shift 2
-  "$cli" "$@" >"$tmp/out" 2>"$tmp/err"
-  local rc=$?
-  if [ $rc -ne 0 ] && [ $rc -lt 128 ] && grep -q -- "$pattern" "$tmp/err" && [ ! -s "$tmp/out" ]; then
-    pass=$((pass + 1))
-  else
-    fail=$((fail + 1)); echo "FAIL: $name (exit $rc): $(cat "$tmp/err")"
-  fi
-}
 bad() {  # bad NAME PATTERN CONTENT: refused by run (a structure and the oracle)
   printf '%b' "$3" >"$tmp/bad.scene"
   expect_error "$1" "$2" run --scene "$tmp/bad.scene" --algo grid-verlet --frames 1

@@ -9,10 +9,8 @@ pass=0
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
-check() {  # check NAME COMMAND...
-  local name=$1; shift
-  if "$@"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: $name"; fi
-}
+# shellcheck source=support/cli_checks.sh
+. "$(dirname "$0")/support/cli_checks.sh"
 
 out=$tmp/run
 start=$(date +%s)
@@ -171,16 +169,6 @@ else
 fi
 
 # Bad options: a clear message, a non-zero exit, nothing on stdout, no crash.
-expect_error() {  # expect_error NAME PATTERN ARGS...
-  local name=$1 pattern=$2; shift 2
-  "$cli" "$@" >"$tmp/out" 2>"$tmp/err"
-  local rc=$?
-  if [ $rc -ne 0 ] && [ $rc -lt 128 ] && grep -q -- "$pattern" "$tmp/err" && [ ! -s "$tmp/out" ]; then
-    pass=$((pass + 1))
-  else
-    fail=$((fail + 1)); echo "FAIL: $name (exit $rc): $(cat "$tmp/err")"
-  fi
-}
 expect_error "unknown structure" "unknown structure 'nope'; valid: .*naive" paper --quick --algos nope --out "$tmp/bad"
 expect_error "unknown structure in a list" "unknown structure 'nope'" paper --quick --algos naive,nope --out "$tmp/bad"
 expect_error "bad structure option" "naive" paper --quick --algos naive:foo=1 --out "$tmp/bad"

@@ -103,21 +103,24 @@ inline bool ray_hits_sphere(const Vec3& o, const Vec3& d, double tmax, const Vec
   return true;
 }
 
-/// The contract's ray–box test: true, with `t`, when the ray (o, d, tmax)
-/// hits the box (c, h). Exactly as docs/scene-format.md writes it.
-inline bool ray_hits_box(const Vec3& o, const Vec3& d, double tmax, const Vec3& c, const Vec3& h,
-                         double& t) {
+namespace detail {
+
+/// The slab loop of the contract's ray–box test, given each axis's box
+/// faces relative to the ray's origin (`lo[a]`, `hi[a]`): true, with the
+/// entry parameter `t`, when the ray (direction d, up to tmax) meets the box.
+/// Both the exact test and the culling (RayCull) run it, so the culling
+/// over a larger box is never stricter.
+inline bool slab_enter(const double (&lo)[3], const double (&hi)[3], const Vec3& d, double tmax,
+                       double& t) {
   double tn = 0;
   double tf = tmax;
   for (int a = 0; a < 3; ++a) {
-    const double lo = (c[a] - h[a]) - o[a];
-    const double hi = (c[a] + h[a]) - o[a];
     if (d[a] == 0) {
-      if (lo > 0 || hi < 0) return false;
+      if (lo[a] > 0 || hi[a] < 0) return false;
       continue;
     }
-    double t1 = lo / d[a];
-    double t2 = hi / d[a];
+    double t1 = lo[a] / d[a];
+    double t2 = hi[a] / d[a];
     if (t1 > t2) std::swap(t1, t2);
     if (t1 > tn) tn = t1;
     if (t2 < tf) tf = t2;
@@ -125,6 +128,20 @@ inline bool ray_hits_box(const Vec3& o, const Vec3& d, double tmax, const Vec3& 
   if (!(tn <= tf)) return false;
   t = tn;
   return true;
+}
+
+}  // namespace detail
+
+/// The contract's ray–box test: true, with `t`, when the ray (o, d, tmax)
+/// hits the box (c, h). Exactly as docs/scene-format.md writes it.
+inline bool ray_hits_box(const Vec3& o, const Vec3& d, double tmax, const Vec3& c, const Vec3& h,
+                         double& t) {
+  double lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = (c[a] - h[a]) - o[a];
+    hi[a] = (c[a] + h[a]) - o[a];
+  }
+  return detail::slab_enter(lo, hi, d, tmax, t);
 }
 
 /// The exact hit test of the contract for either kind of shape, up to
@@ -210,24 +227,12 @@ class RayCull {
   /// See the class comment. `tmax` may be the ray's or a clipped one.
   bool enter(const Aabb& box, double tmax, double& t) const {
     const double m = margin(box);
-    double tn = 0;
-    double tf = tmax;
+    double lo[3], hi[3];
     for (int a = 0; a < 3; ++a) {
-      const double lo = (box.lo[a] - m) - o_[a];
-      const double hi = (box.hi[a] + m) - o_[a];
-      if (d_[a] == 0) {
-        if (lo > 0 || hi < 0) return false;
-        continue;
-      }
-      double t1 = lo / d_[a];
-      double t2 = hi / d_[a];
-      if (t1 > t2) std::swap(t1, t2);
-      if (t1 > tn) tn = t1;
-      if (t2 < tf) tf = t2;
+      lo[a] = (box.lo[a] - m) - o_[a];
+      hi[a] = (box.hi[a] + m) - o_[a];
     }
-    if (!(tn <= tf)) return false;
-    t = tn;
-    return true;
+    return slab_enter(lo, hi, d_, tmax, t);
   }
   bool enter(const AabbF& b, double tmax, double& t) const {
     return enter(Aabb{{b.lo[0], b.lo[1], b.lo[2]}, {b.hi[0], b.hi[1], b.hi[2]}}, tmax, t);

@@ -120,15 +120,7 @@ std::vector<Ray> lidar_rays(const Aabb& box, std::size_t count) {
 
 /// The contract's closest hit by testing every object (the oracle).
 PeerHit brute_hit(const std::vector<Shape>& shapes, const Ray& r) {
-  PeerHit best;
-  double tmax = r.tmax;
-  for (std::uint32_t i = 0; i < shapes.size(); ++i) {
-    double t;
-    if (!ray_hit(r.origin, r.dir, tmax, shapes[i], t)) continue;
-    if (best.id < 0 || t < best.t) best = {i, t};  // ascending ids: a tie keeps the first
-    tmax = best.t;
-  }
-  return best;
+  return closest_by_testing_all(shapes, r);
 }
 
 /// One thing that casts rays into a world: a structure of the registry

@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "peer_common.hpp"
+#include "ray_peers.hpp"
 
 namespace broadphase::app::peers {
 
@@ -297,16 +298,6 @@ class BulletBroadPhase : public PeerBase<btBroadphaseProxy*> {
  private:
   using Base = PeerBase<btBroadphaseProxy*>;
 
-  /// True when Bullet's float walk can take the ray (see cast_ray).
-  static bool float_ray(const Ray& r) {
-    constexpr double kBig = std::numeric_limits<float>::max() / 4;
-    constexpr double kSmall = std::numeric_limits<float>::min() * 4;
-    for (int a = 0; a < 3; ++a) {
-      if (!(std::fabs(r.origin[a]) < kBig) || !(std::fabs(r.dir[a]) < kBig)) return false;
-      if (r.dir[a] != 0 && std::fabs(r.dir[a]) < kSmall) return false;
-    }
-    return true;
-  }
   bool has_ray_tree() const { return K == Kind::dbvt || accelerator_; }
 
   // Leaves room for the sweep's sentinel handle and its doubled edge count.

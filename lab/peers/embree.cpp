@@ -69,17 +69,6 @@ float tfar_above(double t) {
   return std::nextafter(static_cast<float>(grown), std::numeric_limits<float>::infinity());
 }
 
-/// True when a float ray can stand for `r` (see the file comment).
-bool float_ray(const Ray& r) {
-  constexpr double kBig = std::numeric_limits<float>::max() / 4;
-  constexpr double kSmall = std::numeric_limits<float>::min() * 4;
-  for (int a = 0; a < 3; ++a) {
-    if (!(std::fabs(r.origin[a]) < kBig) || !(std::fabs(r.dir[a]) < kBig)) return false;
-    if (r.dir[a] != 0 && std::fabs(r.dir[a]) < kSmall) return false;
-  }
-  return true;
-}
-
 double max_abs(const Vec3& v) { return std::max({std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)}); }
 
 class EmbreeWorld;
@@ -242,17 +231,7 @@ class EmbreeWorld final : public RayWorld {
   }
 
   /// The contract's closest hit by testing every object.
-  PeerHit every_object(const Ray& r) const {
-    PeerHit best;
-    double tmax = r.tmax;
-    for (std::uint32_t i = 0; i < shapes_.size(); ++i) {
-      double t;
-      if (!ray_hit(r.origin, r.dir, tmax, shapes_[i], t)) continue;
-      if (best.id < 0 || t < best.t) best = {i, t};  // ascending ids: a tie keeps the first
-      tmax = best.t;
-    }
-    return best;
-  }
+  PeerHit every_object(const Ray& r) const { return closest_by_testing_all(shapes_, r); }
 
   std::vector<Shape> shapes_;
   bool native_;

@@ -6,6 +6,7 @@
 
 #include <broadphase/geometry.hpp>
 #include <broadphase/ray.hpp>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <limits>
@@ -22,6 +23,34 @@ struct PeerHit {
   std::int64_t id = -1;
   double t = std::numeric_limits<double>::infinity();
 };
+
+/// The contract's closest hit of `r` among `shapes` (ids their positions)
+/// by testing every object: the oracle of the ray experiment, and what a
+/// peer falls back on for a ray its float walk cannot take.
+inline PeerHit closest_by_testing_all(std::span<const Shape> shapes, const Ray& r) {
+  PeerHit best;
+  double tmax = r.tmax;
+  for (std::uint32_t i = 0; i < shapes.size(); ++i) {
+    double t;
+    if (!ray_hit(r.origin, r.dir, tmax, shapes[i], t)) continue;
+    if (best.id < 0 || t < best.t) best = {i, t};  // ascending ids: a tie keeps the first
+    tmax = best.t;
+  }
+  return best;
+}
+
+/// True when a float ray can stand for `r` in a peer's float walk (Bullet,
+/// Embree): every origin and direction component well inside float's range,
+/// and no non-zero direction component that float would flush to zero.
+inline bool float_ray(const Ray& r) {
+  constexpr double kBig = std::numeric_limits<float>::max() / 4;
+  constexpr double kSmall = std::numeric_limits<float>::min() * 4;
+  for (int a = 0; a < 3; ++a) {
+    if (!(std::fabs(r.origin[a]) < kBig) || !(std::fabs(r.dir[a]) < kBig)) return false;
+    if (r.dir[a] != 0 && std::fabs(r.dir[a]) < kSmall) return false;
+  }
+  return true;
+}
 
 /// A world of objects, numbered 0..n-1 in the order given, that a ray peer
 /// casts rays into. Not thread-safe.
