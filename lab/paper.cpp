@@ -290,6 +290,19 @@ struct Run {
       note("budget: " + step + " took " + seconds_text(took) + ", " +
            over_text(took / planned, whose + " " + seconds_text(planned)));
   }
+  // The least an experiment of `weight` gets: below it a full run's
+  // experiment runs with --quick's sizes instead.
+  double experiment_floor(double weight) const { return (o.quick ? 2.0 : 15.0) * weight; }
+  // The lab seconds planned for the experiments from the k-th on: each its
+  // share, never less than its floor (a slow --quick run spends the floors,
+  // and an estimate from the shares alone fell short of what remained).
+  double experiments_planned(std::size_t k) const {
+    double sum = 0;
+    for (; k < experiments().size(); ++k)
+      sum += std::max(experiment_floor(experiments()[k].weight),
+                      experiment_seconds * experiments()[k].weight);
+    return sum;
+  }
   // The progress line: `what`, with `left` lab seconds estimated to go.
   void show_left(const std::string& what, double left) {
     const double e = elapsed();
@@ -463,7 +476,7 @@ void run_study(Run& run) {
     }
     const int reps = reps_at(n);
     mo.reps = reps;
-    const double hooks_left = run.experiment_seconds * static_cast<double>(experiments().size());
+    const double hooks_left = run.experiments_planned(0);
     // The time left: the study's rest at the pace measured (never more
     // than its budget left, which skips enforce, unless the cell under way
     // is over), then the experiments and the tail at the run's pace.
@@ -638,7 +651,7 @@ void run_experiments(Run& run) {
     const double weight = experiments()[k].weight;
     double weight_after = 0;  // the weights of the experiments after this one
     for (std::size_t j = k + 1; j < kExperiments; ++j) weight_after += experiments()[j].weight;
-    const double least = (o.quick ? 2.0 : 15.0) * weight;
+    const double least = run.experiment_floor(weight);
     const double left = budget.left() - budget.tail() * budget.pace(1, "experiment");
     const double share = left * weight / (weight + weight_after);
     if (!o.quick && share < least && !run.steps->done(name)) {
@@ -655,7 +668,7 @@ void run_experiments(Run& run) {
                             : std::string()));
     }
     ctx.budget_seconds = std::max(least, std::min(run.experiment_seconds * weight, share));
-    const double after = run.experiment_seconds * weight_after;
+    const double after = run.experiments_planned(k + 1);
     budget.begin(name, run.steps->done(name) ? 0 : ctx.budget_seconds, "experiment");
     ctx.progress = [&, name, after](const std::string& what, double f) {
       run.show_left(name + ": " + what,
