@@ -8,6 +8,8 @@
 #include <sstream>
 #include <string>
 
+#include "scene_testing.hpp"
+
 namespace broadphase {
 namespace {
 
@@ -92,16 +94,7 @@ TEST(Scene, AcceptsAByteOrderMarkAndPlusSigns) {
 }
 
 // The message must start with "bad.scene:LINE:".
-void expect_rejected(const std::string& text, int line, const std::string& why) {
-  std::istringstream in(text);
-  try {
-    parse_scene(in, "bad.scene");
-    ADD_FAILURE() << "accepted: " << why;
-  } catch (const SceneError& e) {
-    const std::string want = "bad.scene:" + std::to_string(line) + ":";
-    EXPECT_EQ(std::string(e.what()).rfind(want, 0), 0u) << why << ": " << e.what();
-  }
-}
+using scene_testing::expect_rejected;
 
 TEST(Scene, RejectsEveryMalformedFileNamingTheLine) {
   const std::string v1 = "broadphase-scene 1\nworld 10\nobjects 1\n";

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "scene_testing.hpp"
 #include "testing.hpp"
 
 namespace broadphase::testing {
@@ -40,18 +41,7 @@ std::string written(const Scene& s) {
 }
 
 // The message must start with "bad.scene:LINE:" and contain `part`.
-void expect_rejected(const std::string& text, int line, const std::string& why,
-                     const std::string& part = "") {
-  std::istringstream in(text);
-  try {
-    parse_scene(in, "bad.scene");
-    ADD_FAILURE() << "accepted: " << why;
-  } catch (const SceneError& e) {
-    const std::string want = "bad.scene:" + std::to_string(line) + ":";
-    EXPECT_EQ(std::string(e.what()).rfind(want, 0), 0u) << why << ": " << e.what();
-    EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << why << ": " << e.what();
-  }
-}
+using scene_testing::expect_rejected;
 
 const std::string kHead = "broadphase-scene 3\nworld 100\nobjects 2\n";
 const std::string kObjects = "sphere 1 2 3 4 0 0 0\nbox 5 6 7 1 2 3 0.5 0 0\n";
