@@ -86,6 +86,14 @@ Domain::Domain(MPI_Comm comm, const Aabb& world, Options options)
   }
   options_.dims = dims;
   partition_ = Partition::grid(world_, dims);
+  // The rays' structure is named here, on every rank alike, before any call.
+  try {
+    Config config;
+    config.world = world_;
+    make_structure(options_.ray_algo, config);
+  } catch (const std::exception& e) {
+    throw InvalidConfig("ray_algo '" + options_.ray_algo + "': " + e.what());
+  }
 }
 
 std::vector<int> Domain::destinations(std::span<const Shape> shapes) const {
