@@ -6,7 +6,8 @@
 //   broadphase-mpi gen --gen KIND --n N --seed S --out F        (a counter-generated scene file)
 //
 // Rank 0 prints what `broadphase run` prints, with version 3 scenes'
-// collision filters; scenes with rays are refused (not cast over MPI yet).
+// collision filters and rays (each rank casts every ray against its own
+// objects; the hits are gathered on rank 0).
 // Errors: a failure agreed by every rank (a bad scene, a bad option, an
 // invalid object, a rank that threw inside a collective step) prints the
 // message on rank 0 and every rank exits with status 1; anything else prints on the rank that
@@ -37,6 +38,7 @@ namespace {
 using broadphase::Distribution;
 using broadphase::FrameDigest;
 using broadphase::hex16;
+using broadphase::HitDigest;
 using broadphase::mpi::MpiError;
 namespace dist = broadphase::mpi;
 namespace mpi_app = broadphase::mpi_app;
@@ -153,7 +155,7 @@ using broadphase::detail::median;
 
 // Per-rank sums over the frames, gathered to rank 0 for --json.
 struct RankTotals {
-  double step = 0, migration = 0, balancing = 0, exchange = 0, local = 0, reduction = 0;
+  double step = 0, migration = 0, balancing = 0, exchange = 0, local = 0, reduction = 0, rays = 0;
   double ghosts = 0, owned = 0, shared = 0, bytes = 0, messages = 0, pairs = 0;
 };
 
@@ -170,6 +172,7 @@ void run(const Common& o) {
   const bool root = world_rank() == 0;
   std::string out;
   FrameDigest total;
+  HitDigest hits;
   RankTotals mine;
   std::vector<double> frame_ms;
   double worst_imbalance = 0, last_imbalance = 0;
@@ -189,12 +192,16 @@ void run(const Common& o) {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e3);
     total.pairs += r.digest.pairs;
     total.hash += r.digest.hash;
+    hits.hits += r.hits.hits;
+    hits.hash += r.hits.hash;
+    hits.closest += r.hits.closest;
     mine.step += r.phases.step;
     mine.migration += r.phases.migration;
     mine.balancing += r.phases.balancing;
     mine.exchange += r.phases.exchange;
     mine.local += r.phases.local;
     mine.reduction += r.phases.reduction;
+    mine.rays += r.phases.rays;
     mine.ghosts += static_cast<double>(r.stats.ghosts);
     mine.owned += static_cast<double>(r.owned);
     mine.shared += static_cast<double>(r.stats.shared);
@@ -207,8 +214,7 @@ void run(const Common& o) {
     last_imbalance = mean > 0 ? static_cast<double>(r.max_owned) / mean : 1.0;
     worst_imbalance = std::max(worst_imbalance, last_imbalance);
     if (root && !o.json) {
-      out += std::to_string(f) + ' ' + std::to_string(r.digest.pairs) + ' ' + hex16(r.digest.hash) +
-             '\n';
+      out += broadphase::frame_line(f, r.digest, replay.has_rays() ? &r.hits : nullptr) + '\n';
       if (out.size() > (1u << 16)) {
         std::fwrite(out.data(), 1, out.size(), stdout);
         out.clear();
@@ -264,6 +270,11 @@ void run(const Common& o) {
   j["balance_by"] = o.balance_by;
   j["pairs_total"] = total.pairs;
   j["hash_total"] = hex16(total.hash);
+  if (replay.has_rays()) {
+    j["hits_total"] = hits.hits;
+    j["hits_hash_total"] = hex16(hits.hash);
+    j["closest_hash_total"] = hex16(hits.closest);
+  }
   j["median_frame_ms"] = median(frame_ms);
   j["frame_ms"] = frame_ms;  // rank 0's, each frame (the ranks meet at its end)
   j["load_ms"] = load_s * 1e3;
@@ -275,6 +286,7 @@ void run(const Common& o) {
   phases["ghost_exchange"] = phase(&RankTotals::exchange);
   phases["local_pairs"] = phase(&RankTotals::local);
   phases["reduction"] = phase(&RankTotals::reduction);
+  phases["rays"] = phase(&RankTotals::rays);
   j["phases"] = phases;
   j["owned_per_rank"] = per_rank(&RankTotals::owned, 1);
   j["ghosts_per_rank"] = per_rank(&RankTotals::ghosts, 1);
@@ -292,21 +304,20 @@ void run(const Common& o) {
 }
 
 // check: every scene replayed on one process (rank 0, the oracle structure)
-// and over the ranks; each frame's count and hash must agree, and a sibling
-// .expected file when there is one.
+// and over the ranks; each frame's line (pairs, and with rays the hits) must
+// agree, and with a sibling .expected file when there is one. With rays,
+// the last frame's rays are cast again through closest_hits and any_hits.
 struct CheckOptions {
   std::vector<std::string> scenes;
   std::string oracle = "naive";
 };
 
-std::vector<FrameDigest> read_expected(const std::string& scene_path) {
-  std::vector<FrameDigest> e;
+std::vector<std::string> read_expected(const std::string& scene_path) {
+  std::vector<std::string> e;
   if (scene_path.size() < 6 || scene_path.substr(scene_path.size() - 6) != ".scene") return e;
   std::ifstream in(scene_path.substr(0, scene_path.size() - 6) + ".expected");
-  int f;
-  std::uint64_t pairs;
-  std::string hash;
-  while (in >> f >> pairs >> hash) e.push_back({pairs, std::stoull(hash, nullptr, 16)});
+  for (std::string line; std::getline(in, line);)
+    if (!line.empty()) e.push_back(line);
   return e;
 }
 
@@ -321,8 +332,9 @@ void check(const Common& o, const CheckOptions& c) {
       path.resize(at);
     }
     // The oracle first, on rank 0 alone.
-    std::vector<FrameDigest> want;
-    std::vector<FrameDigest> expected;
+    std::vector<std::string> want;
+    std::vector<FrameDigest> want_pairs;
+    std::vector<std::string> expected;
     std::string error;
     int frames = scene_frames;
     if (root) {
@@ -330,11 +342,16 @@ void check(const Common& o, const CheckOptions& c) {
         expected = read_expected(path);
         if (!expected.empty()) frames = std::min<int>(frames, static_cast<int>(expected.size()));
         broadphase::Scene scene = broadphase::read_scene(path);
+        const bool rays = scene.has_rays();
         broadphase::Config config;
         config.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}};
         auto bp = broadphase::make_structure(c.oracle, config);
         broadphase::Replay one(*bp, std::move(scene));
-        for (int f = 0; f < frames; ++f) want.push_back(one.next().digest);
+        for (int f = 0; f < frames; ++f) {
+          const broadphase::FrameResult r = one.next();
+          want.push_back(broadphase::frame_line(f, r, rays));
+          want_pairs.push_back(r.digest);
+        }
       } catch (const std::exception& e) {
         error = path + ": one-process replay failed: " + e.what();
       }
@@ -349,17 +366,15 @@ void check(const Common& o, const CheckOptions& c) {
       rebalances += r.rebalanced ? 1 : 0;
       std::string bad;
       if (root) {
-        const auto line = [](int frame, const FrameDigest& d) {
-          return std::to_string(frame) + " " + std::to_string(d.pairs) + " " + hex16(d.hash);
-        };
-        if (!(r.digest == want[static_cast<std::size_t>(f)]))
+        const auto i = static_cast<std::size_t>(f);
+        const std::string line =
+            broadphase::frame_line(f, r.digest, replay.has_rays() ? &r.hits : nullptr);
+        if (line != want[i])
           bad = path + ": frame " + std::to_string(f) + ": " + std::to_string(world_size()) +
-                " ranks give '" + line(f, r.digest) + "', one process '" +
-                line(f, want[static_cast<std::size_t>(f)]) + "'";
-        else if (static_cast<std::size_t>(f) < expected.size() &&
-                 !(r.digest == expected[static_cast<std::size_t>(f)]))
-          bad = path + ": frame " + std::to_string(f) + ": '" + line(f, r.digest) +
-                "' differs from the .expected file";
+                " ranks give '" + line + "', one process '" + want[i] + "'";
+        else if (i < expected.size() && line != expected[i])
+          bad = path + ": frame " + std::to_string(f) + ": '" + line + "' differs from the " +
+                ".expected file's '" + expected[i] + "'";
       }
       dist::agree(MPI_COMM_WORLD, bad);
     }
@@ -367,12 +382,13 @@ void check(const Common& o, const CheckOptions& c) {
       // The last frame again, through the borrowed-arrays entry point.
       const FrameDigest again = replay.digest_through_arrays();
       std::string bad;
-      if (root && frames > 0 && !(again == want[static_cast<std::size_t>(frames - 1)]))
+      if (root && frames > 0 && !(again == want_pairs[static_cast<std::size_t>(frames - 1)]))
         bad = path + ": the arrays entry point gives " + std::to_string(again.pairs) +
               " pairs at the last frame, one process " +
-              std::to_string(want[static_cast<std::size_t>(frames - 1)].pairs);
+              std::to_string(want_pairs[static_cast<std::size_t>(frames - 1)].pairs);
       dist::agree(MPI_COMM_WORLD, bad);
     }
+    if (frames > 0 && replay.has_rays()) replay.check_ray_entry_points();
     if (root)
       std::printf("ok %s: %d frames, %d ranks, %llu objects, %d rebalances\n", path.c_str(), frames,
                   world_size(), static_cast<unsigned long long>(replay.size()), rebalances);

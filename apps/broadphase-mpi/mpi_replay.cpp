@@ -41,14 +41,16 @@ Share scatter_share(MPI_Comm comm, const Scene& scene) {
   const int rank = rank_of(comm), size = size_of(comm);
   Share s;
   double head[4] = {scene.world, static_cast<double>(scene.size()), scene.has_filters() ? 1.0 : 0.0,
-                    scene.has_rays() ? 1.0 : 0.0};
+                    static_cast<double>(scene.rays.size())};
   MPI_Bcast(head, 4, MPI_DOUBLE, 0, comm);
   s.world = head[0];
   s.n = static_cast<std::uint64_t>(head[1]);
   s.filtered = head[2] != 0;
-  agree(comm, head[3] != 0 ? "the scene has rays, which broadphase-mpi does not cast yet "
-                             "(`broadphase run` casts them on one process)"
-                           : "");
+  // Rays are global: every rank casts all of them against its own objects.
+  agree(comm, head[3] * sizeof(Ray) > 2e9 ? "the scene's rays exceed 2 GB" : "");
+  s.rays.resize(static_cast<std::size_t>(head[3]));
+  if (rank == 0) s.rays = scene.rays;
+  MPI_Bcast(s.rays.data(), static_cast<int>(s.rays.size() * sizeof(Ray)), MPI_BYTE, 0, comm);
   std::string error;
   if (s.n > std::numeric_limits<std::uint32_t>::max())
     error = "the scene has more objects than 32-bit ids can name";
@@ -121,7 +123,8 @@ MpiReplay::MpiReplay(MPI_Comm comm, Share share, const mpi::Options& options, do
       domain_(comm, Aabb{{0, 0, 0}, {share.world, share.world, share.world}}, options),
       skin_(skin),
       bodies_(std::move(share.bodies)),
-      filtered_(share.filtered) {
+      filtered_(share.filtered),
+      rays_(std::move(share.rays)) {
   if (skin > 0) {
     agree(comm, options.algo != mpi::kLeanPath
                     ? "a skin works with the lean path (--algo arrays) only"
@@ -297,8 +300,53 @@ FrameReport MpiReplay::next() {
   r.digest.pairs = sum[0];
   r.digest.hash = sum[1];
   r.phases.reduction += since(t);
+
+  // Every hit to rank 0, which digests the rows as `broadphase run` does
+  // (each row's first hit is the ray's closest) and tells the others.
+  if (!rays_.empty()) {
+    t = std::chrono::steady_clock::now();
+    domain_.all_hits(ids_, objects, rays_, rows_, 0);
+    std::uint64_t h[3] = {0, 0, 0};
+    if (rank == 0) {
+      HitDigest d;
+      for (std::size_t k = 0; k < rays_.size(); ++k) {
+        RayHits hits(static_cast<std::uint32_t>(k));
+        for (std::size_t i = rows_.offsets[k]; i < rows_.offsets[k + 1]; ++i)
+          hits.add(rows_.hits[i].id, rows_.hits[i].t);
+        hits.add_to(d);
+      }
+      h[0] = d.hits;
+      h[1] = d.hash;
+      h[2] = d.closest;
+    }
+    MPI_Bcast(h, 3, MPI_UINT64_T, 0, comm);
+    r.hits = {h[0], h[1], h[2]};
+    r.phases.rays = since(t);
+  }
   ++frame_;
   return r;
+}
+
+void MpiReplay::check_ray_entry_points() {
+  Objects objects = view();
+  objects.groups = groups_;
+  objects.masks = masks_;
+  std::vector<mpi::IdHit> closest(rays_.size());
+  std::vector<std::uint8_t> any(rays_.size());
+  domain_.closest_hits(ids_, objects, rays_, closest);
+  domain_.any_hits(ids_, objects, rays_, any);
+  std::string bad;
+  if (domain_.rank() == 0)
+    for (std::size_t k = 0; k < rays_.size() && bad.empty(); ++k) {
+      const bool some = rows_.offsets[k + 1] > rows_.offsets[k];
+      const mpi::IdHit want = some ? rows_.hits[rows_.offsets[k]] : mpi::IdHit{};
+      if (!(closest[k] == want) || any[k] != (some ? 1 : 0))
+        bad = "ray " + std::to_string(k) + ": closest_hits gives " +
+              (closest[k].hit ? "id " + std::to_string(closest[k].id) : std::string("no hit")) +
+              " and any_hits " + std::to_string(any[k]) + ", all_hits' row " +
+              (some ? "starts with id " + std::to_string(want.id) : std::string("is empty"));
+    }
+  agree(domain_.comm(), bad);
 }
 
 FrameDigest MpiReplay::digest_through_arrays() {
