@@ -109,12 +109,38 @@ mpi 2 run --scene "$tmp/nofilter.scene" --frames 3 >"$tmp/many" 2>"$tmp/err"
 "$cli" run --scene "$tmp/layers4.scene" --frames 3 >"$tmp/one"
 if [ "$(awk '{s += $2} END {print s}' "$tmp/many")" -gt "$(awk '{s += $2} END {print s}' "$tmp/one")" ]
 then ok; else no "the layers' filters rule out no pair: $(cat "$tmp/err")"; fi
-# Rays are not cast over MPI yet: refused, with the reason.
-mpi 2 run --scene "$data/scenes/v3/rays-mixed-300.scene" --frames 2 >"$tmp/out" 2>"$tmp/err"
-rc=$?
-if [ $rc -eq 1 ] && grep -q "rays, which broadphase-mpi does not cast yet" "$tmp/err"; then ok; else
-  no "a scene with rays (exit $rc): $(head -3 "$tmp/err")"
+# Rays: the lines of `broadphase run --oracle` (hits, hits_hash,
+# closest_hash), with and without filters, on a grid, bisection and a skin;
+# a scene generated with layered filters and rays, moving over 30 frames.
+# (mpi_check_filters_* cover the reference ray scenes at 2 to 4 ranks.)
+"$cli" gen --dist uneven --n 1200 --seed 24 --layers 4 --rays 50 --out "$tmp/rays.scene"
+for cfg in "rays-mixed-300 2 --grid 2x1x1" "gen-layers-rays-400 3 --bisect" \
+  "gen-layers-rays-400 4 --grid 2x2x1 --skin 2" "generated 3 --grid 3x1x1"; do
+  set -- $cfg
+  f=$data/scenes/v3/$1.scene
+  [ "$1" = generated ] && f=$tmp/rays.scene
+  p=$2; shift 2
+  "$cli" run --scene "$f" --frames 30 --oracle >"$tmp/oracle"
+  mpi "$p" run --scene "$f" --frames 30 "$@" >"$tmp/many" 2>"$tmp/err"
+  if cmp -s "$tmp/oracle" "$tmp/many"; then ok; else
+    no "$(basename "$f") -np $p $*: $(head -3 "$tmp/err") $(diff "$tmp/oracle" "$tmp/many" | head -4)"
+  fi
+done
+# The rays are in the lines: six columns, some hits.
+if awk 'NF != 6 {bad = 1} {s += $4} END {exit bad || s == 0}' "$tmp/many"; then ok; else
+  no "ray lines: $(head -2 "$tmp/many")"
 fi
+# --json sums the hits as `broadphase run --json` does.
+mpi 2 run --scene "$tmp/rays.scene" --frames 30 --bisect --json >"$tmp/json" 2>"$tmp/err"
+"$cli" run --scene "$tmp/rays.scene" --frames 30 --json >"$tmp/one_json"
+if python3 - "$tmp/json" "$tmp/one_json" <<'PY'
+import json, sys
+many, one = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+for k in ("hits_total", "hits_hash_total", "closest_hash_total"):
+    assert many[k] == one[k], (k, many[k], one[k])
+assert "rays" in many["phases"]
+PY
+then ok; else no "--json with rays: $(cat "$tmp/err")"; fi
 
 # Failures: every rank exits non-zero, the message printed, no hang.
 expect_fail() {  # expect_fail NAME PATTERN RANKS ARGS...
