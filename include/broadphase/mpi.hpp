@@ -240,7 +240,8 @@ Objects shapes_view(const Shape* first, std::size_t count, std::ptrdiff_t stride
 ///
 /// Thread safety: a Domain is used by one thread at a time (its calls are
 /// collective over its communicator and it keeps buffers between calls);
-/// Domains over different communicators are independent.
+/// Domains over different communicators are independent. Movable, not
+/// copyable.
 class Domain {
  public:
   /// Collective. `world` is the box most objects live in (finite,
@@ -251,6 +252,9 @@ class Domain {
   /// or makes subdomains thinner than the margin, and a `ray_algo` that
   /// the registry does not make.
   Domain(MPI_Comm comm, const Aabb& world, Options options = {});
+  ~Domain();
+  Domain(Domain&&) noexcept;
+  Domain& operator=(Domain&&) noexcept;
 
   int rank() const { return rank_; }
   int size() const { return size_; }
@@ -358,8 +362,11 @@ class Domain {
   /// ray, when any ray is invalid (`ray_problem`: the message names the
   /// first), when the ranks pass different batches, or for bad objects (the
   /// message names the rank). Each rank casts every ray through
-  /// `Options::ray_algo` built over its objects; one reduction of 16 bytes
-  /// a ray follows.
+  /// `Options::ray_algo` over its objects; one reduction of 16 bytes a ray
+  /// follows. The structure is kept between ray calls, by id: a call
+  /// inserts the objects that arrived on this rank, removes those that left
+  /// and moves those whose shape changed (the structure's bulk update). An
+  /// id given twice on one rank is refused (MpiError naming the rank).
   void closest_hits(std::span<const std::uint32_t> ids, const Objects& objects,
                     std::span<const Ray> rays, std::span<IdHit> closest);
   /// Collective. Every hit of each ray over the objects of every rank, in
@@ -424,11 +431,12 @@ class Domain {
                      std::vector<IdPair>& out);
   // Collective: the checks every ray call makes before casting (see
   // closest_hits), agreed on every rank; `root` is all_hits' (kEveryRank
-  // otherwise). Then builds this rank's ray caster over `objects`.
+  // otherwise). Then brings this rank's ray caster up to `objects`.
   struct RayCaster;
-  std::unique_ptr<RayCaster> prepare_rays(const char* call, std::span<const std::uint32_t> ids,
-                                          const Objects& objects, std::span<const Ray> rays,
-                                          int root);
+  const RayCaster& prepare_rays(const char* call, std::span<const std::uint32_t> ids,
+                                const Objects& objects, std::span<const Ray> rays, int root);
+  // Local: rays_ brought up to `objects` (built on the first call).
+  void fit_ray_caster(std::span<const std::uint32_t> ids, const Objects& objects);
   // Makes room for `count` records in local_ from `used` on without
   // shrinking it (so a frame like the last one writes no fresh pages).
   GhostRecord* grow_local(std::size_t used, std::size_t count);
@@ -451,6 +459,8 @@ class Domain {
   std::vector<std::byte> send_buffer_;
   std::size_t local_used_ = 0;
   std::uint64_t cuts_ = 0;
+  // This rank's objects in Options::ray_algo, kept between ray calls.
+  std::unique_ptr<RayCaster> rays_;
 };
 
 /// Pairs frame after frame with a skin, as Verlet lists and LAMMPS's

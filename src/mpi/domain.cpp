@@ -11,6 +11,7 @@
 #include <string_view>
 
 #include "pair_rule.hpp"
+#include "ray_caster.hpp"
 
 namespace broadphase::mpi {
 

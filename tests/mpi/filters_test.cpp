@@ -543,6 +543,27 @@ void bad_rays() {
                 lo != hi ? std::string(c.what) + ": the ranks' messages differ" : "");
     }
   }
+  {
+    // An id given twice on the last rank: refused there, on every rank.
+    const bool last = rank_ == size_ - 1;
+    const std::vector<std::uint32_t> twice =
+        last ? std::vector<std::uint32_t>{ids[0], ids[0]} : ids;
+    const std::vector<Shape> two(twice.size(), shapes[0]);
+    const std::vector<Ray> rays{good};
+    std::vector<bd::IdHit> closest(1);
+    std::string error = "an id given twice was accepted";
+    try {
+      domain.closest_hits(twice, bd::shapes_view(two.data(), two.size(), sizeof(Shape)), rays,
+                          closest);
+    } catch (const bd::MpiError& e) {
+      const std::string m = e.what();
+      error = m.find("rank " + std::to_string(size_ - 1) + ": id " + std::to_string(size_ - 1) +
+                     " is given twice") == std::string::npos
+                  ? "an id given twice: unexpected message: " + m
+                  : "";
+    }
+    bd::agree(MPI_COMM_WORLD, error);
+  }
   if (rank_ == 0) std::printf("bad rays: refused on every rank alike\n");
 }
 
