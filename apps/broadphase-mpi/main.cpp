@@ -155,7 +155,8 @@ using broadphase::detail::median;
 
 // Per-rank sums over the frames, gathered to rank 0 for --json.
 struct RankTotals {
-  double step = 0, migration = 0, balancing = 0, exchange = 0, local = 0, reduction = 0, rays = 0;
+  double step = 0, migration = 0, balancing = 0, exchange = 0, local = 0, reduction = 0, rays = 0,
+         rays_cpu = 0;
   double ghosts = 0, owned = 0, shared = 0, bytes = 0, messages = 0, pairs = 0;
 };
 
@@ -202,6 +203,7 @@ void run(const Common& o) {
     mine.local += r.phases.local;
     mine.reduction += r.phases.reduction;
     mine.rays += r.phases.rays;
+    mine.rays_cpu += r.phases.rays_cpu;
     mine.ghosts += static_cast<double>(r.stats.ghosts);
     mine.owned += static_cast<double>(r.owned);
     mine.shared += static_cast<double>(r.stats.shared);
@@ -287,6 +289,7 @@ void run(const Common& o) {
   phases["local_pairs"] = phase(&RankTotals::local);
   phases["reduction"] = phase(&RankTotals::reduction);
   phases["rays"] = phase(&RankTotals::rays);
+  phases["rays_cpu"] = phase(&RankTotals::rays_cpu);
   j["phases"] = phases;
   j["owned_per_rank"] = per_rank(&RankTotals::owned, 1);
   j["ghosts_per_rank"] = per_rank(&RankTotals::ghosts, 1);

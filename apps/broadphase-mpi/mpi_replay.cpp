@@ -3,6 +3,7 @@
 #include <broadphase/scenes/generate.hpp>
 #include <chrono>
 #include <cstdlib>
+#include <ctime>
 #include <exception>
 #include <limits>
 #include <stdexcept>
@@ -305,6 +306,7 @@ FrameReport MpiReplay::next() {
   // (each row's first hit is the ray's closest) and tells the others.
   if (!rays_.empty()) {
     t = std::chrono::steady_clock::now();
+    const std::clock_t cpu = std::clock();
     domain_.all_hits(ids_, objects, rays_, rows_, 0);
     std::uint64_t h[3] = {0, 0, 0};
     if (rank == 0) {
@@ -322,6 +324,7 @@ FrameReport MpiReplay::next() {
     MPI_Bcast(h, 3, MPI_UINT64_T, 0, comm);
     r.hits = {h[0], h[1], h[2]};
     r.phases.rays = since(t);
+    r.phases.rays_cpu = static_cast<double>(std::clock() - cpu) / CLOCKS_PER_SEC;
   }
   ++frame_;
   return r;
