@@ -1,6 +1,7 @@
 /// \file mpi.hpp
 /// Pair finding over MPI ranks: every overlapping pair of the whole world,
-/// each reported exactly once, on one rank, with the caller's global ids.
+/// each reported exactly once, on one rank, with the caller's global ids;
+/// and rays cast into that world, with the answers of one process.
 ///
 /// Use from a user's own MPI program (plain MPI C API, any communicator):
 /// each rank passes the objects it holds (global ids below 2^32, shapes of
@@ -27,9 +28,8 @@
 ///   `filters_pass`) travel with every copy of an object, ghosts and the
 ///   shared list included, and each rank's local search applies them: the
 ///   rank that keeps a pair tests both objects' own bits.
-///
 /// - Rays (closest_hits, all_hits, any_hits) are global: every rank passes
-///   the whole batch and casts each ray, through a structure it builds over
+///   the whole batch and casts each ray, through a structure it keeps over
 ///   the objects it passed (its own, never ghosts: no hit is found twice),
 ///   with the ray's mask against their groups. Each rank's hits are the
 ///   contract's hits of its objects, with the t of the contract's
