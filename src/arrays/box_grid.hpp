@@ -101,6 +101,63 @@ class ArrayGrid {
   /// The objects whose box was infinite or too wide for any level.
   std::span<const std::uint32_t> big() const { return big_; }
 
+  /// For ray casts (rays.cpp), which march each level's cells: a level's
+  /// cell side, the map of a coordinate to its cell (monotone; an object's
+  /// cell is that of its box's low corner), its occupied cells and count.
+  struct LevelShape {
+    double h = 0, inv = 0;
+    std::int64_t lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+    std::uint32_t count = 0;
+  };
+  std::size_t level_count() const { return levels_.size(); }
+  LevelShape level_shape(std::size_t b) const {
+    const Level& lv = levels_[b];
+    LevelShape s;
+    s.h = lv.h;
+    s.inv = lv.inv;
+    s.count = lv.count;
+    for (int a = 0; a < 3; ++a) {
+      s.lo[a] = lv.lo[a];
+      s.hi[a] = lv.hi[a];
+    }
+    return s;
+  }
+  static std::int64_t cell_of(double x, double inv) { return cell(x, inv); }
+  /// Calls `take(entry)` for each entry of level b whose cell is (cx, cy,
+  /// cz); false as soon as `take` returns false. Not after `slim`.
+  template <class Take>
+  bool for_cell(std::size_t b, std::int64_t cx, std::int64_t cy, std::int64_t cz,
+                Take&& take) const {
+    const Level& lv = levels_[b];
+    if (lv.count == 0 || cx < lv.lo[0] || cx > lv.hi[0] || cy < lv.lo[1] || cy > lv.hi[1] ||
+        cz < lv.lo[2] || cz > lv.hi[2])
+      return true;
+    // A hashed level's summary first: its bucket would be a cache miss.
+    if (!lv.dense && !may_hold(lv, cx, cx, cy, cy, cz, cz)) return true;
+    const std::uint32_t* st = start_.data() + lv.first_bucket;
+    const std::uint32_t h = hash(lv, cx, cy, cz) & lv.mask;
+    for (std::uint32_t p = st[h]; p < st[h + 1]; ++p) {
+      const GridEntry& e = entries_[p];
+      // A dense level's occupied cells have a bucket each; a hashed
+      // level's buckets are shared.
+      if (!lv.dense && (cell(e.box.lo[0], lv.inv) != cx || cell(e.box.lo[1], lv.inv) != cy ||
+                        cell(e.box.lo[2], lv.inv) != cz))
+        continue;
+      if (!take(e)) return false;
+    }
+    return true;
+  }
+  /// Calls `take(entry)` for every entry of level b, as `for_cell`.
+  template <class Take>
+  bool for_level(std::size_t b, Take&& take) const {
+    const Level& lv = levels_[b];
+    if (lv.count == 0) return true;
+    const std::uint32_t* st = start_.data() + lv.first_bucket;
+    for (std::uint32_t p = st[0]; p < st[lv.mask + 1]; ++p)
+      if (!take(entries_[p])) return false;
+    return true;
+  }
+
   /// Bytes held (capacities).
   std::size_t memory_bytes() const;
   /// Lets go of all memory.

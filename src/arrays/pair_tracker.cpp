@@ -95,6 +95,7 @@ PairTracker& PairTracker::operator=(PairTracker&&) noexcept = default;
 ArrayCallStats PairTracker::find_pairs(const Objects& objects, const PairSink& sink,
                                        const Changes& changes) {
   Impl& im = *impl_;
+  im.rays_current = false;
   // Everything that can throw on bad input runs before the tracker changes.
   // A movers call reads only the objects listed (and movers whose values
   // it checked when they were listed): it checks the listed ones alone,
@@ -243,7 +244,21 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, std::vector<Index
 std::size_t PairTracker::memory_bytes() const {
   const Impl& im = *impl_;
   return sizeof(Impl) + im.quiet.memory_bytes() + im.index.memory_bytes() +
-         im.movers.memory_bytes();
+         im.movers.memory_bytes() + (im.rays_current ? im.rays.memory_bytes() : 0);
+}
+
+const RayCaster& PairTracker::ray_caster(const Objects& objects) {
+  Impl& im = *impl_;
+  if (!im.rays_current) {
+    im.rays.build(objects);
+    im.rays_current = true;
+  } else if (objects.count != im.rays.size()) {
+    throw std::invalid_argument(
+        "broadphase: PairTracker::ray_caster: " + std::to_string(objects.count) +
+        " objects, the last call had " + std::to_string(im.rays.size()) +
+        " (rays are cast into the objects of the last find_pairs call)");
+  }
+  return im.rays;
 }
 
 void PairTracker::clear() { impl_->reset(); }

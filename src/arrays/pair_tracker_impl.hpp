@@ -6,6 +6,7 @@
 #pragma once
 
 #include <broadphase/arrays/arrays.hpp>
+#include <broadphase/arrays/rays.hpp>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -51,6 +52,10 @@ struct PairTracker::Impl {
   QuietSet quiet;
   TrackerIndex index;
   Movers movers;
+  // Rays (ray_caster): a grid over the objects of the last call, built at
+  // the first cast after it.
+  RayCaster rays;
+  bool rays_current = false;
 
   // Whether the tracker holds an index or is in movers mode.
   bool built() const { return mode == Mode::index || mode == Mode::movers; }

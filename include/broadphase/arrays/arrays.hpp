@@ -275,6 +275,8 @@ ArrayCallStats find_pairs(const Objects& a, const Objects& b, std::vector<IndexP
 /// Throws InvalidShape for an invalid shape.
 std::vector<std::uint32_t> query(const Objects& objects, const Shape& shape);
 
+class RayCaster;  // arrays/rays.hpp
+
 /// Which objects changed since the tracker's last call.
 struct Changes {
   /// True: any object may have moved, resized or changed kind (the tracker
@@ -317,6 +319,15 @@ class PairTracker {
                             const Changes& changes = Changes::everything());
   ArrayCallStats find_pairs(const Objects& objects, std::vector<IndexPair>& out,
                             const Changes& changes = Changes::everything());
+
+  /// Rays into the objects as the last `find_pairs` call saw them (pass
+  /// the same arrays): a RayCaster (arrays/rays.hpp) built at the first ask
+  /// after that call, kept until the next (about 66 bytes an object, in
+  /// memory_bytes), so that a frame's rays share one build. Its casts may
+  /// run concurrently; this call may not run with them. Throws
+  /// InvalidObjects, or std::invalid_argument when the count is not the
+  /// last call's.
+  const RayCaster& ray_caster(const Objects& objects);
 
   /// Bytes the tracker keeps between calls (its index and candidate lists;
   /// the caller's arrays and output excluded).
