@@ -3,10 +3,11 @@
 #   cli_v3_test.sh CLI DATA input    bad input (a message naming the line, a
 #                                    non-zero exit, nothing printed), periodic
 #                                    worlds refused, `run --oracle` on the
-#                                    reference scenes, --arrays refusing rays,
-#                                    `gen`'s filters and rays
-#   cli_v3_test.sh CLI DATA rays     every structure of `list` on the
-#                                    reference scenes with rays and no filters
+#                                    reference scenes, `gen`'s filters and
+#                                    rays, --arrays against --oracle on them
+#   cli_v3_test.sh CLI DATA rays     every structure of `list` and the lean
+#                                    path on the reference scenes with rays
+#                                    and no filters
 #   cli_v3_test.sh CLI DATA filters  every structure of `list` and the lean
 #                                    path on the reference scenes with filters
 set -u
@@ -37,8 +38,7 @@ replay_all() {  # replay_all rays|filters
       "$cli" run --scene "$s" --algo "$a" --frames "$frames" >"$tmp/out" 2>"$tmp/err"
       check "$a on v3/$(basename "$s")" cmp -s "$tmp/out" "$exp"
     done
-    # The lean path too, with its filter columns (it casts no rays yet).
-    grep -q '^rays [1-9]' "$s" && continue
+    # The lean path too, with its filter columns and its rays.
     "$cli" run --scene "$s" --arrays --frames "$frames" >"$tmp/out" 2>"$tmp/err"
     check "arrays on v3/$(basename "$s")" cmp -s "$tmp/out" "$exp"
   done
@@ -98,12 +98,6 @@ input_checks() {
   done
   expect_error "--oracle with --arrays" "excludes" run --scene "$data/scenes/single.scene" --oracle --arrays
 
-  # The lean path refuses rays rather than ignore them.
-  for s in "$data"/scenes/v3/*.scene; do
-    grep -q '^rays [1-9]' "$s" || continue
-    expect_error "arrays refuses the rays of v3/$(basename "$s")" "does not cast rays yet" \
-      run --scene "$s" --arrays --frames 1
-  done
 
   # sim knows no filters yet and says so; rays play no part in it.
   expect_error "sim: filters" "sim does not take filters yet" \
@@ -133,8 +127,14 @@ input_checks() {
   for k in mixed random lidar axis inside zero; do
     "$cli" gen --dist boxes --n 50 --rays 20 --ray-kind $k --out "$tmp/k.scene" 2>"$tmp/err"
     check "gen --ray-kind $k" test "$(grep -c '^ray ' "$tmp/k.scene")" = 20
+    # The lean path's rays print the oracle's lines on every kind of ray.
+    "$cli" run --scene "$tmp/k.scene" --oracle --frames 3 >"$tmp/ko" 2>"$tmp/err"
+    "$cli" run --scene "$tmp/k.scene" --arrays --frames 3 >"$tmp/ka" 2>"$tmp/err"
+    check "arrays = oracle on --ray-kind $k" cmp -s "$tmp/ka" "$tmp/ko"
   done
   "$cli" run --scene "$tmp/a.scene" --algo naive --frames 2 --json >"$tmp/j"
+  "$cli" run --scene "$tmp/a.scene" --arrays --frames 2 --json >"$tmp/ja"
+  check "arrays json has the oracle's hit totals" python3 -c "import json,sys; a=json.load(open('$tmp/ja')); b=json.load(open('$tmp/j')); sys.exit(0 if all(a[k]==b[k] for k in ['hits_total','hits_hash_total','closest_hash_total','rays']) else 1)"
   check "json has the hit totals" python3 -c "import json,sys; j=json.load(open('$tmp/j')); sys.exit(0 if all(k in j for k in ['hits_total','hits_hash_total','closest_hash_total','rays']) else 1)"
   expect_error "gen: bad ray kind" "ray-kind" gen --dist even --n 10 --rays 3 --ray-kind laser --out "$tmp/x.scene"
   expect_error "gen: bad filters" "filters" gen --dist even --n 10 --filters all --out "$tmp/x.scene"

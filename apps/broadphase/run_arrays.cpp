@@ -1,8 +1,9 @@
 // `broadphase run --arrays`: replays a scene through the lean path
 // (PairTracker over the scene's objects held as the caller's arrays, with
-// their filter columns), printing the same `frame pairs hash` lines as any
-// structure.
+// their filter columns, and its RayCaster for the scene's rays), printing
+// the same lines as any structure.
 #include <broadphase/arrays/arrays.hpp>
+#include <broadphase/arrays/rays.hpp>
 #include <broadphase/scenes/array_caller.hpp>
 #include <broadphase/scenes/scene.hpp>
 #include <chrono>
@@ -17,14 +18,9 @@
 namespace broadphase::app {
 
 void run_arrays(const std::string& path, int frames, bool json) {
-  Scene scene = read_scene(path);
-  // The lean path casts no rays yet: refuse rather than print lines
-  // without the hits.
-  if (scene.has_rays())
-    throw SceneError(path +
-                     ": the lean path (--arrays) does not cast rays yet; run this scene "
-                     "with --algo NAME");
-  ArrayCaller caller(std::move(scene));
+  const Scene scene = read_scene(path);
+  const std::vector<Ray>& rays = scene.rays;
+  ArrayCaller caller(scene);
   const std::size_t n = caller.size();
   const Objects objects = caller.objects();
   const std::vector<std::uint32_t>& movers = caller.movers();
@@ -32,7 +28,9 @@ void run_arrays(const std::string& path, int frames, bool json) {
   PairTracker tracker;
   FrameDigest total;
   std::uint64_t tests = 0;
-  double total_ms = 0;
+  double total_ms = 0, rays_ms = 0;
+  HitDigest hits_total;
+  arrays::IndexHitRows rows;
   std::string out;
   for (int f = 0; f < frames; ++f) {
     // The caller moves its objects in place (the movers), then calls.
@@ -58,8 +56,26 @@ void run_arrays(const std::string& path, int frames, bool json) {
     tests += stats.tests;
     total.pairs += d.pairs;
     total.hash += d.hash;
+    // Every hit of every ray, each row sorted by t then index: its first
+    // is the ray's closest.
+    HitDigest h;
+    if (!rays.empty()) {
+      const auto r0 = std::chrono::steady_clock::now();
+      tracker.ray_caster(objects).all(rays, rows);
+      rays_ms +=
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - r0).count();
+      for (std::size_t r = 0; r < rays.size(); ++r) {
+        RayHits ray(static_cast<std::uint32_t>(r));
+        for (std::size_t k = rows.offsets[r]; k < rows.offsets[r + 1]; ++k)
+          ray.add(rows.hits[k].index, rows.hits[k].t);
+        ray.add_to(h);
+      }
+      hits_total.hits += h.hits;
+      hits_total.hash += h.hash;
+      hits_total.closest += h.closest;
+    }
     if (!json) {
-      out += std::to_string(f) + ' ' + std::to_string(d.pairs) + ' ' + hex16(d.hash) + '\n';
+      out += frame_line(f, d, rays.empty() ? nullptr : &h) + '\n';
       if (out.size() > (1u << 16)) {
         std::fwrite(out.data(), 1, out.size(), stdout);
         out.clear();
@@ -77,8 +93,15 @@ void run_arrays(const std::string& path, int frames, bool json) {
   j["frames"] = frames;
   j["pairs_total"] = total.pairs;
   j["hash_total"] = hex16(total.hash);
+  if (!rays.empty()) {
+    j["rays"] = rays.size();
+    j["hits_total"] = hits_total.hits;
+    j["hits_hash_total"] = hex16(hits_total.hash);
+    j["closest_hash_total"] = hex16(hits_total.closest);
+  }
   j["tests_total"] = tests;
   j["total_ms"] = total_ms;
+  if (!rays.empty()) j["rays_total_ms"] = rays_ms;
   j["memory_bytes"] = tracker.memory_bytes();
   std::printf("%s\n", j.dump(2).c_str());
 }
