@@ -349,8 +349,11 @@ def ray_cast(
             is non-zero. None: every object.
         all_hits: every hit of each ray instead of the closest.
         threads: threads sharing the rays (the results do not depend on it).
-        structure: the structure built over the objects (default: the k-d
-            tree, the fastest of ours for rays measured).
+        structure: the structure built over the objects: ``"lean"`` for the
+            lean path's grid (the quickest to build), a library structure by
+            name, or ``""`` (the default): the lean grid for fewer rays than
+            half the objects, else the k-d tree (the fastest to cast of ours
+            measured). The results are the same whichever.
 
     Returns:
         ``(ids, t)``: the closest hit of each ray (smallest t, then smallest
@@ -677,8 +680,9 @@ class Index:
     ):
         """Casts rays into the index's objects; arguments and results as for
         :func:`ray_cast` (ids are the index's ids). An index built with a
-        ``structure`` walks it; a lean index builds a k-d tree over its
-        objects for each call (give ``structure=`` for many casts)."""
+        ``structure`` walks it; a lean index casts through its tracker's
+        grid, built at the first cast after a change and kept until the next
+        (casts from several threads share it)."""
         o, d, t, rm = _ray_args(origins, directions, tmax, ray_masks)
         return _ray_result(
             self._core.ray_cast(o, d, t, rm, bool(all_hits), int(threads)), all_hits)

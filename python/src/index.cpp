@@ -332,20 +332,16 @@ py::tuple IndexCore::ray_cast(const py::buffer& origins, const py::buffer& direc
   UseCounter::Reading r(use_);
   const std::vector<bp::Ray> rays = ray_arrays(origins, directions, tmax, ray_masks);
   if (structure_) return cast(*structure_, rays, all_hits, threads, &id_of_index_);
-  const bp::Objects& o = lean_objects();
-  bp::Config config;
-  config.expected_objects = o.count;
-  config.world = world_of(o);
-  std::unique_ptr<bp::AnyBroadPhase> tree = bp::make_structure(kRayStructure, config);
+  // The tracker's caster over the objects of its last call, built at the
+  // first cast after a change (concurrent casts share it: a change needs
+  // the index to itself, so none runs meanwhile).
+  const bp::arrays::RayCaster* caster = nullptr;
   {
     py::gil_scoped_release nogil;
-    for (std::size_t s = 0; s < o.count; ++s) {
-      const bp::Handle h =
-          tree->insert(o.shape(s), identity_ ? s : id_of_slot_[s], bp::Motion::fixed);
-      if (!o.groups.empty()) tree->set_filter(h, {o.groups[s], o.masks[s]});
-    }
+    std::lock_guard<std::mutex> lock(mu_);
+    caster = &tracker_->ray_caster(lean_objects());
   }
-  return cast(*tree, rays, all_hits, threads, nullptr);
+  return cast_lean(*caster, rays, all_hits, threads, identity_ ? nullptr : &id_of_slot_);
 }
 
 std::size_t IndexCore::memory_bytes() {

@@ -7,6 +7,7 @@
 
 #include <pybind11/pybind11.h>
 
+#include <broadphase/arrays/rays.hpp>
 #include <broadphase/rays.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
@@ -20,10 +21,13 @@ namespace broadphase_python {
 namespace py = pybind11;
 namespace bp = broadphase;
 
-/// The structure a one-shot ray cast builds when none is named: the k-d
-/// tree cast random rays into 10^5 spheres fastest among ours (46 000 a
-/// second on one thread, the grids 12 000-31 000; docs/rays.md).
+/// The structure a one-shot ray cast builds when none is named and the
+/// rays are many (ray_cast_once): the k-d tree cast random rays into 10^5
+/// spheres fastest among ours (46 000 a second on one thread, the grids
+/// 12 000-31 000; docs/rays.md).
 inline constexpr const char* kRayStructure = "kdtree";
+/// The name that selects the lean path's RayCaster (arrays/rays.hpp).
+inline constexpr const char* kLeanRays = "lean";
 
 /// Reads origins (R, 3), directions (R, 3), tmax (scalar or (R,)) and the
 /// rays' masks (None or (R,) uint32) into rays; each ray checked
@@ -35,6 +39,11 @@ std::vector<bp::Ray> ray_arrays(const py::buffer& origins, const py::buffer& dir
 /// ids, t bits) for all hits. `id_of` maps a hit's handle to the caller's id.
 py::tuple cast(const bp::AnyBroadPhase& s, const std::vector<bp::Ray>& rays, bool all_hits,
                unsigned threads, const std::vector<std::uint32_t>* id_of);
+
+/// As `cast`, through the lean path's RayCaster; `id_of` maps an object's
+/// index to the caller's id (null: the index is the id).
+py::tuple cast_lean(const bp::arrays::RayCaster& c, const std::vector<bp::Ray>& rays, bool all_hits,
+                    unsigned threads, const std::vector<std::uint32_t>* id_of);
 
 /// One-shot: builds `structure` over the objects (with their filters) and
 /// casts the rays.

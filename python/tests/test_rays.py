@@ -89,7 +89,7 @@ def as_args(c, r, h, kinds):
 
 
 @pytest.mark.parametrize("kind", ["spheres", "boxes", "mixed"])
-@pytest.mark.parametrize("structure", ["", "grid-verlet", "aabb-tree", "naive"])
+@pytest.mark.parametrize("structure", ["", "lean", "kdtree", "grid-verlet", "aabb-tree", "naive"])
 def test_ray_cast_matches_the_oracle(kind, structure):
     seed = int(os.environ.get("BROADPHASE_SEED", "11"))
     print(f"seed {seed}")
@@ -136,6 +136,47 @@ def test_index_ray_cast_lean_and_structure():
         idx.remove([0, 1])
         ids2, _ = idx.ray_cast(o, d, tmax)
         assert not np.isin(ids2, [0, 1]).any()
+
+
+def test_lean_index_ray_cast_follows_moves_filters_and_removals():
+    # A borrowing lean index casts through its tracker's grid: after each
+    # change (moves in place, filters, removals and insertions), with new
+    # rays and ray masks every time, against the oracle.
+    seed = int(os.environ.get("BROADPHASE_SEED", "23"))
+    print(f"seed {seed}")
+    rng = np.random.default_rng(seed)
+    n, k = (80, 30) if QUICK else (300, 80)
+    c, r, h, kinds = random_world(rng, n, "mixed")
+    groups = rng.integers(1, 16, n).astype(np.uint32)
+    masks = np.full(n, 0xFFFFFFFF, np.uint32)
+    idx = broadphase.Index(c, r, h, kinds, groups=groups, masks=masks)
+    live = np.arange(n)
+    for step in range(6):
+        o, d, tmax = random_rays(rng, k)
+        ray_masks = rng.integers(0, 16, k).astype(np.uint32)
+        ids, t = idx.ray_cast(o, d, tmax, ray_masks=ray_masks, threads=2)
+        offsets, all_ids, all_t = idx.ray_cast(o, d, tmax, ray_masks=ray_masks, all_hits=True)
+        for q in range(k):
+            want_ids, want_t = oracle_hits(c[live], r[live], h[live], kinds[live], groups[live],
+                                           o[q], d[q], tmax[q], ray_masks[q])
+            want_ids = live[want_ids]  # the index's ids
+            cid, ct = oracle_closest((want_ids, want_t))
+            assert ids[q] == cid and (t[q] == ct or math.isinf(ct)), f"step {step} ray {q}"
+            row = list(zip(all_t[offsets[q]:offsets[q + 1]].tolist(),
+                           all_ids[offsets[q]:offsets[q + 1]].tolist()))
+            assert row == sorted(zip(want_t.tolist(), want_ids.tolist())), f"step {step} ray {q}"
+        if step == 1:
+            c[:20] += rng.uniform(-5, 5, (20, 3))  # moved in place
+            idx.update(np.arange(20))
+        elif step == 2:
+            groups[live[:30]] = rng.integers(1, 16, 30).astype(np.uint32)
+            idx.set_filters(live[:30], groups=groups[live[:30]], masks=masks[live[:30]])
+        elif step == 3:
+            idx.remove(live[5:9])
+            live = np.delete(live, range(5, 9))
+        elif step == 4:
+            c[live[-10:]] = rng.uniform(0, 100, (10, 3))
+            idx.update(live[-10:], c[live[-10:]])
 
 
 def test_ray_cast_refuses_bad_rays():
