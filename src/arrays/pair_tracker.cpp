@@ -244,7 +244,7 @@ ArrayCallStats PairTracker::find_pairs(const Objects& objects, std::vector<Index
 std::size_t PairTracker::memory_bytes() const {
   const Impl& im = *impl_;
   return sizeof(Impl) + im.quiet.memory_bytes() + im.index.memory_bytes() +
-         im.movers.memory_bytes() + (im.rays_current ? im.rays.memory_bytes() : 0);
+         im.movers.memory_bytes() + im.rays.memory_bytes();
 }
 
 const RayCaster& PairTracker::ray_caster(const Objects& objects) {

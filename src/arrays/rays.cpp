@@ -48,6 +48,11 @@ struct MarchLevel {
   }
 };
 
+// The threads a batch takes: 0 is every core, at most kMaxThreads.
+unsigned shares_of(unsigned threads) {
+  return std::min(detail::thread_count(threads), ArrayOptions::kMaxThreads);
+}
+
 }  // namespace
 
 struct RayCaster::Impl {
@@ -219,7 +224,7 @@ void RayCaster::closest(std::span<const Ray> rays, std::span<IndexHit> out,
   if (out.size() != rays.size())
     throw std::invalid_argument("broadphase: RayCaster::closest: one result per ray");
   broadphase::detail::require_valid_rays(rays);
-  broadphase::detail::run_shares(rays.size(), detail::thread_count(threads),
+  broadphase::detail::run_shares(rays.size(), shares_of(threads),
                                  [&](std::size_t begin, std::size_t end, std::size_t) {
                                    for (std::size_t r = begin; r < end; ++r)
                                      out[r] = impl_->closest(rays[r]);
@@ -231,7 +236,7 @@ void RayCaster::any(std::span<const Ray> rays, std::span<std::uint8_t> out,
   if (out.size() != rays.size())
     throw std::invalid_argument("broadphase: RayCaster::any: one result per ray");
   broadphase::detail::require_valid_rays(rays);
-  broadphase::detail::run_shares(rays.size(), detail::thread_count(threads),
+  broadphase::detail::run_shares(rays.size(), shares_of(threads),
                                  [&](std::size_t begin, std::size_t end, std::size_t) {
                                    for (std::size_t r = begin; r < end; ++r)
                                      out[r] = impl_->any(rays[r]) ? 1 : 0;
@@ -240,7 +245,7 @@ void RayCaster::any(std::span<const Ray> rays, std::span<std::uint8_t> out,
 
 void RayCaster::all(std::span<const Ray> rays, IndexHitRows& out, unsigned threads) const {
   broadphase::detail::require_valid_rays(rays);
-  const unsigned shares = detail::thread_count(threads);
+  const unsigned shares = shares_of(threads);
   std::vector<std::vector<IndexHit>> part(shares);
   std::vector<std::size_t> count(rays.size());
   auto order = [](const IndexHit& a, const IndexHit& b) {

@@ -322,8 +322,9 @@ class PairTracker {
 
   /// Rays into the objects as the last `find_pairs` call saw them (pass
   /// the same arrays): a RayCaster (arrays/rays.hpp) built at the first ask
-  /// after that call, kept until the next (about 66 bytes an object, in
-  /// memory_bytes), so that a frame's rays share one build. Its casts may
+  /// after that call and used until the next, so that a frame's rays share
+  /// one build (its memory, about 66 bytes an object once a ray was cast,
+  /// is kept for the next build and counted in memory_bytes). Its casts may
   /// run concurrently; this call may not run with them. Throws
   /// InvalidObjects, or std::invalid_argument when the count is not the
   /// last call's.

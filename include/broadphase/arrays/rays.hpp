@@ -83,7 +83,8 @@ class RayCaster {
   /// Batches: `out[r]` for `rays[r]`. Every ray is checked first (InvalidRay
   /// naming the first bad one) and `out` must be as long as `rays`
   /// (std::invalid_argument). `threads` share the rays in contiguous runs
-  /// (1: the calling thread; 0: every core); the results do not depend on it.
+  /// (1: the calling thread; 0: every core; at most ArrayOptions::kMaxThreads);
+  /// the results do not depend on it.
   void closest(std::span<const Ray> rays, std::span<IndexHit> out, unsigned threads = 1) const;
   void any(std::span<const Ray> rays, std::span<std::uint8_t> out, unsigned threads = 1) const;
   /// Every hit of each ray, in rows (IndexHitRows), replacing `out`'s content.
