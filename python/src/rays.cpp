@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <thread>
 
 #include "index.hpp"
 #include "input.hpp"
@@ -59,7 +60,26 @@ py::tuple cast(const bp::AnyBroadPhase& s, const std::vector<bp::Ray>& rays, boo
     IntArray ids = column(rays.size()), t = column(rays.size());
     {
       py::gil_scoped_release nogil;
-      bp::cast_rays(s, rays, closest, threads);
+      if (id_of == nullptr) {
+        bp::cast_rays(s, rays, closest, threads);
+      } else {
+        // Ties at the same t go to the smallest id, and a structure reuses
+        // a removed object's slot for a later id: the visitor keeps the
+        // best by (t, id) and clips at its t (ties are still reported).
+        bp::detail::run_shares(rays.size(), threads,
+                               [&](std::size_t begin, std::size_t end, std::size_t) {
+                                 for (std::size_t r = begin; r < end; ++r) {
+                                   bp::RayHit& best = closest[r];
+                                   best = {bp::Handle{}, std::numeric_limits<double>::infinity()};
+                                   s.cast_ray(rays[r], [&](bp::Handle h, double t) {
+                                     if (best.handle.is_null() || t < best.t ||
+                                         (t == best.t && id(h) < id(best.handle)))
+                                       best = {h, t};
+                                     return t;
+                                   });
+                                 }
+                               });
+      }
       for (std::size_t i = 0; i < rays.size(); ++i) {
         const bool hit = !closest[i].handle.is_null();
         ids.data[i] = hit ? id(closest[i].handle) : -1;
@@ -103,7 +123,27 @@ py::tuple cast_lean(const bp::arrays::RayCaster& c, const std::vector<bp::Ray>& 
     IntArray ids = column(rays.size()), t = column(rays.size());
     {
       py::gil_scoped_release nogil;
-      c.closest(rays, closest, threads);
+      if (id_of == nullptr) {
+        c.closest(rays, closest, threads);
+      } else {
+        // Ties at the same t go to the smallest id, which need not be the
+        // smallest index: the visitor keeps the best by (t, id) and clips
+        // at its t (hits at exactly the clip are still reported).
+        const unsigned shares =
+            threads == 0 ? std::max(1u, std::thread::hardware_concurrency()) : threads;
+        bp::detail::run_shares(
+            rays.size(), std::min(shares, bp::ArrayOptions::kMaxThreads),
+            [&](std::size_t begin, std::size_t end, std::size_t) {
+              for (std::size_t r = begin; r < end; ++r) {
+                bp::arrays::IndexHit& best = closest[r];
+                c.cast(rays[r], [&](std::uint32_t i, double t) {
+                  if (!best.hit() || t < best.t || (t == best.t && id(i) < id(best.index)))
+                    best = {i, t};
+                  return t;
+                });
+              }
+            });
+      }
       for (std::size_t i = 0; i < rays.size(); ++i) {
         ids.data[i] = closest[i].hit() ? id(closest[i].index) : -1;
         t.data[i] = bits(closest[i].t);  // +inf where nothing is hit

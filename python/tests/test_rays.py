@@ -179,6 +179,22 @@ def test_lean_index_ray_cast_follows_moves_filters_and_removals():
             idx.update(live[-10:], c[live[-10:]])
 
 
+def test_lean_index_closest_ties_go_to_the_smallest_id():
+    # Spheres about one point: a ray from it hits all at t = 0. After id 0
+    # is removed and id 3 inserted, the index's slots need not follow the
+    # ids; the closest hit is still the smallest id.
+    # A structure reuses id 0's slot for id 3: the same.
+    c = np.zeros((3, 3))
+    for structure in (None, "octree"):
+        idx = broadphase.Index(c, np.array([1.0, 2.0, 3.0]), structure=structure)
+        idx.remove([0])
+        idx.insert(np.zeros((1, 3)), np.array([4.0]))
+        ids, t = idx.ray_cast([[0, 0, 0]], [[1, 0, 0]])
+        assert ids.tolist() == [1] and t.tolist() == [0.0], structure
+        offsets, all_ids, all_t = idx.ray_cast([[0, 0, 0]], [[1, 0, 0]], all_hits=True)
+        assert all_ids.tolist() == [1, 2, 3] and all_t.tolist() == [0.0] * 3, structure
+
+
 def test_ray_cast_refuses_bad_rays():
     c = np.zeros((1, 3))
     good = dict(centers=c, radii=1.0, origins=[[0, 0, -5]], directions=[[0, 0, 1]])
