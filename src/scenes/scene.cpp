@@ -29,7 +29,31 @@ bool Scene::has_filters() const {
   return false;
 }
 
-int Scene::version() const { return has_filters() || has_rays() ? 3 : has_boxes() ? 2 : 1; }
+int Scene::version() const {
+  return has_filters() || has_rays() || is_periodic() ? 3 : has_boxes() ? 2 : 1;
+}
+
+std::array<bool, 3> parse_periodic_axes(std::string_view axes) {
+  if (axes.empty()) throw std::invalid_argument("names no axis (x, y and/or z)");
+  std::array<bool, 3> out{false, false, false};
+  for (char c : axes) {
+    const int a = c == 'x' ? 0 : c == 'y' ? 1 : c == 'z' ? 2 : -1;
+    if (a < 0)
+      throw std::invalid_argument("'" + excerpt(axes) + "' has " + excerpt(std::string(1, c)) +
+                                  ", which is not an axis (x, y, z)");
+    if (out[a])
+      throw std::invalid_argument("'" + excerpt(axes) + "' names " + std::string(1, c) + " twice");
+    out[a] = true;
+  }
+  return out;
+}
+
+std::string periodic_axes_text(const std::array<bool, 3>& axes) {
+  std::string out;
+  for (int a = 0; a < 3; ++a)
+    if (axes[a]) out += "xyz"[a];
+  return out;
+}
 
 namespace {
 
@@ -188,13 +212,43 @@ Scene parse_scene(std::istream& in, const std::string& name) {
   auto expect_keyword = [&](const char* key) {
     if (!r.next(f)) r.fail(std::string("missing '") + key + " ...' line");
     if (f[0] != key) r.fail(std::string("expected '") + key + " ...', got " + excerpt(f[0]));
-    if (f.size() > 2 && f[0] == "world" && f[2] == "periodic")
-      r.fail("periodic worlds are not supported yet (a version 3 'world L periodic AXES')");
+    if (f.size() > 2 && f[0] == "world" && f[2] == "periodic") return;
     if (f.size() != 2) r.fail(std::string("'") + key + "' takes exactly one value");
   };
   expect_keyword("world");
   scene.world = r.number(f[1], "world size");
   if (!(scene.world > 0)) r.fail("world size must be > 0");
+  if (f.size() > 2) {
+    // `world L periodic AXES` (version 3).
+    if (version < 3) r.fail("a periodic world needs 'broadphase-scene 3'");
+    if (f.size() == 3) r.fail("'periodic' needs its axes (x, y and/or z, e.g. 'periodic xyz')");
+    if (f.size() > 4)
+      r.fail("'world L periodic AXES' takes one word of axes, got " + excerpt(f[4]) + " after it");
+    try {
+      scene.periodic = parse_periodic_axes(f[3]);
+    } catch (const std::invalid_argument& e) {
+      r.fail(std::string("periodic axes ") + e.what());
+    }
+  }
+  const double half_world = scene.world / 2;
+  // On a periodic axis a: c in [0, L], every extent below L/2, |v| below L
+  // (a periodic world is version 3: the object's fields start at f[1]).
+  auto check_periodic = [&](const Shape& shape, const Vec3& v) {
+    for (int a = 0; a < 3; ++a) {
+      if (!scene.periodic[a]) continue;
+      const char axis = "xyz"[a];
+      if (!(shape.center[a] >= 0 && shape.center[a] <= scene.world))
+        r.fail(std::string("centre ") + axis + " " + excerpt(f[1 + a]) +
+               " is outside [0, L] on the periodic axis " + axis);
+      if (!(shape.half[a] < half_world))
+        r.fail(std::string(shape.is_sphere() ? "radius" : std::string("h") + axis) + " " +
+               excerpt(f[1 + 3 + (shape.is_sphere() ? 0 : a)]) +
+               " is not below L/2 on the periodic axis " + axis);
+      if (!(std::fabs(v[a]) < scene.world))
+        r.fail(std::string("v") + axis + " " + excerpt(f[1 + (shape.is_sphere() ? 4 : 6) + a]) +
+               " is not below L in magnitude on the periodic axis " + axis);
+    }
+  };
   expect_keyword("objects");
   const std::uint64_t count = parse_count(r, f[1], "object count");
   // Room for at most 2^16 objects up front: the count is the file's claim,
@@ -274,6 +328,7 @@ Scene parse_scene(std::istream& in, const std::string& name) {
       scene.objects.push_back(Shape::box({v[0], v[1], v[2]}, {v[3], v[4], v[5]}));
       scene.velocity.push_back({v[6], v[7], v[8]});
     }
+    if (scene.is_periodic()) check_periodic(scene.objects.back(), scene.velocity.back());
     if (!(filter == Filter{}) && !any_filter) {
       // The first filter that is not the default: every object before it has the default.
       any_filter = true;
@@ -322,6 +377,7 @@ void write_scene(std::ostream& out, const Scene& scene) {
   const bool filters = scene.has_filters();
   out << "broadphase-scene " << version << "\nworld ";
   put(out, scene.world);
+  if (scene.is_periodic()) out << " periodic " << periodic_axes_text(scene.periodic);
   out << "\nobjects " << scene.objects.size() << "\n";
   out << (version == 3   ? "# sphere x y z r vx vy vz [filter G M] | box x y z hx hy hz vx vy vz "
                            "[filter G M]\n"
@@ -369,13 +425,49 @@ void write_scene(const std::string& path, const Scene& scene) {
 
 void step(Scene& scene) {
   const double L = scene.world;
+  if (!scene.is_periodic()) {
+    for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+      if (!scene.is_moving(i)) continue;
+      Vec3& p = scene.objects[i].center;
+      Vec3& v = scene.velocity[i];
+      step_axis(p.x, v.x, L);
+      step_axis(p.y, v.y, L);
+      step_axis(p.z, v.z, L);
+    }
+    return;
+  }
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     if (!scene.is_moving(i)) continue;
     Vec3& p = scene.objects[i].center;
     Vec3& v = scene.velocity[i];
-    step_axis(p.x, v.x, L);
-    step_axis(p.y, v.y, L);
-    step_axis(p.z, v.z, L);
+    for (int a = 0; a < 3; ++a) {
+      if (scene.periodic[a])
+        step_axis_periodic(p[a], v[a], L);
+      else
+        step_axis(p[a], v[a], L);
+    }
+  }
+}
+
+void make_periodic(Scene& scene, const std::array<bool, 3>& axes) {
+  const double L = scene.world;
+  scene.periodic = axes;
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    Shape& s = scene.objects[i];
+    Vec3& v = scene.velocity[i];
+    for (int a = 0; a < 3; ++a) {
+      if (!axes[a]) continue;
+      double c = s.center[a] - std::floor(s.center[a] / L) * L;
+      if (!(c >= 0 && c < L)) c = 0;  // a rounding of floor to L itself
+      s.center[a] = c;
+      if (!(std::fabs(v[a]) < L)) v[a] = std::copysign(L / 2, v[a]);
+    }
+    if (s.is_sphere()) {
+      if (!(s.radius() < L / 2)) s = Shape::sphere(s.center, 0.499 * L);
+      continue;
+    }
+    for (int a = 0; a < 3; ++a)
+      if (axes[a] && !(s.half[a] < L / 2)) s.half[a] = 0.499 * L;
   }
 }
 

@@ -1,10 +1,12 @@
 /// \file lab/scene.hpp
 /// Scene files (docs/scene-format.md, versions 1 to 3: spheres, boxes,
-/// filters and rays), the replay motion, the pair and hit hashes, and the
-/// workload generators.
+/// filters, rays and periodic worlds), the replay motion, the pair and hit
+/// hashes, and the workload generators.
 #pragma once
 
+#include <array>
 #include <broadphase/geometry.hpp>
+#include <broadphase/periodic.hpp>
 #include <broadphase/ray.hpp>
 #include <cstdint>
 #include <iosfwd>
@@ -19,6 +21,10 @@ namespace broadphase {
 /// ray id = position in `rays`.
 struct Scene {
   double world = 1000;
+  /// The periodic axes (version 3, `world L periodic AXES`), x, y, z. On
+  /// each, centres lie in [0, L], half-extents below L/2, |v| below L, and
+  /// motion wraps.
+  std::array<bool, 3> periodic{false, false, false};
   std::vector<Shape> objects;
   std::vector<Vec3> velocity;  ///< per object; (0,0,0) means static
   /// Per object, or empty when every object has the default Filter{}
@@ -41,8 +47,12 @@ struct Scene {
   bool has_filters() const;
   /// True when the scene's frames print the version 3 lines with hits.
   bool has_rays() const { return !rays.empty(); }
-  /// The version `write_scene` writes: 3 with filters or rays, else 2 with
-  /// boxes, else 1.
+  /// True when any axis is periodic (version 3).
+  bool is_periodic() const { return periodic[0] || periodic[1] || periodic[2]; }
+  /// The periodic cell of the world (PeriodicBroadPhase).
+  PeriodicCell cell() const { return PeriodicCell::cube(world, periodic); }
+  /// The version `write_scene` writes: 3 with filters, rays or periodic
+  /// axes, else 2 with boxes, else 1.
   int version() const;
 };
 
@@ -53,22 +63,25 @@ class SceneError : public std::runtime_error {
 };
 
 /// Parses a scene of version 1, 2 or 3. `name` is used in messages. Throws
-/// SceneError naming the line; a periodic world (`world L periodic AXES`)
-/// is refused: periodic worlds are not supported yet. Beyond the letter of
+/// SceneError naming the line (in a periodic world also for a centre
+/// outside [0, L], a radius or half-extent not below L/2 or a velocity
+/// component not below L in magnitude on a periodic axis). Beyond the letter of
 /// the format, CRLF line ends, a UTF-8 byte order mark before the header
 /// and a leading '+' on a number are accepted.
 Scene parse_scene(std::istream& in, const std::string& name);
 /// Reads a scene file. Throws SceneError (also when it cannot be opened).
 Scene read_scene(const std::string& path);
 /// Writes version 1 (spheres only), version 2 (when there are boxes) or
-/// version 3 (when there are filters or rays; `Scene::version`), numbers as
-/// %.17g so that reading gives back the same doubles.
+/// version 3 (when there are filters, rays or periodic axes, written in x,
+/// y, z order; `Scene::version`), numbers as %.17g so that reading gives
+/// back the same doubles.
 void write_scene(std::ostream& out, const Scene& scene);
 /// Writes a scene file. Throws std::runtime_error when it cannot be written.
 void write_scene(const std::string& path, const Scene& scene);
 
 /// Moves every object with a non-zero velocity by one frame, axis by axis,
-/// reflecting off the walls of [0, L], exactly as the contract says.
+/// reflecting off the walls of [0, L], or wrapping on a periodic axis
+/// (step_axis_periodic), exactly as the contract says.
 void step(Scene& scene);
 /// The motion of one coordinate (exposed for tests and other steppers).
 inline void step_axis(double& p, double& v, double world) {
@@ -80,6 +93,15 @@ inline void step_axis(double& p, double& v, double world) {
     p = 2 * world - p;
     v = -v;
   }
+}
+
+/// The motion of one coordinate on a periodic axis: wraps into [0, L).
+inline void step_axis_periodic(double& p, double v, double world) {
+  p += v;
+  if (p < 0)
+    p += world;
+  else if (p >= world)
+    p -= world;
 }
 
 /// splitmix64 as the contract defines it.
@@ -96,6 +118,13 @@ constexpr std::uint64_t pair_hash(std::uint32_t i, std::uint32_t j) {
   return splitmix64((std::uint64_t(i) << 32) | j);
 }
 
+/// The contract's hash of a periodic pair (i, j, S), i < j: the pair's
+/// hash for S = 0, else splitmix64(splitmix64((i << 32) | j) ^ S.code()).
+constexpr std::uint64_t pair_hash(std::uint32_t i, std::uint32_t j, Shift s) {
+  const std::uint64_t h = splitmix64((std::uint64_t(i) << 32) | j);
+  return s.is_zero() ? h : splitmix64(h ^ static_cast<std::uint64_t>(s.code()));
+}
+
 /// Pair count and order-independent hash of one frame.
 struct FrameDigest {
   std::uint64_t pairs = 0;
@@ -103,6 +132,11 @@ struct FrameDigest {
   void add(std::uint32_t i, std::uint32_t j) {
     ++pairs;
     hash += pair_hash(i, j);
+  }
+  /// A periodic pair (i, j, S) with i < j.
+  void add(std::uint32_t i, std::uint32_t j, Shift s) {
+    ++pairs;
+    hash += pair_hash(i, j, s);
   }
   friend bool operator==(const FrameDigest&, const FrameDigest&) = default;
 };
@@ -223,6 +257,20 @@ enum class FilterKind {
 /// FilterKind::layers. Throws std::invalid_argument for a layer count out
 /// of range.
 void add_filters(Scene& scene, FilterKind kind, int layers, std::uint64_t seed);
+
+/// Parses the AXES of `world L periodic AXES`: a non-empty set of distinct
+/// letters among x, y, z, in any order. Throws std::invalid_argument saying
+/// what is wrong (empty, a letter repeated, a letter not an axis).
+std::array<bool, 3> parse_periodic_axes(std::string_view axes);
+/// The AXES text of `axes` in x, y, z order ("" when none).
+std::string periodic_axes_text(const std::array<bool, 3>& axes);
+
+/// Makes `scene` periodic on `axes` (version 3): on each periodic axis,
+/// centres are wrapped into [0, L), half-extents of L/2 or more become just
+/// below L/2 (0.499 L), and velocity components of L or more in magnitude
+/// are cut to L/2 with their sign, so that the contract's limits hold.
+/// Objects on the other axes are left as they are.
+void make_periodic(Scene& scene, const std::array<bool, 3>& axes);
 
 /// The rays `add_rays` makes (version 3).
 enum class RayKind {
