@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <broadphase/scenes/brute_force.hpp>
 #include <broadphase/scenes/replay.hpp>
@@ -186,11 +187,101 @@ TEST(SceneV3, RejectsEveryMalformedFileNamingTheLine) {
   expect_rejected("broadphase-scene 4\nworld 10\nobjects 0\n", 1, "version 4");
 }
 
-TEST(SceneV3, RefusesPeriodicWorlds) {
-  for (const char* axes : {"xyz", "xy", "z", "zyx"})
-    expect_rejected("broadphase-scene 3\n# a comment\nworld 1000 periodic " + std::string(axes) +
-                        "\nobjects 0\n",
-                    3, axes, "periodic worlds are not supported yet");
+TEST(SceneV3, ReadsPeriodicWorlds) {
+  const Scene s = parse(
+      "broadphase-scene 3\n# a comment\nworld 100 periodic zx\nobjects 3\n"
+      "sphere 0 -5 100 49.999 99.999 0 -99.999\n"
+      "box 100 200 0 49 1e6 49.5 0 -1e9 0\n"
+      "sphere 50 50 50 0 0 0 0\n");
+  EXPECT_EQ(s.periodic, (std::array<bool, 3>{true, false, true}));
+  EXPECT_TRUE(s.is_periodic());
+  EXPECT_EQ(s.version(), 3);
+  EXPECT_EQ(s.objects[1].center, (Vec3{100, 200, 0}));  // y is not periodic: anything goes
+  for (const char* axes : {"xyz", "xy", "z", "zyx", "yx"})
+    EXPECT_TRUE(
+        parse("broadphase-scene 3\nworld 10 periodic " + std::string(axes) + "\nobjects 0\n")
+            .is_periodic())
+        << axes;
+  EXPECT_FALSE(parse(kHead + kObjects).is_periodic());
+}
+
+TEST(SceneV3, RejectsMalformedPeriodicWorldsNamingTheLine) {
+  const std::string w = "broadphase-scene 3\nworld 100 periodic xz\nobjects 1\n";
+  expect_rejected("broadphase-scene 3\nworld 100 periodic\nobjects 0\n", 2, "no axes",
+                  "needs its axes");
+  expect_rejected("broadphase-scene 3\nworld 100 periodic xx\nobjects 0\n", 2, "repeated axis",
+                  "twice");
+  expect_rejected("broadphase-scene 3\nworld 100 periodic xw\nobjects 0\n", 2, "unknown letter",
+                  "not an axis");
+  expect_rejected("broadphase-scene 3\nworld 100 periodic X\nobjects 0\n", 2, "capital letter",
+                  "not an axis");
+  expect_rejected("broadphase-scene 3\nworld 100 periodic x y\nobjects 0\n", 2, "two words");
+  expect_rejected("broadphase-scene 3\nworld 100 periodical xyz\nobjects 0\n", 2, "not 'periodic'");
+  expect_rejected("broadphase-scene 2\nworld 100 periodic xyz\nobjects 0\n", 2, "version 2",
+                  "broadphase-scene 3");
+  // A centre outside [0, L] on a periodic axis, not on the others.
+  expect_rejected(w + "sphere -1e-300 0 0 1 0 0 0\n", 4, "x below 0", "outside [0, L]");
+  expect_rejected(w + "sphere 0 0 100.00000000000001 1 0 0 0\n", 4, "z above L", "periodic axis z");
+  expect_rejected(w + "box 5 5 -3 1 1 1 0 0 0\n", 4, "box z below 0", "'-3'");
+  EXPECT_EQ(parse(w + "sphere 0 -7 100 1 0 0 0\n").objects[0].center, (Vec3{0, -7, 100}));
+  // Sizes of L/2 or more on a periodic axis.
+  expect_rejected(w + "sphere 5 5 5 50 0 0 0\n", 4, "radius L/2", "radius '50'");
+  expect_rejected(w + "box 5 5 5 1 1 50 0 0 0\n", 4, "hz L/2", "hz '50'");
+  expect_rejected(w + "box 5 5 5 60 1 1 0 0 0\n", 4, "hx above L/2", "not below L/2");
+  EXPECT_EQ(parse(w + "box 5 5 5 1 70 49.999 0 0 0\n").objects[0].half.y, 70);  // y is not periodic
+  // A velocity component of L or more on a periodic axis.
+  expect_rejected(w + "sphere 5 5 5 1 100 0 0\n", 4, "vx = L", "vx '100'");
+  expect_rejected(w + "sphere 5 5 5 1 0 0 -100\n", 4, "vz = -L", "in magnitude");
+  expect_rejected(w + "box 5 5 5 1 1 1 0 0 -1e300\n", 4, "box vz huge", "vz");
+  EXPECT_EQ(parse(w + "sphere 5 5 5 1 0 1e300 0\n").velocity[0].y, 1e300);
+  // Further down, the line of the object at fault.
+  expect_rejected(
+      "broadphase-scene 3\nworld 100 periodic y\nobjects 2\nsphere 5 5 5 1 0 0 0\n\n"
+      "sphere 5 101 5 1 0 0 0 filter 1 1\n",
+      6, "second object", "y");
+}
+
+TEST(SceneV3, PeriodicRoundTripIsBitExact) {
+  for (const char* axes : {"xyz", "xy", "y", "zx"}) {
+    SCOPED_TRACE(axes);
+    Scene s = generate(Distribution::half_boxes, 200, 5);
+    make_periodic(s, parse_periodic_axes(axes));
+    add_filters(s, FilterKind::random, 0, 5);
+    s.objects[0].center = {0, 1000, 0x1p-1074};  // the faces and the smallest double
+    s.objects[1].center = {std::nextafter(1000.0, 0.0), 0, 1000};
+    const std::string text = written(s);
+    EXPECT_NE(text.find("\nworld 1000 periodic " + periodic_axes_text(s.periodic) + "\n"),
+              std::string::npos);
+    const Scene back = parse(text);
+    EXPECT_EQ(back.periodic, s.periodic);
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      EXPECT_EQ(back.objects[i], s.objects[i]) << i;
+      EXPECT_EQ(back.velocity[i], s.velocity[i]) << i;
+    }
+    EXPECT_EQ(written(back), text);
+  }
+  EXPECT_EQ(periodic_axes_text(parse_periodic_axes("zyx")), "xyz");
+  EXPECT_THROW(parse_periodic_axes(""), std::invalid_argument);
+}
+
+TEST(SceneV3, PeriodicMotionWrapsAndReflectsElsewhere) {
+  Scene s = parse(
+      "broadphase-scene 3\nworld 10 periodic xz\nobjects 4\n"
+      "sphere 9.5 9.5 0.25 1 1 1 -0.5\n"
+      "sphere 10 0 10 1 0.5 0 0\n"
+      "sphere 10 5 5 1 0 0 0\n"
+      "sphere 0 5 3 1 -9.999999999999998 0 9\n");
+  step(s);
+  EXPECT_EQ(s.objects[0].center, (Vec3{0.5, 9.5, 9.75}));  // x, z wrap; y reflects
+  EXPECT_EQ(s.velocity[0], (Vec3{1, -1, -0.5}));
+  EXPECT_EQ(s.objects[1].center.x, 0.5);  // at L, moved: past L, so back by L
+  EXPECT_EQ(s.objects[1].center.z, 0);    // at L and moving (on x): to 0 on z too
+  EXPECT_EQ(s.objects[2].center.x, 10);   // a static object stays at L
+  EXPECT_EQ(s.objects[3].center.x, -9.999999999999998 + 10);
+  EXPECT_EQ(s.objects[3].center.z, 2);  // 12 >= L: 12 - 10
+  double p = -1e-300;
+  step_axis_periodic(p, 0, 10);  // a rounding of p + L lands on L exactly
+  EXPECT_EQ(p, 10);
 }
 
 TEST(SceneV3, HitHashFollowsTheContract) {
@@ -259,14 +350,22 @@ TEST(SceneV3, OracleReproducesEveryReferenceScene) {
   }
 }
 
-// Every structure through Replay, as `run` prints it. `filters` picks the
-// scenes with filters (which wait on each structure applying them inside
-// its pair paths) or those with rays alone.
-void replay_v3_scenes(const std::string& spec, bool filters) {
+// Every structure through Replay, as `run` prints it. `kind` picks the
+// scenes: periodic worlds (through the periodic adapter), those with
+// filters (which wait on each structure applying them inside its pair
+// paths), or those with rays alone.
+enum class V3Kind { rays, filters, periodic };
+
+V3Kind kind_of(const Scene& scene) {
+  if (scene.is_periodic()) return V3Kind::periodic;
+  return scene.has_filters() ? V3Kind::filters : V3Kind::rays;
+}
+
+void replay_v3_scenes(const std::string& spec, V3Kind kind) {
   int done = 0;
   for (const V3Scene& ref : v3_scenes()) {
     const Scene scene = read_scene(ref.path);
-    if (scene.has_filters() != filters) continue;
+    if (kind_of(scene) != kind) continue;
     SCOPED_TRACE(ref.name);
     Config config;
     config.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}};
@@ -274,21 +373,31 @@ void replay_v3_scenes(const std::string& spec, bool filters) {
     auto bp = make_structure(spec, config);
     const bool rays = scene.has_rays();
     Replay replay(*bp, scene);
+    ASSERT_EQ(replay.periodic() != nullptr, kind == V3Kind::periodic);
     for (std::size_t f = 0; f < ref.expected.size(); ++f) {
       const FrameResult r = replay.next();
-      bp->validate();
+      if (replay.periodic())
+        replay.periodic()->validate();
+      else
+        bp->validate();
       ASSERT_EQ(frame_line(static_cast<int>(f), r, rays), ref.expected[f]);
     }
     ++done;
   }
-  EXPECT_GE(done, 2);
+  EXPECT_GE(done, kind == V3Kind::periodic ? 3 : 2);
 }
 
 class ReferenceScenesV3 : public ::testing::TestWithParam<std::string> {};
 
-TEST_P(ReferenceScenesV3, RaysReproduceEveryFrame) { replay_v3_scenes(GetParam(), false); }
+TEST_P(ReferenceScenesV3, RaysReproduceEveryFrame) { replay_v3_scenes(GetParam(), V3Kind::rays); }
 
-TEST_P(ReferenceScenesV3, FiltersReproduceEveryFrame) { replay_v3_scenes(GetParam(), true); }
+TEST_P(ReferenceScenesV3, FiltersReproduceEveryFrame) {
+  replay_v3_scenes(GetParam(), V3Kind::filters);
+}
+
+TEST_P(ReferenceScenesV3, PeriodicReproduceEveryFrame) {
+  replay_v3_scenes(GetParam(), V3Kind::periodic);
+}
 
 // The structure against the oracle on scenes `gen` makes, moving, for a
 // few frames: every kind of ray, with or without filters (and rays with
@@ -330,6 +439,70 @@ TEST_P(ReferenceScenesV3, MatchOracleOnGeneratedRays) {
 
 TEST_P(ReferenceScenesV3, MatchOracleOnGeneratedFilters) {
   match_oracle_on_generated(GetParam(), true);
+}
+
+// A periodic world made to hurt the adapter (seeded): L = 100, periodic on
+// `axes`; spheres and boxes, a quarter exactly on a face (0 or L), a
+// quarter near an edge or a corner, one in ten with a size just below L/2,
+// a third static, the movers fast enough to wrap often (up to 0.3 L a
+// frame, some just below L), and a few stacked on each other.
+Scene hurtful_periodic_scene(std::array<bool, 3> axes, std::size_t n, std::uint64_t seed,
+                             bool filters) {
+  Rng rng(seed);
+  Scene s;
+  s.world = 100;
+  s.periodic = axes;
+  const double L = s.world;
+  for (std::size_t i = 0; i < n; ++i) {
+    Vec3 c{rng.uniform(0, L), rng.uniform(0, L), rng.uniform(0, L)};
+    const double u = rng.uniform();
+    if (u < 0.25) {
+      c[static_cast<int>(rng.below(3))] = rng.below(2) ? L : 0;
+    } else if (u < 0.5) {
+      for (int a = 0; a < 3; ++a)
+        if (rng.below(3) != 0) c[a] = rng.below(2) ? rng.uniform(0, 3) : L - rng.uniform(0, 3);
+    } else if (u < 0.55 && i > 0) {
+      c = s.objects[rng.below(i)].center;
+    }
+    const double size =
+        rng.uniform() < 0.1 ? std::nextafter(L / 2, 0.0) - rng.uniform(0, 3) : rng.uniform(0, 8);
+    Shape shape = rng.below(2) ? Shape::sphere(c, size)
+                               : Shape::box(c, {size, rng.uniform(0, size), rng.uniform(0, 4)});
+    Vec3 v{};
+    if (rng.uniform() < 0.67)
+      for (int a = 0; a < 3; ++a)
+        v[a] = rng.uniform() < 0.05 ? std::nextafter(L, 0.0) * (rng.below(2) ? 1 : -1)
+                                    : rng.uniform(-0.3 * L, 0.3 * L);
+    s.objects.push_back(shape);
+    s.velocity.push_back(v);
+  }
+  if (filters) add_filters(s, FilterKind::random, 0, seed);
+  return s;
+}
+
+// Every structure through the periodic adapter against the oracle: slabs,
+// tubes and bulk, with and without filters, moving and wrapping for a few
+// frames, the adapter validated each frame.
+TEST_P(ReferenceScenesV3, PeriodicMatchesOracleOnHurtfulScenes) {
+  const std::array<bool, 3> kAxes[] = {
+      {true, true, true}, {true, true, false}, {true, false, false}, {false, false, true}};
+  for (std::uint64_t seed = 1; seed <= 2; ++seed)
+    for (const auto& axes : kAxes)
+      for (bool filters : {false, true}) {
+        SCOPED_TRACE(::testing::Message() << "seed " << seed << " periodic "
+                                          << periodic_axes_text(axes) << " filters " << filters);
+        const Scene scene = hurtful_periodic_scene(axes, 120, seed, filters);
+        Config config;
+        config.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}};
+        auto bp = make_structure(GetParam(), config);
+        Replay replay(*bp, scene);
+        BruteForceReplay oracle(scene);
+        for (int f = 0; f < 5; ++f) {
+          const FrameResult r = replay.next();
+          replay.periodic()->validate();
+          ASSERT_EQ(r.digest, oracle.next().pairs) << "frame " << f;
+        }
+      }
 }
 
 INSTANTIATE_TEST_SUITE_P(All, ReferenceScenesV3, ::testing::ValuesIn(structure_specs()),

@@ -17,9 +17,11 @@ struct BruteForceFrame {
 };
 
 /// The pairs of `scene`'s objects at their current positions: those that
-/// overlap and whose filters pass.
+/// overlap and whose filters pass; in a periodic world every (i, j, S),
+/// O(27 n^2), hashed with the shift's code.
 FrameDigest brute_force_pairs(const Scene& scene);
-/// The hits of `scene`'s rays on its objects at their current positions.
+/// The hits of `scene`'s rays on its objects at their current positions
+/// (no images in a periodic world: rays do not wrap).
 HitDigest brute_force_hits(const Scene& scene);
 
 /// Replays a scene by brute force: frame 0 as loaded, each later one after

@@ -3,9 +3,11 @@
 /// says: frame 0 at the file's positions, then move, update, find pairs.
 #pragma once
 
+#include <broadphase/periodic.hpp>
 #include <broadphase/scenes/scene.hpp>
 #include <broadphase/structure.hpp>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -31,11 +33,17 @@ std::string frame_line(int frame, const FrameResult& r, bool rays);
 /// user data i and the scene's filter of object i; moving objects are
 /// inserted as Motion::dynamic, the others as Motion::fixed). Each `next()`
 /// evaluates one frame: the contract's motion, the pairs, then every ray
-/// of the scene cast through `cast_ray`, all hits collected.
+/// of the scene cast through `cast_ray`, all hits collected. A periodic
+/// scene runs through a PeriodicBroadPhase over the structure (periodic.hpp):
+/// the structure then holds the images too, and the frame's pairs are the
+/// contract's (i, j, S), hashed with their shift.
 class Replay {
  public:
   /// Inserts every object of `scene` into `structure` (which should be empty).
   Replay(AnyBroadPhase& structure, Scene scene);
+  ~Replay();
+  Replay(const Replay&) = delete;
+  Replay& operator=(const Replay&) = delete;
 
   /// Evaluates the next frame: frame 0 as loaded, each later one after the
   /// contract's motion step. The time covers the structure's work only.
@@ -47,9 +55,13 @@ class Replay {
   double build_seconds() const { return build_seconds_; }
   /// The handle of object id `i`.
   Handle handle(std::size_t i) const { return handles_[i]; }
+  /// The adapter of a periodic scene (nullptr otherwise).
+  const PeriodicBroadPhase* periodic() const { return periodic_.get(); }
 
  private:
   AnyBroadPhase& bp_;
+  std::unique_ptr<PeriodicBroadPhase> periodic_;
+  std::vector<PeriodicPair> periodic_pairs_;
   Scene scene_;
   std::vector<Handle> handles_;
   std::vector<std::uint32_t> moving_;  // ids of moving objects
