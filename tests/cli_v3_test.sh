@@ -1,15 +1,19 @@
 #!/usr/bin/env bash
-# Scene format version 3 on the command line (filters and rays).
+# Scene format version 3 on the command line (filters, rays, periodic worlds).
 #   cli_v3_test.sh CLI DATA input    bad input (a message naming the line, a
-#                                    non-zero exit, nothing printed), periodic
-#                                    worlds refused, `run --oracle` on the
-#                                    reference scenes, `gen`'s filters and
-#                                    rays, --arrays against --oracle on them
+#                                    non-zero exit, nothing printed), `run
+#                                    --oracle` on the reference scenes,
+#                                    --arrays refusing periodic worlds, sim
+#                                    refusing what it cannot do, `gen`'s
+#                                    filters, rays and periodic worlds,
+#                                    --arrays against --oracle on them
 #   cli_v3_test.sh CLI DATA rays     every structure of `list` and the lean
 #                                    path on the reference scenes with rays
 #                                    and no filters
 #   cli_v3_test.sh CLI DATA filters  every structure of `list` and the lean
 #                                    path on the reference scenes with filters
+#   cli_v3_test.sh CLI DATA periodic every structure of `list` on the periodic
+#                                    reference scenes and on ones `gen` makes
 set -u
 cli=$1
 data=$2
@@ -23,22 +27,28 @@ trap 'rm -rf "$tmp"' EXIT
 . "$(dirname "$0")/support/cli_checks.sh"
 
 has_filters() { grep -q '^\(sphere\|box\) .* filter ' "$1"; }
+is_periodic() { grep -q '^world .* periodic ' "$1"; }
 
 # Every structure of `list` prints the expected lines of the reference
-# scenes of one kind (rays: scenes without object filters; filters: with).
-replay_all() {  # replay_all rays|filters
+# scenes of one kind (periodic: periodic worlds; rays: other scenes without
+# object filters; filters: with).
+replay_all() {  # replay_all rays|filters|periodic
   local algos
   algos=$("$cli" list | awk '{print $1}')
   [ -n "$algos" ] || { echo "FAIL: list printed nothing"; fail=$((fail + 1)); return; }
   for s in "$data"/scenes/v3/*.scene; do
-    if has_filters "$s"; then [ "$1" = filters ] || continue; else [ "$1" = rays ] || continue; fi
+    if is_periodic "$s"; then
+      [ "$1" = periodic ] || continue
+    elif has_filters "$s"; then [ "$1" = filters ] || continue; else [ "$1" = rays ] || continue; fi
     exp=${s%.scene}.expected
     frames=$(wc -l <"$exp")
     for a in $algos; do
       "$cli" run --scene "$s" --algo "$a" --frames "$frames" >"$tmp/out" 2>"$tmp/err"
       check "$a on v3/$(basename "$s")" cmp -s "$tmp/out" "$exp"
     done
-    # The lean path too, with its filter columns and its rays.
+    # The lean path too, with its filter columns and its rays (it does not
+    # wrap yet).
+    is_periodic "$s" && continue
     "$cli" run --scene "$s" --arrays --frames "$frames" >"$tmp/out" 2>"$tmp/err"
     check "arrays on v3/$(basename "$s")" cmp -s "$tmp/out" "$exp"
   done
@@ -76,13 +86,16 @@ input_checks() {
   bad "fewer rays" "declares 2 rays but has 1" "${h}${o}rays 2\nray 0 0 0 1 0 0 1\n"
   bad "more rays" "bad.scene:7:.*more ray lines" "${h}${o}rays 1\nray 0 0 0 1 0 0 1\nray 0 0 0 1 0 0 1\n"
   bad "ray without block" "bad.scene:5:" "${h}${o}ray 0 0 0 1 0 0 1\n"
-  bad "periodic world" "bad.scene:2:.*periodic worlds are not supported yet" \
-    "broadphase-scene 3\nworld 1000 periodic xyz\nobjects 0\n"
-  # The shared periodic scenes' opening lines, as they are written.
-  for axes in xyz xy; do
-    bad "periodic $axes" "bad.scene:3:.*periodic worlds are not supported yet" \
-      "broadphase-scene 3\n# gen --periodic $axes\nworld 1000 periodic $axes\nobjects 1\nsphere 1 2 3 4 0 0 0\n"
-  done
+  # Periodic worlds: the axes, and the limits on periodic axes.
+  local p="broadphase-scene 3\nworld 100 periodic xz\nobjects 1\n"
+  bad "periodic without axes" "bad.scene:2:.*needs its axes" "broadphase-scene 3\nworld 100 periodic\nobjects 0\n"
+  bad "periodic axis twice" "bad.scene:2:.*twice" "broadphase-scene 3\nworld 100 periodic xyx\nobjects 0\n"
+  bad "periodic unknown axis" "bad.scene:2:.*not an axis" "broadphase-scene 3\nworld 100 periodic xw\nobjects 0\n"
+  bad "periodic in version 2" "bad.scene:2:.*broadphase-scene 3" "broadphase-scene 2\nworld 100 periodic x\nobjects 0\n"
+  bad "periodic centre outside" "bad.scene:4:.*outside \\[0, L\\] on the periodic axis z" "${p}sphere 1 2 101 4 0 0 0\n"
+  bad "periodic radius L/2" "bad.scene:4:.*radius '50' is not below L/2" "${p}sphere 1 2 3 50 0 0 0\n"
+  bad "periodic half-extent" "bad.scene:4:.*hx '51'" "${p}box 1 2 3 51 1 1 0 0 0\n"
+  bad "periodic velocity L" "bad.scene:4:.*vx '-100'" "${p}sphere 1 2 3 4 -100 0 0\n"
 
   # The oracle prints every reference scene's lines, rays and filters alike.
   for s in "$data"/scenes/v3/*.scene; do
@@ -98,6 +111,14 @@ input_checks() {
   done
   expect_error "--oracle with --arrays" "excludes" run --scene "$data/scenes/single.scene" --oracle --arrays
 
+  # The lean path, sim and broadphase-mpi refuse periodic worlds rather than
+  # replay them with walls.
+  for s in "$data"/scenes/v3/periodic-*.scene; do
+    expect_error "arrays refuses v3/$(basename "$s")" "does not take periodic worlds yet" \
+      run --scene "$s" --arrays --frames 1
+  done
+  expect_error "sim: periodic" "sim does not take periodic worlds yet" \
+    sim --scene "$data/scenes/v3/periodic-xyz-300.scene" --frames 1
 
   # sim knows no filters yet and says so; rays play no part in it.
   expect_error "sim: filters" "sim does not take filters yet" \
@@ -141,12 +162,47 @@ input_checks() {
   expect_error "gen: layers out of range" "layers" gen --dist even --n 10 --layers 33 --out "$tmp/x.scene"
   expect_error "gen: layers with random" "layers" gen --dist even --n 10 --layers 3 --filters random --out "$tmp/x.scene"
   check "gen: nothing written on a bad option" test ! -e "$tmp/x.scene"
+
+  # gen --periodic: the world line in x, y, z order, centres in [0, L] on
+  # the periodic axes, sizes below L/2, deterministic.
+  "$cli" gen --dist decades --n 300 --seed 3 --periodic zx --out "$tmp/p.scene"
+  "$cli" gen --dist decades --n 300 --seed 3 --periodic xz --out "$tmp/q.scene"
+  check "gen --periodic is deterministic, axes in order" cmp -s "$tmp/p.scene" "$tmp/q.scene"
+  check "gen --periodic world line" test "$(sed -n 2p "$tmp/p.scene")" = "world 1000 periodic xz"
+  check "gen --periodic header" test "$(head -1 "$tmp/p.scene")" = "broadphase-scene 3"
+  "$cli" gen --dist outside --n 300 --seed 3 --periodic xyz --out "$tmp/o.scene"
+  check "gen --periodic wraps the outside kind" awk '/^sphere/ { for (a = 2; a <= 4; ++a) if ($a < 0 || $a > 1000) exit 1; if ($5 >= 500) exit 1 }' "$tmp/o.scene"
+  expect_error "gen: periodic without axes" "--periodic" gen --dist even --n 10 --periodic "" --out "$tmp/x.scene"
+  expect_error "gen: periodic axis twice" "--periodic.*twice" gen --dist even --n 10 --periodic xx --out "$tmp/x.scene"
+  expect_error "gen: periodic bad axis" "--periodic.*not an axis" gen --dist even --n 10 --periodic w --out "$tmp/x.scene"
+  check "gen: nothing written on a bad --periodic" test ! -e "$tmp/x.scene"
+}
+
+# Every structure on scenes `gen --periodic` makes (slab, tube, bulk, with
+# filters and rays), against the oracle's lines.
+periodic_gen() {
+  local algos
+  algos=$("$cli" list | awk '{print $1}')
+  "$cli" gen --dist half-boxes --n 400 --seed 6 --periodic xy --out "$tmp/slab.scene"
+  "$cli" gen --dist decades --n 300 --seed 6 --periodic x --layers 4 --out "$tmp/tube.scene"
+  "$cli" gen --dist box-decades --n 300 --seed 6 --periodic xyz --filters random --rays 30 \
+    --out "$tmp/bulk.scene"
+  for s in "$tmp"/slab.scene "$tmp"/tube.scene "$tmp"/bulk.scene; do
+    "$cli" run --scene "$s" --oracle --frames 4 >"$tmp/want"
+    for a in $algos; do
+      "$cli" run --scene "$s" --algo "$a" --frames 4 >"$tmp/out" 2>"$tmp/err"
+      check "$a on gen $(basename "$s")" cmp -s "$tmp/out" "$tmp/want"
+    done
+  done
+  "$cli" run --scene "$tmp/bulk.scene" --algo grid-verlet --frames 2 --json >"$tmp/j"
+  check "json names the periodic axes and images" python3 -c "import json,sys; j=json.load(open('$tmp/j')); sys.exit(0 if j['periodic'] == 'xyz' and j['images'] > 0 else 1)"
 }
 
 case $mode in
   input) input_checks ;;
   rays) replay_all rays ;;
   filters) replay_all filters ;;
+  periodic) replay_all periodic; periodic_gen ;;
   *) echo "unknown mode $mode"; exit 2 ;;
 esac
 echo "$pass passed, $fail failed"

@@ -87,6 +87,10 @@ Share read_share(MPI_Comm comm, const std::string& path) {
   if (rank_of(comm) == 0) {
     try {
       scene = read_scene(path);
+      if (scene.is_periodic())
+        error = path +
+                ": a periodic world, which broadphase-mpi does not take yet (`broadphase "
+                "run` replays it on one process)";
     } catch (const std::exception& e) {
       error = e.what();
     }

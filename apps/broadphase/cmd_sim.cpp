@@ -62,6 +62,10 @@ void run_sim(const SimOptions& o) {
   // (Rays play no part in a simulation.)
   if (scene.has_filters())
     throw SceneError(o.scene + ": sim does not take filters yet; run this scene with `run`");
+  // Its response and contact count know no images: refuse a periodic world.
+  if (scene.is_periodic())
+    throw SceneError(o.scene +
+                     ": sim does not take periodic worlds yet; run this scene with `run`");
   Config bp_config;
   bp_config.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}};
   bp_config.expected_objects = scene.size();

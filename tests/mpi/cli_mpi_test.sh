@@ -154,6 +154,8 @@ expect_fail() {  # expect_fail NAME PATTERN RANKS ARGS...
 printf 'broadphase-scene 1\nworld 100\nobjects 3\n1 2 3 1 0 0 0\n1 2 x 1 0 0 0\n4 5 6 1 0 0 0\n' >"$tmp/bad.scene"
 expect_fail "bad scene line read by rank 0" "bad.scene:5" 3 run --scene "$tmp/bad.scene"
 expect_fail "missing scene" "nowhere.scene" 2 run --scene "$tmp/nowhere.scene"
+expect_fail "a periodic world" "periodic world, which broadphase-mpi does not take yet" 2 \
+  run --scene "$data/scenes/v3/periodic-xyz-300.scene"
 expect_fail "unknown structure" "no-such" 2 run --scene "$s" --algo no-such
 expect_fail "grid that does not fit" "does not fit" 2 run --scene "$s" --grid 3x1x1
 expect_fail "unknown balance weight" "balance-by" 2 run --scene "$s" --bisect --balance-by cost
