@@ -12,7 +12,9 @@
 #include <broadphase/scenes/brute_force.hpp>
 #include <broadphase/scenes/scene.hpp>
 #include <map>
+#include <set>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace broadphase {
@@ -143,6 +145,66 @@ INSTANTIATE_TEST_SUITE_P(Some, PeriodicAdapter,
                            std::replace(name.begin(), name.end(), '-', '_');
                            return name;
                          });
+
+// Cells with a length of their own per axis (the scenes are cubes): every
+// (a, b, S) by brute force, b's centre moved by S_a L_a per axis, against
+// the adapter over two structures, through a few frames of wrapping motion.
+TEST(PeriodicAdapterCells, OrthorhombicCellsMatchABruteForce) {
+  const Vec3 length{40, 70, 100};
+  const std::array<bool, 3> kAxes[] = {
+      {true, false, true}, {true, true, true}, {false, true, false}};
+  for (const char* spec : {"grid-verlet", "kdtree"})
+    for (const auto& axes : kAxes)
+      for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+        SCOPED_TRACE(::testing::Message()
+                     << spec << " seed " << seed << " periodic " << periodic_axes_text(axes));
+        Rng rng(seed);
+        auto inner = make_structure(spec);
+        PeriodicBroadPhase p(*inner, PeriodicCell{length, axes});
+        std::vector<Shape> shapes;
+        std::vector<Handle> handles;
+        for (std::uint64_t i = 0; i < 150; ++i) {
+          Vec3 c;
+          for (int a = 0; a < 3; ++a)
+            c[a] = rng.below(5) == 0 ? (rng.below(2) ? length[a] : 0) : rng.uniform(0, length[a]);
+          const double size = rng.uniform(0, rng.below(10) == 0 ? 19.9 : 4);
+          shapes.push_back(rng.below(2) ? Shape::sphere(c, size)
+                                        : Shape::box(c, {size, rng.uniform(0, 30), size / 2}));
+          handles.push_back(p.insert(shapes.back(), i));
+        }
+        for (int frame = 0; frame < 4; ++frame) {
+          std::set<std::tuple<std::uint64_t, std::uint64_t, int>> want, got;
+          for (std::size_t i = 0; i < shapes.size(); ++i)
+            for (std::size_t j = i + 1; j < shapes.size(); ++j)
+              for (int code = 0; code < 27; ++code) {
+                const Shift t = Shift::of_code(code);
+                if ((t.x != 0 && !axes[0]) || (t.y != 0 && !axes[1]) || (t.z != 0 && !axes[2]))
+                  continue;
+                Shape moved = shapes[j];
+                for (int a = 0; a < 3; ++a)
+                  moved.center[a] = shapes[j].center[a] + t[a] * length[a];
+                if (overlaps(shapes[i], moved)) want.insert({i, j, code});
+              }
+          std::vector<PeriodicPair> pairs;
+          p.find_pairs(pairs);
+          for (const PeriodicPair& q : pairs)
+            EXPECT_TRUE(got.insert({p.user_data(q.a), p.user_data(q.b), q.shift.code()}).second)
+                << "a pair reported twice";
+          ASSERT_EQ(got, want) << "frame " << frame;
+          std::vector<Move> moves;
+          for (std::size_t i = 0; i < shapes.size(); i += 2) {
+            for (int a = 0; a < 3; ++a) {
+              double c = shapes[i].center[a];
+              step_axis_periodic(c, rng.uniform(-length[a] / 3, length[a] / 3), length[a]);
+              shapes[i].center[a] = c;
+            }
+            moves.push_back({handles[i], shapes[i]});
+          }
+          p.update(moves);
+          p.validate();
+        }
+      }
+}
 
 TEST(PeriodicAdapterInput, RefusesBadShapesAndChangesNothing) {
   auto inner = make_structure("naive");
