@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <broadphase/periodic.hpp>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 #include <string>
 
@@ -207,8 +208,14 @@ void PeriodicBroadPhase::update(std::span<const Move> moves) {
     grew = cover(moves[i].shape.half) || grew;
     slots_[moved_slots[i]].shape = moves[i].shape;  // a handle named twice: its last shape
   }
-  std::sort(moved_slots.begin(), moved_slots.end());
-  moved_slots.erase(std::unique(moved_slots.begin(), moved_slots.end()), moved_slots.end());
+  // Each slot once. A replay's moves come in ascending slots already (no
+  // handle twice): then no sort (update's samples fell from 8.5% to 7.8%
+  // of a replay of 20 000 objects, 4000 moving, under perf).
+  if (std::adjacent_find(moved_slots.begin(), moved_slots.end(), std::greater_equal<>()) !=
+      moved_slots.end()) {
+    std::sort(moved_slots.begin(), moved_slots.end());
+    moved_slots.erase(std::unique(moved_slots.begin(), moved_slots.end()), moved_slots.end());
+  }
   std::vector<Move> inner_moves;
   inner_moves.reserve(moved_slots.size());
   for (std::size_t k : moved_slots) {
