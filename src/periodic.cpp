@@ -95,9 +95,9 @@ Shape PeriodicBroadPhase::moved(const Shape& s, int code) const {
   return m;
 }
 
-void PeriodicBroadPhase::renew_images(std::size_t k, std::vector<Move>& moves) {
+void PeriodicBroadPhase::renew_images(std::size_t k, const Shape& shape, std::vector<Move>& moves) {
   Slot& slot = slots_[k];
-  image_codes(slot.shape, codes_);
+  image_codes(shape, codes_);
   std::vector<Image> next;
   next.reserve(codes_.size());
   auto old = slot.images.begin();
@@ -107,12 +107,12 @@ void PeriodicBroadPhase::renew_images(std::size_t k, std::vector<Move>& moves) {
       --images_;
       ++old;
     }
-    const Shape shape = moved(slot.shape, code);
+    const Shape image = moved(shape, code);
     if (old != slot.images.end() && old->code == code) {
-      moves.push_back({old->handle, shape});
+      moves.push_back({old->handle, image});
       next.push_back(*old++);
     } else {
-      next.push_back({code, put(shape, key(k, code), slot.motion, slot.filter)});
+      next.push_back({code, put(image, key(k, code), slot.motion, slot.filter)});
       ++images_;
     }
   }
@@ -126,7 +126,7 @@ void PeriodicBroadPhase::renew_images(std::size_t k, std::vector<Move>& moves) {
 void PeriodicBroadPhase::renew_all() {
   std::vector<Move> moves;
   for (std::size_t k = 0; k < slots_.size(); ++k)
-    if (!slots_[k].original.is_null()) renew_images(k, moves);
+    if (!slots_[k].original.is_null()) renew_images(k, inner_.shape(slots_[k].original), moves);
   inner_.update(moves);
 }
 
@@ -141,7 +141,6 @@ Handle PeriodicBroadPhase::insert(const Shape& s, std::uint64_t user, Motion m, 
     slots_.emplace_back();
   }
   Slot& slot = slots_[k];
-  slot.shape = s;
   slot.user = user;
   slot.filter = f;
   slot.motion = m;
@@ -152,7 +151,7 @@ Handle PeriodicBroadPhase::insert(const Shape& s, std::uint64_t user, Motion m, 
     renew_all();
   } else {
     std::vector<Move> moves;
-    renew_images(k, moves);
+    renew_images(k, s, moves);
   }
   return slot.original;
 }
@@ -204,23 +203,32 @@ void PeriodicBroadPhase::update(std::span<const Move> moves) {
     check_shape(m.shape);
   }
   bool grew = false;
-  for (std::size_t i = 0; i < moves.size(); ++i) {
-    grew = cover(moves[i].shape.half) || grew;
-    slots_[moved_slots[i]].shape = moves[i].shape;  // a handle named twice: its last shape
-  }
-  // Each slot once. A replay's moves come in ascending slots already (no
-  // handle twice): then no sort (update's samples fell from 8.5% to 7.8%
-  // of a replay of 20 000 objects, 4000 moving, under perf).
+  for (const Move& m : moves) grew = cover(m.shape.half) || grew;
+  // Each slot once, with its last move's shape. A replay's moves come in
+  // ascending slots already (no handle twice): then no sort (update's
+  // samples fell from 8.5% to 7.8% of a replay of 20 000 objects, 4000
+  // moving, under perf).
+  std::vector<std::size_t> order;  // indices into `moves`, one per slot
   if (std::adjacent_find(moved_slots.begin(), moved_slots.end(), std::greater_equal<>()) !=
       moved_slots.end()) {
-    std::sort(moved_slots.begin(), moved_slots.end());
-    moved_slots.erase(std::unique(moved_slots.begin(), moved_slots.end()), moved_slots.end());
+    order.resize(moves.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return moved_slots[a] < moved_slots[b]; });
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < order.size(); ++i)
+      if (i + 1 == order.size() || moved_slots[order[i + 1]] != moved_slots[order[i]])
+        order[kept++] = order[i];
+    order.resize(kept);
   }
   std::vector<Move> inner_moves;
-  inner_moves.reserve(moved_slots.size());
-  for (std::size_t k : moved_slots) {
-    inner_moves.push_back({slots_[k].original, slots_[k].shape});
-    if (!grew) renew_images(k, inner_moves);
+  inner_moves.reserve(moves.size());
+  const std::size_t count = order.empty() ? moves.size() : order.size();
+  for (std::size_t n = 0; n < count; ++n) {
+    const std::size_t i = order.empty() ? n : order[n];
+    const std::size_t k = moved_slots[i];
+    inner_moves.push_back({slots_[k].original, moves[i].shape});
+    if (!grew) renew_images(k, moves[i].shape, inner_moves);
   }
   inner_.update(inner_moves);
   if (grew) renew_all();
@@ -240,7 +248,9 @@ bool PeriodicBroadPhase::contains(Handle h) const {
   return slots_[static_cast<std::size_t>(key_of_[h.index] >> 5)].original == h;
 }
 
-Shape PeriodicBroadPhase::shape(Handle h) const { return slots_[slot_of(h)].shape; }
+Shape PeriodicBroadPhase::shape(Handle h) const {
+  return inner_.shape(slots_[slot_of(h)].original);
+}
 
 std::uint64_t PeriodicBroadPhase::user_data(Handle h) const { return slots_[slot_of(h)].user; }
 
@@ -296,17 +306,18 @@ void PeriodicBroadPhase::validate() const {
     const std::string at = "object in slot " + std::to_string(k);
     if (!inner_.contains(slot.original) || inner_.user_data(slot.original) != key(k, kOriginal) ||
         key_of_[slot.original.index] != key(k, kOriginal) ||
-        !(inner_.shape(slot.original) == slot.shape) ||
+
         !(inner_.filter(slot.original) == slot.filter))
       fail(at + ": its original is not held as it should be");
-    image_codes(slot.shape, codes);
+    const Shape shape = inner_.shape(slot.original);
+    image_codes(shape, codes);
     if (codes.size() != slot.images.size()) fail(at + ": not the images the rule gives it");
     for (std::size_t i = 0; i < codes.size(); ++i) {
       const Image& im = slot.images[i];
       if (im.code != codes[i] || !inner_.contains(im.handle) ||
           inner_.user_data(im.handle) != key(k, im.code) ||
           key_of_[im.handle.index] != key(k, im.code) ||
-          !(inner_.shape(im.handle) == moved(slot.shape, im.code)) ||
+          !(inner_.shape(im.handle) == moved(shape, im.code)) ||
           !(inner_.filter(im.handle) == slot.filter))
         fail(at + ": image " + std::to_string(im.code) + " is wrong");
     }

@@ -140,8 +140,9 @@ class PeriodicBroadPhase {
     std::uint8_t code;  // Shift::code()
     Handle handle;      // in the structure
   };
+  // The shape lives in the structure alone (the original's): a slot is 56
+  // bytes, not 112, and a frame's moves touch one cache line of it.
   struct Slot {
-    Shape shape;
     std::uint64_t user = 0;
     Filter filter;
     Motion motion = Motion::dynamic;
@@ -160,10 +161,10 @@ class PeriodicBroadPhase {
   // The codes of the images the rule gives `s`, ascending.
   void image_codes(const Shape& s, std::vector<std::uint8_t>& out) const;
   Shape moved(const Shape& s, int code) const;
-  // Makes slot `k`'s images those of the rule for its shape: new ones
-  // inserted, gone ones removed, the others' moves appended to `moves`
-  // (applied by the caller in one bulk update).
-  void renew_images(std::size_t k, std::vector<Move>& moves);
+  // Makes slot `k`'s images those of the rule for `shape`, its new shape:
+  // new ones inserted, gone ones removed, the others' moves appended to
+  // `moves` (applied by the caller in one bulk update).
+  void renew_images(std::size_t k, const Shape& shape, std::vector<Move>& moves);
   void renew_all();
   static std::uint64_t key(std::size_t slot, int code) {
     return (static_cast<std::uint64_t>(slot) << 5) | static_cast<std::uint64_t>(code);
