@@ -305,6 +305,105 @@ TEST_P(Rays, RejectInvalidRays) {
     EXPECT_THROW(bp->cast_ray(bad, [](Handle, double) { return kRayGoOn; }), InvalidRay);
 }
 
+// The culling is conservative with respect to the exact test, on the rays
+// where rounding decides: grazing a sphere's rim, entering through the
+// point where the bounds touch the shape, parallel to a face just outside
+// it, from near and afar, with zero and tiny direction components (the
+// reciprocal's fallbacks). RayCull::enter and RayCull::Within (the trees'
+// culling of boxes inside their root's) must accept the object's float
+// bounds at a t not beyond the hit's. (It fails on a wrong face or offset
+// of the reciprocal's slab; the bounds' outward rounding to float leaves
+// slack enough that it passes even without the margin.)
+TEST(RayCull, AcceptsEveryHitAtOrBeforeItsT) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(repeats(20)); ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    std::mt19937_64 rng(seed);
+    auto u = [&](double lo, double hi) {
+      return std::uniform_real_distribution<double>(lo, hi)(rng);
+    };
+    const double base = seed % 3 == 0 ? 1e15 : seed % 3 == 1 ? 0 : -3e6;
+    const double scale = std::exp(u(std::log(1e-3), std::log(1e4)));
+    int hits = 0;
+    for (int k = 0; k < 20000; ++k) {
+      Vec3 c{base + u(-1, 1) * scale, base + u(-1, 1) * scale, base + u(-1, 1) * scale};
+      double size = scale * std::exp(u(std::log(1e-6), std::log(0.5)));
+      if (rng() % 2) {
+        // A power of two for the size, the centre on its quarters: the
+        // float bounds are then exact, with no rounding slack of their own,
+        // and only the margin covers the evaluation's.
+        size = std::exp2(std::round(std::log2(size)));
+        for (int a = 0; a < 3; ++a) c[a] = std::round(c[a] / (size / 4)) * (size / 4);
+      }
+      const bool sphere = rng() % 2 == 0;
+      const Shape s =
+          sphere ? Shape::sphere(c, size) : Shape::box(c, {size, size * 0.5, size * 0.25});
+      Ray r;
+      r.origin = {base + u(-2, 2) * scale, base + u(-2, 2) * scale, base + u(-2, 2) * scale};
+      // Aimed at a point of the rim or the face: the rounding decides.
+      Vec3 rim{u(-1, 1), u(-1, 1), u(-1, 1)};
+      const double len = std::sqrt(rim.x * rim.x + rim.y * rim.y + rim.z * rim.z);
+      for (int a = 0; a < 3; ++a)
+        rim[a] = sphere ? c[a] + rim[a] / std::max(len, 1e-300) * size
+                        : c[a] + (rng() % 2 ? 1 : -1) * s.half[a];
+      r.dir = rim - r.origin;
+      if (rng() % 2) {
+        // Through the point where the bounds touch the shape (a sphere's
+        // pole on axis a, a box's corner), nearly in the face's plane: the
+        // hit lies on the bounds' face, where a missing margin shows.
+        // Entering through that face (from outside it, towards the shape).
+        const int a = static_cast<int>(rng() % 3);
+        Vec3 p = c, side;
+        for (int k = 0; k < 3; ++k) {
+          side[k] = rng() % 2 ? 1 : -1;
+          if (!sphere || k == a) p[k] += side[k] * (sphere ? size : s.half[k]);
+        }
+        for (int k = 0; k < 3; ++k) r.dir[k] = u(-1, 1);
+        r.dir[a] =
+            rng() % 4 == 0 ? 0 : -side[a] * u(0.1, 1) * std::exp(u(std::log(1e-12), std::log(1.0)));
+        const bool parallel = rng() % 2;
+        const double back =
+            scale * (parallel ? std::exp(u(std::log(0.01), std::log(1e12))) : u(0.01, 3));
+        for (int k = 0; k < 3; ++k) r.origin[k] = p[k] - back * r.dir[k];
+        if (parallel) {
+          // Or parallel to the face, just outside it, from afar: the bounds
+          // miss the line, and the sphere's evaluation, rounding |origin -
+          // centre| (a few ulps of it, beyond the float bounds' own slack
+          // when the origin is far), may still report a hit. The margin
+          // must cover that.
+          r.dir[a] = rng() % 2 ? 0 : -side[a] * 1e-20;
+          const double ulp = back * 0x1p-52;
+          r.origin[a] = p[a] + side[a] * std::floor(std::exp(u(0, std::log(1e3)))) * ulp;
+        }
+      }
+      const int kind = static_cast<int>(rng() % 8);
+      if (kind == 0) r.dir[static_cast<int>(rng() % 3)] = 0;       // along a face
+      if (kind == 1) r.dir[static_cast<int>(rng() % 3)] *= 1e-90;  // below the reciprocal's range
+      if (kind == 2) r.dir = r.dir * 1e-100;
+      if (!is_valid(r)) continue;
+      r.tmax = rng() % 4 == 0 ? u(0, 2) : kInf;
+      double t_hit;
+      if (!ray_hit(r, s, t_hit)) continue;
+      ++hits;
+      const AabbF b = bounds_f(s);
+      // The outer box: the object's bounds, sometimes within a larger world.
+      AabbF outer = b;
+      if (rng() % 2)
+        for (int a = 0; a < 3; ++a) {
+          outer.lo[a] = std::min(outer.lo[a], static_cast<float>(base - 3 * scale));
+          outer.hi[a] = std::max(outer.hi[a], static_cast<float>(base + 3 * scale));
+        }
+      const detail::RayCull cull(r);
+      const auto within = cull.within(outer);
+      double t;
+      ASSERT_TRUE(cull.enter(b, r.tmax, t)) << k;
+      ASSERT_LE(t, t_hit) << k;
+      ASSERT_TRUE(within.enter(b, r.tmax, t)) << k;
+      ASSERT_LE(t, t_hit) << k;
+    }
+    EXPECT_GT(hits, 1000);  // the premise: many rays hit
+  }
+}
+
 // Every structure, and octree-paper placing outside objects in its border
 // nodes (whose cubes then reach out to infinity).
 std::vector<std::string> ray_specs() {

@@ -347,17 +347,19 @@ QueryCost AabbTree::cast_ray(const Ray& r, V&& visitor) const {
   detail::RayCast<std::remove_reference_t<V>> cast(store_, r, visitor);
   double t0;
   if (root_ == kNull || !cast.cull.enter(nodes_[root_].box, cast.tmax, t0)) return cast.cost;
+  // Every node's box, and every object's tight box, lies inside the root's.
+  const auto within = cast.cull.within(nodes_[root_].box);
   detail::ray_tree_walk(
-      cast, root_, t0, [&](std::uint32_t n) -> const AabbF& { return nodes_[n].box; },
+      cast, within, root_, t0,
       [&](std::uint32_t n, auto&& f) {
         const Node& node = nodes_[n];
         if (node.is_leaf()) return;
-        f(node.child[0]);
-        f(node.child[1]);
+        f(node.child[0], nodes_[node.child[0]].box);
+        f(node.child[1], nodes_[node.child[1]].box);
       },
       [&](std::uint32_t n) {
         const Node& node = nodes_[n];
-        return !node.is_leaf() || cast.test(node.object, tight_[node.object]);
+        return !node.is_leaf() || cast.test(node.object, tight_[node.object], within);
       });
   return cast.cost;
 }

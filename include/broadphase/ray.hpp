@@ -210,32 +210,110 @@ namespace detail {
 /// (1.5e-8) of |m| + r along the ray. The margin, 2^-20 (9.5e-7) of
 /// (|origin| + |box|) on each side, covers both more than thirtyfold; it is
 /// a micrometre on a kilometre, so it costs no culling worth measuring.
+///
+/// The reciprocal: `enter` runs the slab loop with the ray's reciprocal
+/// direction (1/d per axis, computed once per ray) instead of a division
+/// per face: six divisions were two thirds of a box test and a k-d tree's
+/// ray visits about two hundred boxes (measured, uniform spheres 10^5).
+/// It stays conservative: each face parameter (lo - o)·(1/d) differs from
+/// (lo - o)/d by at most two roundings, 2^-52 of |lo - o|/|d| <= (|o| +
+/// |box| + m)/|d|, while the margin moves each face by m/|d| >= 2^-20 (|o|
+/// + |box|)/|d|: the product is the slab of the box grown by at least m
+/// (1 - 2^-30), which keeps the thirtyfold reserve. An axis with d = 0
+/// compares the grown faces with the origin as slab_enter does. The
+/// reciprocal is used only where no product can overflow or lose its
+/// relative precision: every non-zero |d| in [2^-256, 2^256], |o| and the
+/// box's coordinates below 2^512 (a product stays below 2^770, and one
+/// below the normal range is off by less than 2^-1074, far below the
+/// floor's share m/|d| >= 2^-776); any other ray or box takes the division.
 class RayCull {
  public:
   explicit RayCull(const Ray& r) : o_(r.origin), d_(r.dir) {
     o_mag_ = std::max(std::fabs(o_.x), std::max(std::fabs(o_.y), std::fabs(o_.z)));
+    fast_ = o_mag_ <= kFastMag;
+    for (int a = 0; a < 3; ++a) {
+      const double ad = std::fabs(d_[a]);
+      inv_[a] = 0;
+      if (d_[a] == 0) continue;
+      if (ad >= 0x1p-256 && ad <= 0x1p256)
+        inv_[a] = 1 / d_[a];
+      else
+        fast_ = false;
+    }
   }
 
   /// The margin added on each side of `box` (see the class comment).
-  double margin(const Aabb& box) const {
-    double m = 0;
-    for (int a = 0; a < 3; ++a)
-      m = std::max(m, std::max(std::fabs(box.lo[a]), std::fabs(box.hi[a])));
-    return (o_mag_ + m) * kMargin + kBoundsFloor;
-  }
+  double margin(const Aabb& box) const { return margin_of(box_mag(box)); }
 
   /// See the class comment. `tmax` may be the ray's or a clipped one.
   bool enter(const Aabb& box, double tmax, double& t) const {
-    const double m = margin(box);
-    double lo[3], hi[3];
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = (box.lo[a] - m) - o_[a];
-      hi[a] = (box.hi[a] + m) - o_[a];
-    }
-    return slab_enter(lo, hi, d_, tmax, t);
+    const double mag = box_mag(box);
+    return enter(box.lo.x, box.lo.y, box.lo.z, box.hi.x, box.hi.y, box.hi.z, mag, tmax, t);
   }
   bool enter(const AabbF& b, double tmax, double& t) const {
-    return enter(Aabb{{b.lo[0], b.lo[1], b.lo[2]}, {b.hi[0], b.hi[1], b.hi[2]}}, tmax, t);
+    const float mag = std::max(std::max(std::max(std::fabs(b.lo[0]), std::fabs(b.hi[0])),
+                                        std::max(std::fabs(b.lo[1]), std::fabs(b.hi[1]))),
+                               std::max(std::fabs(b.lo[2]), std::fabs(b.hi[2])));
+    return enter(b.lo[0], b.lo[1], b.lo[2], b.hi[0], b.hi[1], b.hi[2], mag, tmax, t);
+  }
+
+  /// The culling of boxes that all lie inside one box (a tree's root box):
+  /// see `within`.
+  class Within {
+   public:
+    /// As RayCull::enter, for a box inside the one given to `within`.
+    bool enter(const AabbF& b, double tmax, double& t) const {
+      if (!fast_) return cull_->enter(b, tmax, t);
+      double tn = 0;
+      double tf = tmax;
+      for (int a = 0; a < 3; ++a) {
+        const double n =
+            (static_cast<double>(lo_near_[a] ? b.lo[a] : b.hi[a]) + near_[a]) * inv_[a];
+        const double f = (static_cast<double>(lo_near_[a] ? b.hi[a] : b.lo[a]) + far_[a]) * inv_[a];
+        tn = std::max(tn, n);
+        tf = std::min(tf, f);
+      }
+      if (!(tn <= tf)) return false;
+      t = tn;
+      return true;
+    }
+    bool enter(const Aabb& b, double tmax, double& t) const { return cull_->enter(b, tmax, t); }
+
+   private:
+    friend class RayCull;
+    const RayCull* cull_ = nullptr;
+    bool fast_ = false;
+    bool lo_near_[3] = {};
+    double near_[3] = {}, far_[3] = {}, inv_[3] = {};
+  };
+
+  /// A culling for boxes inside `outer` only, as conservative as `enter`
+  /// and about three times cheaper (measured on a k-d tree's walk, 100
+  /// instructions a box down to 30): one margin, `outer`'s, which is at
+  /// least each inner box's own (a larger margin is never stricter), and
+  /// the faces relative to the origin and the near face of each axis fixed
+  /// once per ray. The grown face (b + (-m - o))·(1/d) rounds three times
+  /// where enter's rounds three times too, each by 2^-53 of |b| + |o| + m:
+  /// the reserve of the class comment holds. It needs the reciprocal on
+  /// every axis (no d = 0) and `outer` within the reciprocal's range;
+  /// otherwise it defers to `enter`, as it does for double boxes.
+  Within within(const AabbF& outer) const {
+    Within w;
+    w.cull_ = this;
+    const Aabb o{{outer.lo[0], outer.lo[1], outer.lo[2]}, {outer.hi[0], outer.hi[1], outer.hi[2]}};
+    const double mag = box_mag(o);
+    w.fast_ = fast_ && mag <= kFastMag && inv_[0] != 0 && inv_[1] != 0 && inv_[2] != 0;
+    if (!w.fast_) return w;
+    const double m = margin_of(mag);
+    for (int a = 0; a < 3; ++a) {
+      w.inv_[a] = inv_[a];
+      w.lo_near_[a] = inv_[a] > 0;
+      const double grown_lo = -m - o_[a];
+      const double grown_hi = m - o_[a];
+      w.near_[a] = w.lo_near_[a] ? grown_lo : grown_hi;
+      w.far_[a] = w.lo_near_[a] ? grown_hi : grown_lo;
+    }
+    return w;
   }
 
   const Vec3& origin() const { return o_; }
@@ -244,8 +322,46 @@ class RayCull {
   static constexpr double kMargin = 0x1p-20;
 
  private:
+  static constexpr double kFastMag = 0x1p512;
+
+  static double box_mag(const Aabb& box) {
+    double m = 0;
+    for (int a = 0; a < 3; ++a)
+      m = std::max(m, std::max(std::fabs(box.lo[a]), std::fabs(box.hi[a])));
+    return m;
+  }
+  double margin_of(double mag) const { return (o_mag_ + mag) * kMargin + kBoundsFloor; }
+
+  bool enter(double lx, double ly, double lz, double hx, double hy, double hz, double mag,
+             double tmax, double& t) const {
+    const double m = margin_of(mag);
+    const double lo[3] = {(lx - m) - o_.x, (ly - m) - o_.y, (lz - m) - o_.z};
+    const double hi[3] = {(hx + m) - o_.x, (hy + m) - o_.y, (hz + m) - o_.z};
+    if (!(fast_ && mag <= kFastMag)) return slab_enter(lo, hi, d_, tmax, t);
+    double tn = 0;
+    double tf = tmax;
+    for (int a = 0; a < 3; ++a) {
+      if (inv_[a] == 0) {
+        if (lo[a] > 0 || hi[a] < 0) return false;
+        continue;
+      }
+      // The near face first: no compare of the two products (their NaN,
+      // from an infinite box, is ignored by the compares below, as in
+      // slab_enter).
+      const double t1 = (inv_[a] > 0 ? lo[a] : hi[a]) * inv_[a];
+      const double t2 = (inv_[a] > 0 ? hi[a] : lo[a]) * inv_[a];
+      if (t1 > tn) tn = t1;
+      if (t2 < tf) tf = t2;
+    }
+    if (!(tn <= tf)) return false;
+    t = tn;
+    return true;
+  }
+
   Vec3 o_, d_;
+  double inv_[3];
   double o_mag_ = 0;
+  bool fast_ = false;
 };
 
 }  // namespace detail

@@ -29,6 +29,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <utility>
 #include <vector>
 
 namespace broadphase::detail {
@@ -63,9 +64,12 @@ struct RayCast {
   }
   /// As `test`, culling first by the object's stored float box (which holds
   /// its bounds, so the culling is conservative).
-  bool test(std::uint32_t slot, const AabbF& box) {
+  bool test(std::uint32_t slot, const AabbF& box) { return test(slot, box, cull); }
+  /// As `test`, culling by `box` with `c` (RayCull or RayCull::Within).
+  template <class Cull>
+  bool test(std::uint32_t slot, const AabbF& box, const Cull& c) {
     double t;
-    if (!cull.enter(box, tmax, t)) return true;
+    if (!c.enter(box, tmax, t)) return true;
     return test(slot);
   }
 
@@ -178,20 +182,20 @@ class RaySlots {
 
 /// Walks a tree front to back. `root` is entered at parameter `root_t`
 /// (0 for a root that is not culled: the octrees' roots also hold the
-/// objects outside their cube). `box(n)` is a box (Aabb or AabbF) holding
-/// every object below node n (never asked of the root);
-/// `for_each_child(n, f)` calls f(child) for each child worth visiting;
-/// `items(n)` tests node n's own objects through the cast and returns false
-/// when the visitor stopped.
+/// objects outside their cube). `for_each_child(n, f)` calls f(child, box)
+/// for each child worth visiting, with a box (Aabb or AabbF) holding every
+/// object below the child; `items(n)` tests node n's own objects through
+/// the cast and returns false when the visitor stopped.
 ///
 /// Nodes are popped nearest entry first: the children of a node are pushed
 /// far to near, so the nearer is walked first, and a node whose entry lies
 /// beyond the live tmax is dropped unopened (RayCull's entry is never
 /// beyond the t of a hit inside it, so no hit is lost: hits at exactly the
 /// clipped tmax are still reported). The stack is an InlineStack, which
-/// spills to the heap: no depth drops a node.
-template <class Cast, class Box, class Children, class Items>
-void ray_tree_walk(Cast& cast, std::uint32_t root, double root_t, Box&& box,
+/// spills to the heap: no depth drops a node. Child boxes are culled with
+/// `cull`: the cast's RayCull, or a RayCull::Within of a box holding them.
+template <class Cast, class Cull, class Children, class Items>
+void ray_tree_walk(Cast& cast, const Cull& cull, std::uint32_t root, double root_t,
                    Children&& for_each_child, Items&& items) {
   struct Entry {
     std::uint32_t node;
@@ -207,9 +211,9 @@ void ray_tree_walk(Cast& cast, std::uint32_t root, double root_t, Box&& box,
     // stack unordered, still walked.
     Entry kids[8];
     int count = 0;
-    for_each_child(e.node, [&](std::uint32_t c) {
+    for_each_child(e.node, [&](std::uint32_t c, const auto& b) {
       double t;
-      if (!cast.cull.enter(box(c), cast.tmax, t)) return;
+      if (!cull.enter(b, cast.tmax, t)) return;
       if (count < 8)
         kids[count++] = {c, t};
       else
@@ -220,6 +224,17 @@ void ray_tree_walk(Cast& cast, std::uint32_t root, double root_t, Box&& box,
       for (int j = i; j > 0 && kids[j - 1].t < kids[j].t; --j) std::swap(kids[j - 1], kids[j]);
     for (int i = 0; i < count; ++i) stack.push(kids[i]);
   }
+}
+/// ray_tree_walk culling every box with the cast's RayCull, for a tree
+/// whose `for_each_child(n, f)` calls f(child) and `box(child)` gives the
+/// child's box (never asked of the root).
+template <class Cast, class Box, class Children, class Items>
+void ray_tree_walk(Cast& cast, std::uint32_t root, double root_t, Box&& box,
+                   Children&& for_each_child, Items&& items) {
+  ray_tree_walk(
+      cast, cast.cull, root, root_t,
+      [&](std::uint32_t n, auto&& f) { for_each_child(n, [&](std::uint32_t c) { f(c, box(c)); }); },
+      std::forward<Items>(items));
 }
 
 /// A box holding every object a grid has placed since it was last
