@@ -60,6 +60,8 @@ KdTree::KdTree(const Config& c, const KdTreeOptions& o) {
 
 std::uint32_t KdTree::new_node(std::uint32_t parent) {
   const std::uint32_t n = detail::take_nodes(nodes_, free_);
+  if (ray_kids_.size() < nodes_.size()) ray_kids_.resize(nodes_.size());
+  ray_kids_[n] = RayKids{};
   Node& node = nodes_[n];
   node.box = kEmpty;
   node.items.clear();
@@ -67,6 +69,7 @@ std::uint32_t KdTree::new_node(std::uint32_t parent) {
   node.left = node.right = kNoNode;
   node.split = 0;
   node.axis = 0;
+  sync_leaf(n);
   return n;
 }
 
@@ -83,7 +86,7 @@ void KdTree::build(std::uint32_t node, std::size_t begin, std::size_t end) {
   while (!tasks.empty()) {
     const Task t = tasks.pop();
     const std::span<OctItem> items(scratch_.data() + t.begin, t.end - t.begin);
-    nodes_[t.node].box = union_of(items);
+    set_box(t.node, union_of(items));
     surface_ += area(nodes_[t.node].box);
     const std::size_t count = items.size();
     auto centre = [this](const OctItem& it, int axis) {
@@ -153,6 +156,7 @@ void KdTree::build(std::uint32_t node, std::size_t begin, std::size_t end) {
     }
     if (widest < 0) {  // few objects, or all centres equal: a leaf
       for (const OctItem& it : items) index_.attach(nodes_, t.node, it.slot, it.box);
+      sync_leaf(t.node);
       continue;
     }
 
@@ -184,11 +188,18 @@ void KdTree::build(std::uint32_t node, std::size_t begin, std::size_t end) {
     std::vector<OctItem>().swap(n.items);
     n.left = left;
     n.right = right;
+    ray_kids_[t.node] = {{kEmpty, kEmpty}, {left, right}};
     n.axis = static_cast<std::uint8_t>(axis);
     n.split = split;
     tasks.push({left, t.begin, t.begin + mid});
     tasks.push({right, t.begin + mid, t.end});
   }
+}
+
+void KdTree::set_box(std::uint32_t n, const AabbF& b) {
+  nodes_[n].box = b;
+  const std::uint32_t p = nodes_[n].parent;
+  if (p != kNoNode) ray_kids_[p].box[nodes_[p].left == n ? 0 : 1] = b;
 }
 
 void KdTree::rebuild() {
@@ -220,7 +231,7 @@ void KdTree::refit_path(std::uint32_t node) {
         x.left == kNoNode ? union_of(x.items) : merged(nodes_[x.left].box, nodes_[x.right].box);
     if (detail::same_box(fresh, x.box)) return;
     surface_ += area(fresh) - area(x.box);
-    x.box = fresh;
+    set_box(n, fresh);
   }
 }
 
@@ -237,8 +248,10 @@ void KdTree::refit_all() {
   }
   surface_ = 0;
   for (std::size_t i = scratch_order_.size(); i-- > 0;) {
-    Node& x = nodes_[scratch_order_[i]];
-    x.box = x.left == kNoNode ? union_of(x.items) : merged(nodes_[x.left].box, nodes_[x.right].box);
+    const std::uint32_t n = scratch_order_[i];
+    const Node& x = nodes_[n];
+    set_box(
+        n, x.left == kNoNode ? union_of(x.items) : merged(nodes_[x.left].box, nodes_[x.right].box));
     surface_ += area(x.box);
   }
 }
@@ -263,11 +276,12 @@ Handle KdTree::insert(const Shape& s, std::uint64_t user, Motion) {
   }
   const AabbF f = bounds_f(s);
   index_.attach(nodes_, n, h.index, f);
+  sync_leaf(n);
   for (std::uint32_t m = n; m != kNoNode; m = nodes_[m].parent) {
     const AabbF grown = merged(nodes_[m].box, f);
     if (detail::same_box(grown, nodes_[m].box)) break;
     surface_ += area(grown) - area(nodes_[m].box);
-    nodes_[m].box = grown;
+    set_box(m, grown);
   }
   if (nodes_[n].items.size() > leaf_size_) split_leaf(n);
   after_resize();
@@ -278,6 +292,7 @@ void KdTree::remove(Handle h) {
   const std::uint32_t slot = store_.erase(h);
   const std::uint32_t n = index_.node_of[slot];
   index_.detach(nodes_, slot);
+  sync_leaf(n);
   refit_path(n);
   if (nodes_[n].items.empty() && n != root_) {
     // Replace the parent by the sibling: the parent's box equals the
@@ -288,12 +303,14 @@ void KdTree::remove(Handle h) {
     const std::uint32_t grand = nodes_[parent].parent;
     surface_ -= area(nodes_[parent].box);
     nodes_[sibling].parent = grand;
-    if (grand == kNoNode)
+    if (grand == kNoNode) {
       root_ = sibling;
-    else if (nodes_[grand].left == parent)
-      nodes_[grand].left = sibling;
-    else
-      nodes_[grand].right = sibling;
+    } else {
+      const int side = nodes_[grand].left == parent ? 0 : 1;
+      (side == 0 ? nodes_[grand].left : nodes_[grand].right) = sibling;
+      ray_kids_[grand].child[side] = sibling;
+      ray_kids_[grand].box[side] = nodes_[sibling].box;
+    }
     free_.push_back(n);
     free_.push_back(parent);
   }
@@ -320,6 +337,7 @@ void KdTree::update(std::span<const Move> moves) {
 
 std::size_t KdTree::memory_bytes() const {
   std::size_t bytes = store_.memory_bytes() + nodes_.capacity() * sizeof(Node) +
+                      ray_kids_.capacity() * sizeof(RayKids) +
                       scratch_.capacity() * sizeof(OctItem) +
                       (free_.capacity() + scratch_order_.capacity()) * sizeof(std::uint32_t) +
                       index_.memory_bytes();
@@ -346,9 +364,17 @@ void KdTree::validate() const {
       if (!detail::same_box(x.box, union_of(x.items)))
         fail("leaf box is not the union of its objects");
       if (x.items.empty() && n != root_) fail("empty leaf below the root");
+      const RayKids& k = ray_kids_[n];
+      if (k.child[0] != kNoNode || k.leaf.items != x.items.data() || k.leaf.count != x.items.size())
+        fail("the ray walk's copy of a leaf");
       continue;
     }
     if (!x.items.empty()) fail("objects in an inner node");
+    const RayKids& k = ray_kids_[n];
+    if (k.child[0] != x.left || k.child[1] != x.right ||
+        !detail::same_box(k.box[0], nodes_[x.left].box) ||
+        !detail::same_box(k.box[1], nodes_[x.right].box))
+      fail("the ray walk's copy of the children");
     if (nodes_[x.left].parent != n || nodes_[x.right].parent != n) fail("child links");
     if (!detail::same_box(x.box, merged(nodes_[x.left].box, nodes_[x.right].box)))
       fail("inner box is not the union of its children");

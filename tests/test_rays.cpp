@@ -404,6 +404,94 @@ TEST(RayCull, AcceptsEveryHitAtOrBeforeItsT) {
   }
 }
 
+// A k-d tree of one object per leaf over a chain of growing spheres is a
+// hundred levels deep: a ray along the chain keeps a pending sibling per
+// level, past the walk's inline stack (64 entries), which must spill and
+// lose none. Many identical objects (one leaf, every hit at the same
+// t: the smallest slot wins) and rays along the nodes' faces and edges.
+TEST(RayWalk, DeepChainsIdenticalObjectsAndNodeFaces) {
+  for (const char* spec : {"kdtree:leaf=1", "kdtree", "aabb-tree"}) {
+    SCOPED_TRACE(spec);
+    for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(repeats(4)); ++seed) {
+      SCOPED_TRACE("seed " + std::to_string(seed));
+      const bool chain_alone = seed % 2 == 1;  // else the tree mixes all three
+      std::mt19937_64 rng(seed);
+      auto u = [&](double lo, double hi) {
+        return std::uniform_real_distribution<double>(lo, hi)(rng);
+      };
+      Config c;
+      c.world = {{-1, -1, -1}, {2, 2, 2}};
+      auto bp = make_structure(spec, c);
+      std::vector<Shape> shapes;
+      auto add = [&](const Shape& s) {
+        bp->insert(s, shapes.size());
+        shapes.push_back(s);
+      };
+      // Radii growing along the chain: the surface area heuristic peels the
+      // largest off at each level (115 levels at one object per leaf).
+      for (int k = 0; k < 300; ++k)
+        add(Shape::sphere({k / 300.0, 0.5, 0.5}, 1e-4 * std::pow(1.03, k)));
+      if (!chain_alone) {
+        for (int k = 0; k < 200; ++k) add(Shape::sphere({0.25, 0.75, 0.25}, 0.01));  // identical
+        for (int k = 0; k < 100; ++k)
+          add(Shape::box({u(0, 1), u(0, 1), u(0, 1)}, {u(0, 0.05), u(0, 0.05), u(0, 0.05)}));
+      }
+      bp->settle();
+      bp->validate();
+      int deepest = 0;
+      std::vector<Aabb> cells;
+      bp->visit_cells([&](const Aabb& b, int depth, std::size_t) {
+        deepest = std::max(deepest, depth);
+        cells.push_back(b);
+      });
+      if (chain_alone && std::string(spec) == "kdtree:leaf=1") {
+        EXPECT_GT(deepest, 64);  // the premise: deeper than the inline stack
+      }
+      std::vector<Ray> rays;
+      for (double y : {0.5, 0.5 + 5e-4, 0.5 + 1e-4})  // along the chain: centre, inside, rim
+        rays.push_back({{-1, y, 0.5}, {1, 0, 0}});
+      rays.push_back({{2, 0.5, 0.5}, {-1, 0, 0}});
+      rays.push_back({{0.25, -1, 0.25}, {0, 1, 0}});  // through the identical ones
+      for (int k = 0; k < 200; ++k) {
+        // Along a node's face or edge, in the face's plane.
+        const Aabb& b = cells[rng() % cells.size()];
+        Ray r;
+        for (int a = 0; a < 3; ++a) r.origin[a] = rng() % 2 ? b.lo[a] : b.hi[a];
+        if (!std::isfinite(r.origin.x + r.origin.y + r.origin.z)) continue;
+        const int a = static_cast<int>(rng() % 3);
+        r.origin[a] = u(-1, 2);
+        r.dir = {0, 0, 0};
+        r.dir[a] = rng() % 2 ? 1 : -1;
+        if (rng() % 2) r.dir[(a + 1) % 3] = u(-1, 1);
+        rays.push_back(r);
+      }
+      for (const Ray& r : rays) {
+        HitSet want;
+        RayHit best{Handle{}, kInf};
+        for (std::uint32_t i = 0; i < shapes.size(); ++i) {
+          double t;
+          if (!ray_hit(r, shapes[i], t)) continue;
+          want.insert({i, std::bit_cast<std::uint64_t>(t)});
+          if (best.handle.is_null() || closer({Handle{i, 0}, t}, best)) best = {Handle{i, 0}, t};
+        }
+        HitSet got;
+        bp->cast_ray(r, [&](Handle h, double t) {
+          got.insert(
+              {static_cast<std::uint32_t>(bp->user_data(h)), std::bit_cast<std::uint64_t>(t)});
+          return kRayGoOn;
+        });
+        ASSERT_EQ(got, want);
+        const RayHit c = bp->closest_hit(r);
+        ASSERT_EQ(c.handle.is_null(), best.handle.is_null());
+        if (!c.handle.is_null()) {
+          ASSERT_EQ(bp->user_data(c.handle), best.handle.index);
+          ASSERT_EQ(std::bit_cast<std::uint64_t>(c.t), std::bit_cast<std::uint64_t>(best.t));
+        }
+      }
+    }
+  }
+}
+
 // Every structure, and octree-paper placing outside objects in its border
 // nodes (whose cubes then reach out to infinity).
 std::vector<std::string> ray_specs() {
