@@ -2,6 +2,7 @@
 // paper`, lab/experiments/rays.cpp), for quick iteration on its sizes:
 //   rays_lab [--quick] [--budget S] [--out DIR] [--seed S] [--sizes 1000,100000]
 //            [--kinds uniform,city] [--rays N] [--no-layers]
+//            [--structures hgrid,sap]  (measured beside the default)
 // Writes rays.csv, layers.csv, the figure and section.md into DIR (default
 // the current folder); progress on stderr.
 #include <chrono>
@@ -57,6 +58,8 @@ int main(int argc, char** argv) {
       options.kinds = split(value());
     } else if (a == "--rays") {
       options.rays = std::stoull(value());
+    } else if (a == "--structures") {
+      options.structures = split(value());
     } else if (a == "--no-layers") {
       options.layers = false;
     } else {

@@ -577,6 +577,8 @@ std::string lab_rays_with(const LabContext& ctx, const RaysOptions& options) {
       }
     }
     if (!fastest.empty()) contenders.push_back(structure_contender(fastest, "fastest-ours"));
+    for (const std::string& spec : options.structures)
+      contenders.push_back(structure_contender(spec, "asked"));
     for (const std::string& b : bullet) {
       // Bullet's sweep inserts in O(n) a proxy (its edges move along the
       // axes): minutes at 10^5 objects and more, so only with a generous share.

@@ -20,6 +20,9 @@ struct RaysOptions {
   /// Rays per set (default 10^5; --quick 500).
   std::size_t rays = 0;
   bool layers = true;  ///< also the layers part
+  /// Further structures (registry specs) measured in every cell beside the
+  /// default, each in its own column (rays_lab --structures).
+  std::vector<std::string> structures;
 };
 
 /// Runs the ray experiment; returns its section of REPORT.md, having written
