@@ -103,31 +103,29 @@ class GridStatic : public detail::StoreBase<GridStatic> {
   /// never more than about a scan of every object. Throws InvalidRay.
   template <class V>
   QueryCost cast_ray(const Ray& r, V&& visitor) const {
-    require_valid(r);
-    detail::RayCast<std::remove_reference_t<V>> cast(store_, r, visitor);
-    for (std::uint32_t b : overflow_)
-      if (!cast.test(b, box_[b])) return cast.cost;
-    detail::RaySlots tested;
-    const double budget = 2.0 * static_cast<double>(store_.size() - overflow_.size()) + 64;
-    detail::ray_grid_cast(
-        cast, tested, detail::ray_level(map_), budget, &occupied_,
-        [&](double x, int a) { return map_.coord(x, a); },
-        [&](const detail::CellKey& c, auto&& f) {
-          const std::size_t k = bucket_of(c);
-          for (const Table* t : {&fixed_, &dyn_}) {
-            const Entry* e = t->entries.data() + t->start[k];
-            for (std::uint32_t j = 0; j < t->count[k]; ++j)
-              if (e[j].key == c && !f(e[j].tag >> 3)) return false;
-          }
-          return true;
-        },
-        [&](auto&& f) {
-          for (std::uint32_t b = 0; b < store_.slot_count(); ++b)
-            if (kind_[b] != kDead && where_[b] == detail::kNone && !f(b)) return false;
-          return true;
-        },
-        [&](std::uint32_t b) -> const AabbF& { return box_[b]; });
-    return cast.cost;
+    auto box_of = [&](std::uint32_t b) -> const AabbF& { return box_[b]; };
+    return detail::ray_grid_cast(
+        store_, r, visitor, overflow_, box_of, [&](auto& cast, detail::RaySlots& tested) {
+          const double budget = 2.0 * static_cast<double>(store_.size() - overflow_.size()) + 64;
+          detail::ray_level_cast(
+              cast, tested, detail::ray_level(map_), budget, &occupied_,
+              [&](double x, int a) { return map_.coord(x, a); },
+              [&](const detail::CellKey& c, auto&& f) {
+                const std::size_t k = bucket_of(c);
+                for (const Table* t : {&fixed_, &dyn_}) {
+                  const Entry* e = t->entries.data() + t->start[k];
+                  for (std::uint32_t j = 0; j < t->count[k]; ++j)
+                    if (e[j].key == c && !f(e[j].tag >> 3)) return false;
+                }
+                return true;
+              },
+              [&](auto&& f) {
+                for (std::uint32_t b = 0; b < store_.slot_count(); ++b)
+                  if (kind_[b] != kDead && where_[b] == detail::kNone && !f(b)) return false;
+                return true;
+              },
+              box_of);
+        });
   }
 
   /// Visits every object overlapping `q`.

@@ -90,41 +90,40 @@ class HGrid : public detail::StoreBase<HGrid> {
   /// Throws InvalidRay.
   template <class V>
   QueryCost cast_ray(const Ray& r, V&& visitor) const {
-    require_valid(r);
-    detail::RayCast<std::remove_reference_t<V>> cast(store_, r, visitor);
-    for (std::uint32_t b : overflow_)
-      if (!cast.test(b, box_[b])) return cast.cost;
-    detail::RaySlots tested;
-    for (int level : levels_) {
-      detail::RayGridLevel l;
-      l.origin = {0, 0, 0};
-      l.cell = edge(level);
-      for (int a = 0; a < 3; ++a) {
-        l.index_lo[a] = -0x1p30;
-        l.index_hi[a] = 0x1p30;
-      }
-      l.reach = l.cell * (0.5 + 0x1p-20);  // as scan_level's slack
-      // A level's scan reads every slot (there is no list per level), so
-      // the march may cost as much before it gives up.
-      const double budget = 2.0 * static_cast<double>(store_.size()) + 64;
-      const bool go = detail::ray_grid_cast(
-          cast, tested, l, budget, &occupied_, [&](double x, int) { return coord(x, level); },
-          [&](const detail::CellKey& k, auto&& f) {
-            for (std::uint32_t b = table_[find(level, k)].head; b != detail::kNone; b = next_[b])
-              if (!f(b)) return false;
-            return true;
-          },
-          [&](auto&& f) {
-            for (std::uint32_t b = 0; b < store_.slot_count(); ++b)
-              if (store_.slots().alive(b) && where_[b] == detail::kNone && level_[b] == level &&
-                  !f(b))
-                return false;
-            return true;
-          },
-          [&](std::uint32_t b) -> const AabbF& { return box_[b]; });
-      if (!go) break;
-    }
-    return cast.cost;
+    auto box_of = [&](std::uint32_t b) -> const AabbF& { return box_[b]; };
+    return detail::ray_grid_cast(
+        store_, r, visitor, overflow_, box_of, [&](auto& cast, detail::RaySlots& tested) {
+          for (int level : levels_) {
+            detail::RayGridLevel l;
+            l.origin = {0, 0, 0};
+            l.cell = edge(level);
+            for (int a = 0; a < 3; ++a) {
+              l.index_lo[a] = -0x1p30;
+              l.index_hi[a] = 0x1p30;
+            }
+            l.reach = l.cell * (0.5 + 0x1p-20);  // as scan_level's slack
+            // A level's scan reads every slot (there is no list per level), so
+            // the march may cost as much before it gives up.
+            const double budget = 2.0 * static_cast<double>(store_.size()) + 64;
+            const bool go = detail::ray_level_cast(
+                cast, tested, l, budget, &occupied_, [&](double x, int) { return coord(x, level); },
+                [&](const detail::CellKey& k, auto&& f) {
+                  for (std::uint32_t b = table_[find(level, k)].head; b != detail::kNone;
+                       b = next_[b])
+                    if (!f(b)) return false;
+                  return true;
+                },
+                [&](auto&& f) {
+                  for (std::uint32_t b = 0; b < store_.slot_count(); ++b)
+                    if (store_.slots().alive(b) && where_[b] == detail::kNone &&
+                        level_[b] == level && !f(b))
+                      return false;
+                  return true;
+                },
+                box_of);
+            if (!go) return;
+          }
+        });
   }
 
   /// The pair walk behind for_each_pair (StoreBase, which attaches the

@@ -116,32 +116,29 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
   /// a scan of every object. Throws InvalidRay.
   template <class V>
   QueryCost cast_ray(const Ray& r, V&& visitor) const {
-    require_valid(r);
-    RayCast<std::remove_reference_t<V>> cast(store_, r, visitor);
-    for (std::uint32_t b : overflow_)
-      if (!cast.test(b, box_[b])) return cast.cost;
-    RaySlots tested;
-    const double budget = 2.0 * static_cast<double>(store_.size() - overflow_.size()) + 64;
-    ray_grid_cast(
-        cast, tested, ray_level(map_), budget, &occupied_,
-        [&](double x, int a) { return map_.coord(x, a); },
-        [&](const CellKey& c, auto&& f) {
-          for (std::uint32_t m = heads_[bucket_of(c)]; m != kNone; m = next_[m]) {
-            const std::uint32_t b = m >> 3;
-            if constexpr (kHashed) {
-              if (!(key_of(range_[b], m & 7u) == c)) continue;  // another cell, same bucket
+    auto box_of = [&](std::uint32_t b) -> const AabbF& { return box_[b]; };
+    return ray_grid_cast(store_, r, visitor, overflow_, box_of, [&](auto& cast, RaySlots& tested) {
+      const double budget = 2.0 * static_cast<double>(store_.size() - overflow_.size()) + 64;
+      ray_level_cast(
+          cast, tested, ray_level(map_), budget, &occupied_,
+          [&](double x, int a) { return map_.coord(x, a); },
+          [&](const CellKey& c, auto&& f) {
+            for (std::uint32_t m = heads_[bucket_of(c)]; m != kNone; m = next_[m]) {
+              const std::uint32_t b = m >> 3;
+              if constexpr (kHashed) {
+                if (!(key_of(range_[b], m & 7u) == c)) continue;  // another cell, same bucket
+              }
+              if (!f(b)) return false;
             }
-            if (!f(b)) return false;
-          }
-          return true;
-        },
-        [&](auto&& f) {
-          for (std::uint32_t b = 0; b < store_.slot_count(); ++b)
-            if (kmask_[b] != 0 && !f(b)) return false;
-          return true;
-        },
-        [&](std::uint32_t b) -> const AabbF& { return box_[b]; });
-    return cast.cost;
+            return true;
+          },
+          [&](auto&& f) {
+            for (std::uint32_t b = 0; b < store_.slot_count(); ++b)
+              if (kmask_[b] != 0 && !f(b)) return false;
+            return true;
+          },
+          box_of);
+    });
   }
 
   /// The pair walk behind for_each_pair (StoreBase, which attaches the

@@ -358,17 +358,24 @@ class RayGridMarch {
   /// `budget` cells (see the class comment).
   template <class Cast>
   Outcome march(Cast& cast, double budget, const OccupiedBox* occupied = nullptr) const {
+    if (occupied == nullptr) return march_within(cast, budget, nullptr);
+    if (occupied->empty()) return Outcome::finished;
+    const Aabb box = occupied->as_double();
+    return march_within(cast, budget, &box);
+  }
+
+  /// As `march`, over the part of the ray inside `within` (a box holding
+  /// every object the march must find; null: the whole ray).
+  template <class Cast>
+  Outcome march_within(Cast& cast, double budget, const Aabb* within) const {
     const Vec3& o = cast.ray.origin;
     const Vec3& d = cast.ray.dir;
-    // Where the ray is inside the occupied space, when the grid keeps it:
-    // no object is hit before t_from or after t_end.
+    // Where the ray is inside the box, when there is one: no object inside
+    // it is hit before t_from or after t_end.
     double t_from = 0;
     double t_end = std::numeric_limits<double>::infinity();
-    if (occupied != nullptr) {
-      if (occupied->empty() ||
-          !ray_span(cast.cull, occupied->as_double(), cast.tmax, t_from, t_end))
-        return Outcome::finished;
-    }
+    if (within != nullptr && !ray_span(cast.cull, *within, cast.tmax, t_from, t_end))
+      return Outcome::finished;
     // The grid's own region, one cell wider each side: beyond it on every
     // axis the clamped coordinates stop changing. It only guides the step
     // sizes; correctness rests on the boxes' ranges alone.
@@ -512,20 +519,20 @@ QueryCost tree_cast_ray(const Tree& tree, const ObjectStore& store, const Ray& r
   return cast.cost;
 }
 
-/// A cast through one grid (or one level of a hierarchy): the march of
+/// One grid (or one level of a hierarchy) of a cast: the march of
 /// RayGridMarch over `level` with the grid's `coord(x, axis)`, each object
 /// tested once (`tested`, shared by the levels of a hierarchy). The grid
 /// gives `for_cell(key, f)`, calling f(slot) for the objects entered in
 /// cell `key` and false as soon as f does, `for_all(f)` likewise over
 /// every object of the grid (the scan of a march out of budget), and
-/// `box_of(slot)`, the object's stored float box; `occupied`, when not
-/// null, holds every object of the grid (OccupiedBox). `budget`: cells worth
-/// visiting before a scan is cheaper (about the grid's object count).
-/// False when the visitor stopped the cast.
+/// `box_of(slot)`, a float box holding the object (its stored bounds);
+/// `occupied`, when not null, holds every object of the grid
+/// (OccupiedBox). `budget`: cells worth visiting before a scan is cheaper
+/// (about the grid's object count). False when the visitor stopped the cast.
 template <class Cast, class Coord, class ForCell, class ForAll, class BoxOf>
-bool ray_grid_cast(Cast& cast, RaySlots& tested, const RayGridLevel& level, double budget,
-                   const OccupiedBox* occupied, Coord&& coord, ForCell&& for_cell, ForAll&& for_all,
-                   BoxOf&& box_of) {
+bool ray_level_cast(Cast& cast, RaySlots& tested, const RayGridLevel& level, double budget,
+                    const OccupiedBox* occupied, Coord&& coord, ForCell&& for_cell,
+                    ForAll&& for_all, BoxOf&& box_of) {
   auto test = [&](std::uint32_t s) { return !tested.insert(s) || cast.test(s, box_of(s)); };
   auto cell = [&](const CellKey& k) { return for_cell(k, test); };
   const RayGridMarch march(
@@ -540,6 +547,24 @@ bool ray_grid_cast(Cast& cast, RaySlots& tested, const RayGridLevel& level, doub
       break;
   }
   return for_all([&](std::uint32_t s) { return tested.contains(s) || cast.test(s, box_of(s)); });
+}
+
+/// A grid's cast, the opening every grid shares: the ray checked (throws
+/// InvalidRay), the objects the grid keeps outside its cells (`loose`: an
+/// overflow or oversize list of slots) tested first, each culled by
+/// `box_of(slot)` (as in ray_level_cast), then `levels(cast, tested)`,
+/// which marches the grid's levels (ray_level_cast, each object tested
+/// once through `tested`) and may stop when the cast stopped.
+template <class V, class Loose, class BoxOf, class Levels>
+QueryCost ray_grid_cast(const ObjectStore& store, const Ray& r, V& visitor, const Loose& loose,
+                        BoxOf&& box_of, Levels&& levels) {
+  require_valid(r);
+  RayCast<V> cast(store, r, visitor);
+  for (std::uint32_t b : loose)
+    if (!cast.test(b, box_of(b))) return cast.cost;
+  RaySlots tested;
+  levels(cast, tested);
+  return cast.cost;
 }
 
 }  // namespace broadphase::detail
