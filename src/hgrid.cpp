@@ -101,6 +101,7 @@ void HGrid::place(std::uint32_t i) {
   prev_[i] = kNone;
   if (c.head != kNone) prev_[c.head] = i;
   c.head = i;
+  count_in_block(i, +1);
   if (count_[level - kMinLevel]++ == 0)
     levels_.insert(std::lower_bound(levels_.begin(), levels_.end(), level), level);
 }
@@ -119,8 +120,25 @@ void HGrid::lift(std::uint32_t i) {
   }
   if (next_[i] != kNone) prev_[next_[i]] = prev_[i];
   if (table_[p].head == kNone) erase_cell(p);
+  count_in_block(i, -1);
   if (--count_[level - kMinLevel] == 0)
     levels_.erase(std::lower_bound(levels_.begin(), levels_.end(), level));
+}
+
+void HGrid::count_in_block(std::uint32_t i, int change) {
+  const int tag = level_[i] + kBlockTag;
+  const CellKey k = block_of(cell_[i]);
+  if (change > 0 && 2 * (cells_used_ + 1) > table_.size()) grow_table();
+  const std::size_t p = find(tag, k);
+  Cell& c = table_[p];
+  if (c.head == kNone) {
+    c.level = tag;
+    c.key = k;
+    c.head = 0;
+    ++cells_used_;
+  }
+  c.head += static_cast<std::uint32_t>(change);
+  if (c.head == 0) erase_cell(p);
 }
 
 void HGrid::erase_cell(std::size_t p) {
@@ -194,22 +212,41 @@ void HGrid::validate() const {
   for (std::size_t l = 0; l < count.size(); ++l)
     if (count[l] != 0) levels.push_back(static_cast<int>(l) + kMinLevel);
   if (levels != levels_) fail("occupied level list");
-  std::size_t used = 0;
+  std::size_t used = 0, blocks = 0;
   for (std::size_t p = 0; p < table_.size(); ++p) {
     const Cell& c = table_[p];
     if (c.head == kNone) continue;
     ++used;
     if (find(c.level, c.key) != p) fail("table cell unreachable by probing");
+    if (c.level > kMaxLevel) {
+      ++blocks;
+      if (c.level - kBlockTag < kMinLevel || c.level - kBlockTag > kMaxLevel)
+        fail("table entry of no level");
+      continue;
+    }
     if (c.head >= store_.slot_count() || level_[c.head] != c.level || !(cell_[c.head] == c.key))
       fail("table cell heads a foreign object");
   }
   if (used != cells_used_) fail("table cell count");
+  // Every block counts the objects of its cells, and no other block is kept.
+  std::size_t counted = 0;
+  std::vector<std::uint32_t> in_block(table_.size(), 0);
+  for (std::uint32_t i = 0; i < store_.slot_count(); ++i) {
+    if (!store_.slots().alive(i) || where_[i] != kNone) continue;
+    const std::size_t p = find(level_[i] + kBlockTag, block_of(cell_[i]));
+    if (table_[p].head == kNone) fail("object's block missing from the table");
+    if (in_block[p]++ == 0) ++counted;
+  }
+  for (std::size_t p = 0; p < table_.size(); ++p)
+    if (table_[p].head != kNone && table_[p].level > kMaxLevel && table_[p].head != in_block[p])
+      fail("block count");
+  if (counted != blocks) fail("block count");
 }
 
 void HGrid::visit_cells(CellVisitor visitor) const {
   detail::CellTally tally;
   for (const Cell& c : table_) {
-    if (c.head == kNone) continue;
+    if (c.head == kNone || c.level > kMaxLevel) continue;  // empty, or a block
     for (std::uint32_t b = c.head; b != kNone; b = next_[b]) tally.add(c.level, c.key);
   }
   tally.report(

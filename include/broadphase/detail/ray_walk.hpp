@@ -337,6 +337,13 @@ inline RayGridLevel ray_level(const CellMap& m) {
   return l;
 }
 
+/// How a march of RayGridMarch ended.
+enum class RayMarchOutcome {
+  finished,  ///< every cell up to the live tmax visited
+  stopped,   ///< the visitor stopped the cast
+  scan,      ///< out of budget: the caller tests the objects not yet tested
+};
+
 /// See RayGridLevel. `coord(x, axis)` is the grid's own monotone map;
 /// `cell(key)` visits the objects of one cell, calling back `f(slot)`
 /// (through the cast's test) and returning false when the cast stopped.
@@ -346,12 +353,8 @@ class RayGridMarch {
   RayGridMarch(const RayGridLevel& level, Coord coord, Cell cell)
       : level_(level), coord_(coord), cell_(cell) {}
 
-  /// How a march ended.
-  enum class Outcome {
-    finished,  ///< every cell up to the live tmax visited
-    stopped,   ///< the visitor stopped the cast
-    scan,      ///< out of budget: the caller tests the objects not yet tested
-  };
+  /// How a march ended (RayMarchOutcome).
+  using Outcome = RayMarchOutcome;
 
   /// Marches `cast`'s ray from t = 0 to its live tmax (only over the part
   /// inside `occupied`, when given: see OccupiedBox), visiting at most
