@@ -33,9 +33,15 @@ void GridImplicit::layout(double cell, std::size_t words) {
   }
   map_ = detail::CellMap(world_.lo, cell, n);
   words_ = words;
-  for (int a = 0; a < 3; ++a) bits_[a].assign(static_cast<std::size_t>(n[a]) * words_, 0);
+  summary_words_ = (words_ + 63) / 64;
+  for (int a = 0; a < 3; ++a) {
+    bits_[a].assign(static_cast<std::size_t>(n[a]) * words_, 0);
+    summary_[a].assign(static_cast<std::size_t>(n[a]) * summary_words_, 0);
+  }
+  occupied_.clear();
   for (std::uint32_t i = 0; i < store_.slot_count(); ++i) {
     if (!store_.slots().alive(i)) continue;
+    occupied_.add(box_[i]);
     range_[i] = map_.range(box_[i]);
     for (int a = 0; a < 3; ++a) set_bits(i, a, range_[i].lo[a], range_[i].hi[a], true);
   }
@@ -43,8 +49,14 @@ void GridImplicit::layout(double cell, std::size_t words) {
 
 void GridImplicit::set_bits(std::uint32_t i, int axis, std::int32_t lo, std::int32_t hi, bool on) {
   const std::uint64_t bit = std::uint64_t{1} << (i % 64);
-  std::uint64_t* p = bits_[axis].data() + static_cast<std::size_t>(lo) * words_ + i / 64;
-  for (std::int32_t s = lo; s <= hi; ++s, p += words_) *p = on ? (*p | bit) : (*p & ~bit);
+  const std::size_t w = i / 64;
+  const std::uint64_t word_bit = std::uint64_t{1} << (w % 64);
+  std::uint64_t* p = bits_[axis].data() + static_cast<std::size_t>(lo) * words_ + w;
+  std::uint64_t* q = summary_[axis].data() + static_cast<std::size_t>(lo) * summary_words_ + w / 64;
+  for (std::int32_t s = lo; s <= hi; ++s, p += words_, q += summary_words_) {
+    *p = on ? (*p | bit) : (*p & ~bit);
+    *q = *p != 0 ? (*q | word_bit) : (*q & ~word_bit);
+  }
 }
 
 Handle GridImplicit::insert(const Shape& s, std::uint64_t user, Motion) {
@@ -64,6 +76,7 @@ Handle GridImplicit::insert(const Shape& s, std::uint64_t user, Motion) {
     // Slots outgrew the bit arrays: double them (amortised O(1) per insert).
     layout(map_.cell(), std::max(2 * words_, need));
   } else {
+    occupied_.add(box_[i]);
     range_[i] = map_.range(box_[i]);
     for (int a = 0; a < 3; ++a) set_bits(i, a, range_[i].lo[a], range_[i].hi[a], true);
   }
@@ -83,6 +96,7 @@ void GridImplicit::remove(Handle h) {
 void GridImplicit::update(Handle h, const Shape& s) {
   const std::uint32_t i = store_.set_shape(h, s);
   box_[i] = bounds_f(s);
+  occupied_.add(box_[i]);
   const detail::CellRange r = map_.range(box_[i]);
   for (int a = 0; a < 3; ++a) {
     if (r.lo[a] == range_[i].lo[a] && r.hi[a] == range_[i].hi[a]) continue;
@@ -96,6 +110,7 @@ std::size_t GridImplicit::memory_bytes() const {
   std::size_t bytes = store_.memory_bytes() + box_.capacity() * sizeof(AabbF) +
                       range_.capacity() * sizeof(detail::CellRange);
   for (const auto& b : bits_) bytes += b.capacity() * sizeof(std::uint64_t);
+  for (const auto& b : summary_) bytes += b.capacity() * sizeof(std::uint64_t);
   return bytes;
 }
 
@@ -110,11 +125,19 @@ void GridImplicit::validate() const {
         const AabbF b = bounds_f(store_.shape(i));
         if (std::memcmp(&b, &box_[i], sizeof b) != 0) fail("stale bounds");
         if (!(map_.range(b) == range_[i])) fail("stale slab range");
+        if (!occupied_.holds(b)) fail("an object outside the occupied box");
       }
       for (std::int32_t s = range_[i].lo[a]; s <= range_[i].hi[a]; ++s)
         want[static_cast<std::size_t>(s) * words_ + i / 64] |= std::uint64_t{1} << (i % 64);
     }
     if (want != bits_[a]) fail("slab bits disagree with the objects' ranges");
+    std::vector<std::uint64_t> sum(summary_[a].size(), 0);
+    for (std::size_t j = 0; j < want.size(); ++j)
+      if (want[j] != 0) {
+        const std::size_t s = j / words_, w = j % words_;
+        sum[s * summary_words_ + w / 64] |= std::uint64_t{1} << (w % 64);
+      }
+    if (sum != summary_[a]) fail("slab summaries disagree with the slab bits");
   }
 }
 
