@@ -141,6 +141,7 @@ void HGridPaper::link(std::uint32_t i, const Placement& p) {
     return;
   }
   std::copy(p.cell, p.cell + 3, e.cell);
+  occupied_.add(bounds_f(store_.shape(i)));
   const std::uint32_t b = bucket_of(p.level, p.cell);
   push_front(b, i);
   slot_[i] = b;
@@ -220,7 +221,10 @@ void HGridPaper::update(Handle h, const Shape& s) {
   // object where it was.
   if (!stays) make_room(i, p);
   store_.set_shape(h, s);
-  if (stays) return;
+  if (stays) {
+    if (p.level != 0) occupied_.add(bounds_f(s));
+    return;
+  }
   unlink(i);
   link(i, p);
 }
@@ -244,6 +248,8 @@ void HGridPaper::validate() const {
     if (p.level != e.level || (p.level != 0 && (p.cell[0] != e.cell[0] || p.cell[1] != e.cell[1] ||
                                                 p.cell[2] != e.cell[2])))
       fail(who + " is not at the level and cell its shape prescribes");
+    if (e.level != 0 && !occupied_.holds(bounds_f(store_.shape(i))))
+      fail(who + " lies outside the occupied box");
     if (e.level == 0 ? (slot_[i] >= oversize_.size() || oversize_[slot_[i]] != i)
                      : slot_[i] != bucket_of(e.level, e.cell))
       fail(who + " does not remember its bucket or oversize place");
