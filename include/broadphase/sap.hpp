@@ -98,10 +98,12 @@ class Sap : public detail::StoreBase<Sap> {
     return cost;
   }
 
-  /// Casts a ray (HasRayCast) along one sorted axis: the one whose reach
-  /// of the ray (detail::ray_axis_reach) holds the fewest endpoints, walked
-  /// in the ray's direction and cut short as the visitor clips the ray.
-  /// O(log n + objects whose interval on that axis meets the ray's).
+  /// Casts a ray (HasRayCast) along one sorted axis: the ray is cut where
+  /// it leaves the box of every object (the lists' first and last
+  /// endpoints), and the axis whose reach of what is left
+  /// (detail::ray_axis_reach) holds the fewest endpoints is walked in the
+  /// ray's direction, cut short as the visitor clips the ray. O(log n +
+  /// objects whose interval on that axis meets the ray's).
   /// Throws InvalidRay.
   template <class V>
   QueryCost cast_ray(const Ray& r, V&& visitor) const;
@@ -129,6 +131,11 @@ class Sap : public detail::StoreBase<Sap> {
   static std::uint32_t ordered(float f) {
     const std::uint32_t u = std::bit_cast<std::uint32_t>(f);
     return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+  }
+  // The float of an endpoint key (the inverse of `ordered`).
+  static float value_of(std::uint64_t k) {
+    const auto o = static_cast<std::uint32_t>(k >> 32);
+    return std::bit_cast<float>((o & 0x80000000u) ? (o & 0x7fffffffu) : ~o);
   }
   static std::uint64_t key(float v, bool upper, std::uint32_t slot) {
     return (std::uint64_t(ordered(v)) << 32) | (std::uint64_t(upper) << 31) | slot;
@@ -182,12 +189,22 @@ QueryCost Sap::cast_ray(const Ray& r, V&& visitor) const {
   require_valid(r);
   detail::RayCast<std::remove_reference_t<V>> cast(store_, r, visitor);
   if (store_.size() == 0) return cast.cost;
+  // No object is hit where the ray is outside the box of them all: without
+  // this cut a ray that leaves the world reaches half of every axis, and
+  // the walk cost about as much as a test of every object (docs/rays.md).
+  Aabb all;
+  for (int a = 0; a < 3; ++a) {
+    all.lo[a] = value_of(ep_[a].front());
+    all.hi[a] = value_of(ep_[a].back());
+  }
+  double t_in, t_out;
+  if (!detail::ray_span(cast.cull, all, r.tmax, t_in, t_out)) return cast.cost;
   using It = std::vector<std::uint64_t>::const_iterator;
   int axis = 0;
   It first, last;
   for (int a = 0; a < 3; ++a) {
     double lo, hi;
-    detail::ray_axis_reach(r, r.tmax, a, lo, hi);
+    detail::ray_axis_reach(r, t_out, a, lo, hi);
     const std::vector<std::uint64_t>& e = ep_[a];
     const It f = std::lower_bound(
         e.begin(), e.end(), key(lower_limit(detail::float_below(lo), max_extent_[a]), false, 0));
@@ -199,7 +216,7 @@ QueryCost Sap::cast_ray(const Ray& r, V&& visitor) const {
     }
   }
   const int a = axis;
-  double lo_live, hi_live, at = r.tmax;
+  double lo_live, hi_live, at = t_out;
   detail::ray_axis_reach(r, at, a, lo_live, hi_live);
   float stop = lower_limit(detail::float_below(lo_live), max_extent_[a]);
   if (r.dir[a] >= 0) {
@@ -207,8 +224,8 @@ QueryCost Sap::cast_ray(const Ray& r, V&& visitor) const {
     for (It it = first; it != last; ++it) {
       if (is_upper(*it)) continue;
       const std::uint32_t o = slot_of(*it);
-      if (cast.tmax != at) {
-        at = cast.tmax;
+      if (std::min(cast.tmax, t_out) != at) {
+        at = std::min(cast.tmax, t_out);
         detail::ray_axis_reach(r, at, a, lo_live, hi_live);
       }
       if (static_cast<double>(box_[o].lo[a]) > hi_live) break;
@@ -221,8 +238,8 @@ QueryCost Sap::cast_ray(const Ray& r, V&& visitor) const {
       --it;
       if (is_upper(*it)) continue;
       const std::uint32_t o = slot_of(*it);
-      if (cast.tmax != at) {
-        at = cast.tmax;
+      if (std::min(cast.tmax, t_out) != at) {
+        at = std::min(cast.tmax, t_out);
         detail::ray_axis_reach(r, at, a, lo_live, hi_live);
         stop = lower_limit(detail::float_below(lo_live), max_extent_[a]);
       }
