@@ -27,8 +27,12 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 using HitSet = std::set<std::pair<std::uint32_t, std::uint64_t>>;  // (slot, bits of t)
 
-// The kinds of scene the rays are cast into.
-enum class Kind { spheres, boxes, mixed, far, huge_and_tiny, lattice };
+// The kinds of scene the rays are cast into. `levels`: objects of sizes
+// from 2^-3 to 2^6 centred on multiples of eight times their size (the
+// faces and corners of hierarchical grids' cells and blocks), rays from
+// such points along axes and diagonals. `line`: objects strung along x
+// (sweep-and-prune then walks y or z, or x for rays across the line).
+enum class Kind { spheres, boxes, mixed, far, huge_and_tiny, lattice, levels, line };
 
 struct Object {
   Handle h;
@@ -56,13 +60,27 @@ class Model {
   // A coordinate: uniform, or on a "round" value where cell faces of
   // power-of-two grids and octree midplanes fall.
   double coord() {
+    if (kind_ == Kind::levels) {
+      const double step = std::ldexp(8.0, static_cast<int>(bits() % 10) - 3);
+      return base_ + step * std::floor(u(-0.1, 1.1) * scale_ / step);
+    }
     if (kind_ == Kind::lattice || coin(0.2))
       return base_ + scale_ * static_cast<double>(bits() % 17) / 16.0;
     return base_ + u(-0.1, 1.1) * scale_;
   }
 
   Shape shape() {
-    const Vec3 c{coord(), coord(), coord()};
+    Vec3 c{coord(), coord(), coord()};
+    if (kind_ == Kind::line) c.y = c.z = base_ + scale_ * u(0.49, 0.51);
+    if (kind_ == Kind::levels) {
+      // The size of a level, the centre on a multiple of eight of them.
+      const int level = static_cast<int>(bits() % 10) - 3;
+      const double step = std::ldexp(8.0, level);
+      for (int a = 0; a < 3; ++a) c[a] = base_ + step * std::floor(u(-0.1, 1.1) * scale_ / step);
+      const double half = std::ldexp(coin() ? 0.5 : u(0.2, 0.5), level);
+      if (coin()) return Shape::box(c, {half, half * u(0.5, 1), half});
+      return Shape::sphere(c, half);
+    }
     const bool box =
         kind_ == Kind::boxes || ((kind_ != Kind::spheres && kind_ != Kind::lattice) && coin());
     double size = scale_ * std::exp(u(std::log(1e-3), std::log(5e-2)));
@@ -145,6 +163,11 @@ class Model {
       const Vec3 target = coin() ? o.s.center : o.s.center + o.s.half;
       r.dir = target - r.origin;
     }
+    if (kind_ == Kind::levels && kind >= 8) {  // along a diagonal, through corners
+      for (int a = 0; a < 3; ++a) r.dir[a] = static_cast<double>(bits() % 3) - 1;
+      if (r.dir == Vec3{0, 0, 0}) r.dir = {1, 1, 1};
+    }
+    if (kind_ == Kind::line && kind >= 8) r.origin.y = r.origin.z = base_ + scale_ * u(0.49, 0.51);
     if (kind == 6) r.dir = r.dir * 1e-150;  // tiny, still a valid length
     if (kind == 7) r.origin = {base_ - scale_ * 3, base_ - scale_ * 3, base_ - scale_ * 3};
     const double p = u(0, 1);
@@ -235,8 +258,8 @@ class Model {
 class Rays : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(Rays, MatchBruteForceOnRandomScenesAndMutations) {
-  for (Kind kind :
-       {Kind::spheres, Kind::boxes, Kind::mixed, Kind::far, Kind::huge_and_tiny, Kind::lattice})
+  for (Kind kind : {Kind::spheres, Kind::boxes, Kind::mixed, Kind::far, Kind::huge_and_tiny,
+                    Kind::lattice, Kind::levels, Kind::line})
     for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(repeats(3)); ++seed) {
       const std::uint64_t s = seed * 1000003 + static_cast<std::uint64_t>(kind);
       SCOPED_TRACE("seed " + std::to_string(s) + " kind " + std::to_string(static_cast<int>(kind)));
