@@ -169,6 +169,7 @@ class KdTree : public detail::StoreBase<KdTree> {
   std::uint32_t root_ = 0;
   std::vector<detail::OctItem> scratch_;      // rebuild's working copy
   std::vector<std::uint32_t> scratch_order_;  // refit_all's node order
+  bool order_stale_ = true;                   // scratch_order_ must be redone
   detail::ItemIndex index_;                   // slot -> leaf and position
   double surface_ = 0;
   double built_surface_ = 0;
