@@ -21,6 +21,7 @@
 #include <utility>
 #include <vector>
 
+#include "ray_testing.hpp"
 #include "testing.hpp"
 
 namespace broadphase {
@@ -30,61 +31,26 @@ using arrays::IndexHit;
 using arrays::IndexHitRows;
 using arrays::RayCaster;
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
-using HitSet = std::set<std::pair<std::uint32_t, std::uint64_t>>;  // (index, bits of t)
-
-enum class Kind { spheres, boxes, mixed, far, huge_and_tiny, lattice };
-const char* name(Kind k) {
-  static const char* const kNames[] = {"spheres", "boxes",         "mixed",
-                                       "far",     "huge_and_tiny", "lattice"};
-  return kNames[static_cast<int>(k)];
-}
+using ray_testing::HitSet;
+using ray_testing::Kind;
+using ray_testing::kInf;
 
 // The caller's arrays: struct of arrays, a kind byte, filter columns.
-class Model {
+class Model : public ray_testing::RandomRays {
  public:
-  Model(Kind kind, std::uint64_t seed) : kind_(kind), rng_(seed) {
-    if (kind == Kind::far) {
-      base_ = 1e15;
-      scale_ = 1000;
-    }
-  }
-
-  double u(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng_); }
-  std::uint64_t bits() { return rng_(); }
-  bool coin(double p = 0.5) { return u(0, 1) < p; }
-
-  // Uniform, or on a "round" value where the grid's cell faces fall.
-  double coord() {
-    if (kind_ == Kind::lattice || coin(0.2))
-      return base_ + scale_ * static_cast<double>(bits() % 17) / 16.0;
-    return base_ + u(-0.1, 1.1) * scale_;
-  }
+  Model(Kind kind, std::uint64_t seed) : RandomRays(kind, seed) {}
 
   // Object i becomes a new random shape.
   void reshape(std::size_t i) {
-    x_[i] = coord();
-    y_[i] = coord();
-    z_[i] = coord();
-    const bool box =
-        kind_ == Kind::boxes || ((kind_ != Kind::spheres && kind_ != Kind::lattice) && coin());
-    double size = scale_ * std::exp(u(std::log(1e-3), std::log(5e-2)));
-    if (kind_ == Kind::lattice) size = scale_ / 32;
-    if (kind_ == Kind::huge_and_tiny) {
-      const double p = u(0, 1);
-      if (p < 0.1)
-        size = scale_ * u(0.5, 3);  // wider than many cells, or the world
-      else if (p < 0.3)
-        size = scale_ * 1e-9;
-      else if (p < 0.35)
-        size = 0;
-    }
-    kind_of_[i] = box ? 1 : 0;
-    r_[i] = size;
-    hx_[i] = size * u(0.2, 1);
-    hy_[i] = size * u(0.2, 1);
-    hz_[i] = size * u(0.2, 1);
+    const Shape s = shape();
+    x_[i] = s.center.x;
+    y_[i] = s.center.y;
+    z_[i] = s.center.z;
+    kind_of_[i] = s.kind == ShapeKind::box ? 1 : 0;
+    r_[i] = s.half.x;
+    hx_[i] = s.half.x;
+    hy_[i] = s.half.y;
+    hz_[i] = s.half.z;
   }
   void refilter(std::size_t i) {
     groups_[i] = coin(0.7) ? 1u : static_cast<std::uint32_t>(1u << (bits() % 4));
@@ -112,8 +78,8 @@ class Model {
       if (coin()) {
         reshape(i);
       } else {
-        x_[i] += u(-1, 1) * scale_ / 50;
-        y_[i] += u(-1, 1) * scale_ / 50;
+        x_[i] += u(-1, 1) * scale() / 50;
+        y_[i] += u(-1, 1) * scale() / 50;
       }
       changed.push_back(static_cast<std::uint32_t>(i));
     }
@@ -160,48 +126,10 @@ class Model {
     return o;
   }
 
-  // A ray of one of the contract's kinds.
   Ray ray() {
     const arrays::Objects o = objects();
-    auto center = [&](std::size_t i) { return Vec3{x_[i], y_[i], z_[i]}; };
-    Ray r;
-    const int kind = static_cast<int>(bits() % 11);
-    r.origin = {coord(), coord(), coord()};
-    if (kind == 0 && !x_.empty()) r.origin = center(bits() % x_.size());  // inside: t = 0
-    if (kind == 1) r.origin = {base_ - scale_ * 2, coord(), coord()};     // outside the world
-    for (int a = 0; a < 3; ++a) r.dir[a] = u(-1, 1);
-    if (kind == 2 || kind == 3) {  // along a cell face: zero components
-      r.dir = {0, 0, 0};
-      r.dir[static_cast<int>(bits() % 3)] = coin() ? 1 : -1;
-      if (kind == 3) r.dir[static_cast<int>(bits() % 3)] = coin() ? 0.5 : -0.5;
-    }
-    if (kind == 4) r.dir = {0, 0, 0};
-    if (kind == 5 && !x_.empty()) {  // at an object, through a corner
-      const std::size_t i = bits() % x_.size();
-      const Shape s = o.shape(i);
-      r.dir = (coin() ? s.center : s.center + s.half) - r.origin;
-    }
-    if (kind == 6) r.dir = r.dir * 1e-150;  // tiny, still a valid length
-    if (kind == 7) {                        // never entering the world
-      r.origin = {base_ - scale_ * 3, base_ - scale_ * 3, base_ - scale_ * 3};
-      if (coin()) r.dir = {-1, u(-1, 1), u(-1, 1)};
-    }
-    const double p = u(0, 1);
-    r.tmax = p < 0.4 ? kInf : p < 0.5 ? 0.0 : u(0, 2) * scale_ / std::max(1e-300, length(r.dir));
-    if (!std::isfinite(r.tmax)) r.tmax = kInf;
-    if (coin(0.25)) r.mask = static_cast<std::uint32_t>(bits() % 16);
-    if (ray_problem(r) != "") r.dir = {1, 0, 0};
-    if (kind >= 8 && !x_.empty()) {  // a hit exactly at tmax
-      const std::size_t i = bits() % x_.size();
-      r.dir = center(i) - r.origin;
-      if (ray_problem(r) != "") r.dir = {1, 0, 0};
-      double t;
-      if (ray_hit(r.origin, r.dir, kInf, o.shape(i), t)) r.tmax = t;
-    }
-    return r;
+    return RandomRays::ray(o.count, [&](std::size_t i) { return o.shape(i); });
   }
-
-  static double length(const Vec3& v) { return std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z); }
 
   HitSet brute(const Ray& r, double tmax) const {
     const arrays::Objects o = objects();
@@ -300,21 +228,11 @@ class Model {
     }
   }
 
-  std::string describe(const Ray& r) const {
-    char buf[400];
-    std::snprintf(buf, sizeof buf, "ray o=(%a, %a, %a) d=(%a, %a, %a) tmax=%a mask=%x objects=%zu",
-                  r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.tmax, r.mask,
-                  x_.size());
-    return buf;
-  }
+  std::string describe(const Ray& r) const { return ray_testing::describe(r, x_.size()); }
 
   std::size_t size() const { return x_.size(); }
 
  private:
-  Kind kind_;
-  std::mt19937_64 rng_;
-  double base_ = 0;
-  double scale_ = 1000;
   std::vector<double> x_, y_, z_, r_, hx_, hy_, hz_;
   std::vector<std::uint8_t> kind_of_;
   std::vector<std::uint32_t> groups_, masks_;
@@ -328,7 +246,8 @@ const Kind kKinds[] = {Kind::spheres, Kind::boxes,         Kind::mixed,
 TEST(ArraysRays, MovingTrackerMatchesBruteForce) {
   for (const Kind kind : kKinds)
     for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(4)); ++seed) {
-      SCOPED_TRACE(::testing::Message() << "kind " << name(kind) << " seed " << seed);
+      SCOPED_TRACE(::testing::Message()
+                   << "kind " << ray_testing::kind_name(kind) << " seed " << seed);
       Model m(kind, seed * 7717 + static_cast<std::uint64_t>(kind));
       const std::size_t n = seed % 2 ? 1 + m.bits() % 40 : 200 + m.bits() % 600;
       for (std::size_t i = 0; i < n; ++i) m.append();
@@ -361,7 +280,8 @@ TEST(ArraysRays, MovingTrackerMatchesBruteForce) {
 TEST(ArraysRays, OneShotMatchesBruteForce) {
   for (const Kind kind : kKinds)
     for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(testing::repeats(3)); ++seed) {
-      SCOPED_TRACE(::testing::Message() << "kind " << name(kind) << " seed " << seed);
+      SCOPED_TRACE(::testing::Message()
+                   << "kind " << ray_testing::kind_name(kind) << " seed " << seed);
       Model m(kind, seed * 104729 + static_cast<std::uint64_t>(kind));
       const std::size_t n = seed == 1 ? 0 : 1 + m.bits() % 1500;
       for (std::size_t i = 0; i < n; ++i) m.append();

@@ -18,21 +18,15 @@
 #include <utility>
 #include <vector>
 
+#include "ray_testing.hpp"
 #include "testing.hpp"
 
 namespace broadphase::testing {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
-using HitSet = std::set<std::pair<std::uint32_t, std::uint64_t>>;  // (slot, bits of t)
-
-// The kinds of scene the rays are cast into. `levels`: objects of sizes
-// from 2^-3 to 2^6 centred on multiples of eight times their size (the
-// faces and corners of hierarchical grids' cells and blocks), rays from
-// such points along axes and diagonals. `line`: objects strung along x
-// (sweep-and-prune then walks y or z, or x for rays across the line).
-enum class Kind { spheres, boxes, mixed, far, huge_and_tiny, lattice, levels, line };
+using ray_testing::HitSet;
+using ray_testing::Kind;
+using ray_testing::kInf;
 
 struct Object {
   Handle h;
@@ -40,67 +34,13 @@ struct Object {
   Filter f;
 };
 
-class Model {
+class Model : public ray_testing::RandomRays {
  public:
   Model(std::string spec, Kind kind, std::uint64_t seed)
-      : kind_(kind), rng_(seed), spec_(std::move(spec)) {
-    if (kind == Kind::far) {
-      base_ = 1e15;
-      scale_ = 1000;
-    }
+      : RandomRays(kind, seed), spec_(std::move(spec)) {
     Config c;
-    c.world = {{base_, base_, base_}, {base_ + scale_, base_ + scale_, base_ + scale_}};
+    c.world = {{base(), base(), base()}, {base() + scale(), base() + scale(), base() + scale()}};
     bp_ = make_structure(spec_, c);
-  }
-
-  double u(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng_); }
-  std::uint64_t bits() { return rng_(); }
-  bool coin(double p = 0.5) { return u(0, 1) < p; }
-
-  // A coordinate: uniform, or on a "round" value where cell faces of
-  // power-of-two grids and octree midplanes fall.
-  double coord() {
-    if (kind_ == Kind::levels) {
-      const double step = std::ldexp(8.0, static_cast<int>(bits() % 10) - 3);
-      return base_ + step * std::floor(u(-0.1, 1.1) * scale_ / step);
-    }
-    if (kind_ == Kind::lattice || coin(0.2))
-      return base_ + scale_ * static_cast<double>(bits() % 17) / 16.0;
-    return base_ + u(-0.1, 1.1) * scale_;
-  }
-
-  Shape shape() {
-    Vec3 c{coord(), coord(), coord()};
-    if (kind_ == Kind::line) c.y = c.z = base_ + scale_ * u(0.49, 0.51);
-    if (kind_ == Kind::levels) {
-      // The size of a level, the centre on a multiple of eight of them.
-      const int level = static_cast<int>(bits() % 10) - 3;
-      const double step = std::ldexp(8.0, level);
-      for (int a = 0; a < 3; ++a) c[a] = base_ + step * std::floor(u(-0.1, 1.1) * scale_ / step);
-      const double half = std::ldexp(coin() ? 0.5 : u(0.2, 0.5), level);
-      if (coin()) return Shape::box(c, {half, half * u(0.5, 1), half});
-      return Shape::sphere(c, half);
-    }
-    const bool box =
-        kind_ == Kind::boxes || ((kind_ != Kind::spheres && kind_ != Kind::lattice) && coin());
-    double size = scale_ * std::exp(u(std::log(1e-3), std::log(5e-2)));
-    if (kind_ == Kind::lattice) size = scale_ / 32;
-    if (kind_ == Kind::huge_and_tiny) {
-      const double p = u(0, 1);
-      if (p < 0.1)
-        size = scale_ * u(0.5, 3);  // larger than many cells, or the world
-      else if (p < 0.3)
-        size = scale_ * 1e-9;
-      else if (p < 0.35)
-        size = 0;
-    }
-    if (box) return Shape::box(c, {size * u(0.2, 1), size * u(0.2, 1), size * u(0.2, 1)});
-    return Shape::sphere(c, size);
-  }
-
-  Filter filter() {
-    if (coin(0.7)) return Filter{};
-    return Filter{static_cast<std::uint32_t>(1u << (bits() % 4)), 0xffffffffu};
   }
 
   void insert() {
@@ -124,7 +64,7 @@ class Model {
     } else if (p < 0.8) {
       Object& o = objects_[bits() % objects_.size()];
       o.s = coin(0.5) ? shape()
-                      : Shape{o.s.center + Vec3{u(-1, 1), u(-1, 1), u(-1, 1)} * (scale_ / 50),
+                      : Shape{o.s.center + Vec3{u(-1, 1), u(-1, 1), u(-1, 1)} * (scale() / 50),
                               o.s.half, o.s.kind};
       bp_->update(o.h, o.s);
     } else if (p < 0.9) {
@@ -144,41 +84,9 @@ class Model {
     bp_->validate();
   }
 
-  // A ray of one of the contract's kinds.
   Ray ray() {
-    Ray r;
-    const int kind = static_cast<int>(bits() % 10);
-    r.origin = {coord(), coord(), coord()};
-    if (kind == 0 && !objects_.empty()) r.origin = objects_[bits() % objects_.size()].s.center;
-    if (kind == 1) r.origin = {base_ - scale_ * 2, coord(), coord()};  // outside the world
-    for (int a = 0; a < 3; ++a) r.dir[a] = u(-1, 1);
-    if (kind == 2 || kind == 3) {  // along a cell face: zero components
-      r.dir = {0, 0, 0};
-      r.dir[static_cast<int>(bits() % 3)] = coin() ? 1 : -1;
-      if (kind == 3) r.dir[static_cast<int>(bits() % 3)] = coin() ? 0.5 : -0.5;
-    }
-    if (kind == 4) r.dir = {0, 0, 0};
-    if (kind == 5 && !objects_.empty()) {  // at an object, through a corner
-      const Object& o = objects_[bits() % objects_.size()];
-      const Vec3 target = coin() ? o.s.center : o.s.center + o.s.half;
-      r.dir = target - r.origin;
-    }
-    if (kind_ == Kind::levels && kind >= 8) {  // along a diagonal, through corners
-      for (int a = 0; a < 3; ++a) r.dir[a] = static_cast<double>(bits() % 3) - 1;
-      if (r.dir == Vec3{0, 0, 0}) r.dir = {1, 1, 1};
-    }
-    if (kind_ == Kind::line && kind >= 8) r.origin.y = r.origin.z = base_ + scale_ * u(0.49, 0.51);
-    if (kind == 6) r.dir = r.dir * 1e-150;  // tiny, still a valid length
-    if (kind == 7) r.origin = {base_ - scale_ * 3, base_ - scale_ * 3, base_ - scale_ * 3};
-    const double p = u(0, 1);
-    r.tmax = p < 0.4 ? kInf : p < 0.5 ? 0.0 : u(0, 2) * scale_ / std::max(1e-300, length(r.dir));
-    if (!std::isfinite(r.tmax)) r.tmax = kInf;
-    if (coin(0.25)) r.mask = static_cast<std::uint32_t>(bits() % 16);
-    if (ray_problem(r) != "") r.dir = {1, 0, 0};
-    return r;
+    return RandomRays::ray(objects_.size(), [&](std::size_t i) { return objects_[i].s; });
   }
-
-  static double length(const Vec3& v) { return std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z); }
 
   HitSet brute(const Ray& r, double tmax) const {
     HitSet hits;
@@ -234,23 +142,13 @@ class Model {
       ASSERT_EQ(clipped.count(hit), 1u) << "a hit within the clip missed " << describe(r);
   }
 
-  std::string describe(const Ray& r) const {
-    char buf[400];
-    std::snprintf(buf, sizeof buf, "ray o=(%a, %a, %a) d=(%a, %a, %a) tmax=%a mask=%x objects=%zu",
-                  r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.tmax, r.mask,
-                  objects_.size());
-    return buf;
-  }
+  std::string describe(const Ray& r) const { return ray_testing::describe(r, objects_.size()); }
 
   AnyBroadPhase& bp() { return *bp_; }
   std::size_t size() const { return objects_.size(); }
 
  private:
-  Kind kind_;
-  std::mt19937_64 rng_;
   std::string spec_;
-  double base_ = 0;
-  double scale_ = 1000;
   std::unique_ptr<AnyBroadPhase> bp_;
   std::vector<Object> objects_;
 };
@@ -262,7 +160,7 @@ TEST_P(Rays, MatchBruteForceOnRandomScenesAndMutations) {
                     Kind::lattice, Kind::levels, Kind::line})
     for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(repeats(3)); ++seed) {
       const std::uint64_t s = seed * 1000003 + static_cast<std::uint64_t>(kind);
-      SCOPED_TRACE("seed " + std::to_string(s) + " kind " + std::to_string(static_cast<int>(kind)));
+      SCOPED_TRACE("seed " + std::to_string(s) + " kind " + ray_testing::kind_name(kind));
       Model m(GetParam(), kind, s);
       for (int i = 0; i < 20; ++i) m.check(m.ray());  // empty structure
       const int n = 200 + static_cast<int>(s % 300);
