@@ -429,7 +429,7 @@ QueryCost GridVerlet::cast_ray(const Ray& r, V&& visitor) const {
               if (!entry(k)) return false;
             return true;
           });
-      using Outcome = decltype(march)::Outcome;
+      using Outcome = typename decltype(march)::Outcome;
       switch (march.march(cast, 2.0 * (end - begin) + 64)) {
         case Outcome::finished:
           continue;

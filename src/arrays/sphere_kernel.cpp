@@ -65,7 +65,11 @@ bool SphereCells::build_over(const Objects& o, std::size_t n, At at, std::size_t
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t k = at(i);
     const double x = o.x.at(k), y = o.y.at(k), z = o.z.at(k), r = o.radius.at(k);
-    valid &= std::isfinite(x) & std::isfinite(y) & std::isfinite(z) & std::isfinite(r) & (r >= 0);
+    // Bitwise on purpose (no branch per value); clang wants the operands as ints.
+    valid &=
+        static_cast<bool>(static_cast<int>(std::isfinite(x)) & static_cast<int>(std::isfinite(y)) &
+                          static_cast<int>(std::isfinite(z)) & static_cast<int>(std::isfinite(r)) &
+                          static_cast<int>(r >= 0));
     lo_[0] = std::min(lo_[0], x);
     hi[0] = std::max(hi[0], x);
     lo_[1] = std::min(lo_[1], y);
