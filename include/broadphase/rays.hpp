@@ -56,6 +56,32 @@ void run_shares(std::size_t n, unsigned threads, Job&& job) {
   for (std::thread& t : pool) t.join();
 }
 
+/// Casts rays 0 to n - 1 into compressed rows (RayHitRows, or the lean
+/// path's IndexHitRows), replacing `out`'s content: cast(i, hits) appends
+/// ray i's hits to `hits` in any order; each row is then sorted by `less`,
+/// and the threads' shares are joined in ray order, so the rows never
+/// depend on the thread count.
+template <class Rows, class Cast, class Less>
+void gather_hit_rows(std::size_t n, unsigned threads, Cast&& cast, Less less, Rows& out) {
+  using Hit = typename decltype(out.hits)::value_type;
+  std::vector<std::vector<Hit>> part(std::max(1u, threads));
+  std::vector<std::size_t> count(n);
+  run_shares(n, threads, [&](std::size_t begin, std::size_t end, std::size_t k) {
+    std::vector<Hit>& hits = part[k];
+    for (std::size_t i = begin; i < end; ++i) {
+      const std::size_t first = hits.size();
+      cast(i, hits);
+      std::sort(hits.begin() + static_cast<std::ptrdiff_t>(first), hits.end(), less);
+      count[i] = hits.size() - first;
+    }
+  });
+  out.offsets.assign(n + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) out.offsets[i + 1] = out.offsets[i] + count[i];
+  out.hits.clear();
+  out.hits.reserve(out.offsets.back());
+  for (const std::vector<Hit>& p : part) out.hits.insert(out.hits.end(), p.begin(), p.end());
+}
+
 }  // namespace detail
 
 /// The closest hit of each ray: `closest[i]` is closest_hit(s, rays[i]) (a
@@ -80,26 +106,15 @@ void cast_rays(const S& s, std::span<const Ray> rays, std::span<RayHit> closest,
 template <HasRayCast S>
 void cast_rays_all(const S& s, std::span<const Ray> rays, RayHitRows& out, unsigned threads = 1) {
   detail::require_valid_rays(rays);
-  const std::size_t shares = std::max(1u, threads);
-  std::vector<std::vector<RayHit>> part(shares);
-  std::vector<std::size_t> count(rays.size());
-  detail::run_shares(rays.size(), threads, [&](std::size_t begin, std::size_t end, std::size_t k) {
-    std::vector<RayHit>& hits = part[k];
-    for (std::size_t i = begin; i < end; ++i) {
-      const std::size_t first = hits.size();
-      s.cast_ray(rays[i], [&](Handle h, double t) {
-        hits.push_back({h, t});
-        return kRayGoOn;
-      });
-      std::sort(hits.begin() + static_cast<std::ptrdiff_t>(first), hits.end(), closer);
-      count[i] = hits.size() - first;
-    }
-  });
-  out.offsets.assign(rays.size() + 1, 0);
-  for (std::size_t i = 0; i < rays.size(); ++i) out.offsets[i + 1] = out.offsets[i] + count[i];
-  out.hits.clear();
-  out.hits.reserve(out.offsets.back());
-  for (const std::vector<RayHit>& p : part) out.hits.insert(out.hits.end(), p.begin(), p.end());
+  detail::gather_hit_rows(
+      rays.size(), threads,
+      [&](std::size_t i, std::vector<RayHit>& hits) {
+        s.cast_ray(rays[i], [&](Handle h, double t) {
+          hits.push_back({h, t});
+          return kRayGoOn;
+        });
+      },
+      closer, out);
 }
 
 /// As the templates, over the type-erased face (one virtual call per ray).

@@ -245,31 +245,19 @@ void RayCaster::any(std::span<const Ray> rays, std::span<std::uint8_t> out,
 
 void RayCaster::all(std::span<const Ray> rays, IndexHitRows& out, unsigned threads) const {
   broadphase::detail::require_valid_rays(rays);
-  const unsigned shares = shares_of(threads);
-  std::vector<std::vector<IndexHit>> part(shares);
-  std::vector<std::size_t> count(rays.size());
-  auto order = [](const IndexHit& a, const IndexHit& b) {
-    return a.t < b.t || (a.t == b.t && a.index < b.index);
-  };
-  broadphase::detail::run_shares(
-      rays.size(), shares, [&](std::size_t begin, std::size_t end, std::size_t k) {
-        std::vector<IndexHit>& hits = part[k];
-        for (std::size_t r = begin; r < end; ++r) {
-          const std::size_t first = hits.size();
-          auto v = [&](Handle h, double t) {
-            hits.push_back({h.index, t});
-            return kRayGoOn;
-          };
-          impl_->cast(rays[r], v);
-          std::sort(hits.begin() + static_cast<std::ptrdiff_t>(first), hits.end(), order);
-          count[r] = hits.size() - first;
-        }
-      });
-  out.offsets.assign(rays.size() + 1, 0);
-  for (std::size_t r = 0; r < rays.size(); ++r) out.offsets[r + 1] = out.offsets[r] + count[r];
-  out.hits.clear();
-  out.hits.reserve(out.offsets.back());
-  for (const std::vector<IndexHit>& p : part) out.hits.insert(out.hits.end(), p.begin(), p.end());
+  broadphase::detail::gather_hit_rows(
+      rays.size(), shares_of(threads),
+      [&](std::size_t r, std::vector<IndexHit>& hits) {
+        auto v = [&](Handle h, double t) {
+          hits.push_back({h.index, t});
+          return kRayGoOn;
+        };
+        impl_->cast(rays[r], v);
+      },
+      [](const IndexHit& a, const IndexHit& b) {
+        return a.t < b.t || (a.t == b.t && a.index < b.index);
+      },
+      out);
 }
 
 std::size_t RayCaster::size() const { return impl_->objects.count; }
