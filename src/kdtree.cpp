@@ -192,7 +192,10 @@ void KdTree::build(std::uint32_t node, std::size_t begin, std::size_t end) {
     std::vector<OctItem>().swap(n.items);
     n.left = left;
     n.right = right;
-    ray_kids_[t.node] = {{kEmpty, kEmpty}, {left, right}};
+    RayKids& kids = ray_kids_[t.node];
+    kids.box[0] = kids.box[1] = kEmpty;
+    kids.child[0] = left;
+    kids.child[1] = right;
     n.axis = static_cast<std::uint8_t>(axis);
     n.split = split;
     tasks.push({left, t.begin, t.begin + mid});
