@@ -1,0 +1,670 @@
+/// \file neighbours.cpp
+/// The neighbour-list engine of neighbours.hpp: a cell list over fractional
+/// coordinates, a conservative prefilter on wrapped positions, the exact
+/// rule on the positions as given, and a counting sort into the output order.
+#include <algorithm>
+#include <broadphase/neighbours.hpp>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace broadphase {
+namespace {
+
+using arrays::Column;
+namespace rule = neighbour_rule;
+
+// Limits that keep every integer in range: |floor(s)| of a point on a
+// periodic axis, and a cutoff's reach in bins.
+constexpr double kMaxWrap = 268435456.0;  // 2^28
+constexpr std::int64_t kMaxReach = 1 << 20;
+constexpr double kMaxBinsPerAxis = 1048576.0;  // 2^20
+
+[[noreturn]] void refuse(const std::string& what) { throw InvalidNeighbourInput(what); }
+
+std::string number(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+Vec3 cross(Vec3 a, Vec3 b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+double dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+double norm(Vec3 a) { return std::sqrt(dot(a, a)); }
+Vec3 unit(Vec3 a) { return a * (1.0 / norm(a)); }
+
+/// The frame the bins are laid in: the periodic cell vectors, completed by
+/// unit vectors orthogonal to them on the axes that are not periodic.
+/// Fractional coordinate k of x is dot(x, col_k); a displacement of length r
+/// moves it by at most r * |col_k| (`spread[k]`).
+struct Frame {
+  std::array<Vec3, 3> col{};
+  std::array<double, 3> spread{};
+};
+
+Frame make_frame(const NeighbourCell& cell) {
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k)
+      if (!std::isfinite(cell.vectors[r][k]))
+        refuse("cell[" + std::to_string(r) + ", " + std::to_string(k) + "]: not finite (" +
+               number(cell.vectors[r][k]) + ")");
+  std::array<Vec3, 3> b = cell.vectors;
+  std::vector<int> per, free;
+  for (int k = 0; k < 3; ++k) (cell.periodic[k] ? per : free).push_back(k);
+  for (int k : per)
+    if (norm(b[k]) == 0) refuse("cell: periodic vector " + std::to_string(k) + " is zero");
+  if (per.empty()) {
+    b = {Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
+  } else if (per.size() == 1) {
+    const Vec3 a = b[per[0]];
+    const Vec3 e = std::fabs(a.x) <= std::fabs(a.y) && std::fabs(a.x) <= std::fabs(a.z)
+                       ? Vec3{1, 0, 0}
+                       : (std::fabs(a.y) <= std::fabs(a.z) ? Vec3{0, 1, 0} : Vec3{0, 0, 1});
+    const Vec3 u = unit(cross(a, e));
+    b[free[0]] = u;
+    b[free[1]] = unit(cross(a, u));
+  } else if (per.size() == 2) {
+    const Vec3 n = cross(b[per[0]], b[per[1]]);
+    if (norm(n) == 0) refuse("cell: the periodic vectors are parallel");
+    b[free[0]] = unit(n);
+  }
+  const double det = dot(b[0], cross(b[1], b[2]));
+  // A cell much thinner than its vectors are long reads as dependent.
+  const double size = norm(b[0]) * norm(b[1]) * norm(b[2]);
+  if (!(std::fabs(det) > size * 1e-12))
+    refuse("cell: the periodic vectors are linearly dependent (volume " + number(det) + ")");
+  Frame f;
+  f.col[0] = cross(b[1], b[2]) * (1.0 / det);
+  f.col[1] = cross(b[2], b[0]) * (1.0 / det);
+  f.col[2] = cross(b[0], b[1]) * (1.0 / det);
+  for (int k = 0; k < 3; ++k) f.spread[k] = norm(f.col[k]);
+  return f;
+}
+
+/// One set of points as the engine reads it: positions as given, fractional
+/// coordinates, and on periodic axes the wrap count n = floor(s).
+struct PointSet {
+  std::vector<Vec3> x;
+  std::vector<std::array<double, 3>> s;
+  std::vector<std::array<std::int32_t, 3>> n;
+  double max_abs_x = 0;
+  double max_abs_s = 0;
+  std::array<double, 3> lo{}, hi{};  // fractional range on each axis
+};
+
+PointSet read_points(const NeighbourPoints& p, const NeighbourCell& cell, const Frame& f,
+                     const char* name) {
+  if (p.count > std::numeric_limits<std::uint32_t>::max() - 1)
+    refuse(std::string(name) + ": more than 2^32 - 2 points");
+  PointSet out;
+  out.x.resize(p.count);
+  out.s.resize(p.count);
+  out.n.resize(p.count);
+  out.lo = {HUGE_VAL, HUGE_VAL, HUGE_VAL};
+  out.hi = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+  const Column cols[3] = {p.x, p.y, p.z};
+  for (std::size_t i = 0; i < p.count; ++i) {
+    Vec3 v;
+    for (int k = 0; k < 3; ++k) {
+      v[k] = cols[k].at(i);
+      if (!std::isfinite(v[k]))
+        refuse(std::string(name) + "[" + std::to_string(i) + ", " + std::to_string(k) +
+               "]: not finite (" + number(v[k]) + ")");
+      out.max_abs_x = std::max(out.max_abs_x, std::fabs(v[k]));
+    }
+    out.x[i] = v;
+    for (int k = 0; k < 3; ++k) {
+      const double s = dot(v, f.col[k]);
+      out.s[i][k] = s;
+      out.max_abs_s = std::max(out.max_abs_s, std::fabs(s));
+      out.lo[k] = std::min(out.lo[k], s);
+      out.hi[k] = std::max(out.hi[k], s);
+      std::int32_t n = 0;
+      if (cell.periodic[k]) {
+        const double w = std::floor(s);
+        if (!(std::fabs(w) <= kMaxWrap))
+          refuse(std::string(name) + "[" + std::to_string(i) +
+                 "]: more than 2^28 cells away from the cell on axis " + std::to_string(k));
+        n = static_cast<std::int32_t>(w);
+      }
+      out.n[i][k] = n;
+    }
+  }
+  return out;
+}
+
+/// The bins: nb[k] per axis over [lo, lo + nb * width) in fractional units
+/// ([0, 1) on a periodic axis), and the reach in bins of the largest
+/// cutoff, rounding margin included.
+struct Grid {
+  std::array<std::int64_t, 3> nb{1, 1, 1};
+  std::array<double, 3> lo{}, width{1, 1, 1};
+  std::array<std::int64_t, 3> reach{0, 0, 0};
+  std::array<bool, 3> periodic{};
+  double margin = 0;  // length added to every reach in the prefilter
+
+  std::int64_t bins() const { return nb[0] * nb[1] * nb[2]; }
+  /// The bin coordinate of fractional coordinate s on axis k, clamped to
+  /// [-reach - 1, nb + reach] (a query far outside reaches no bin).
+  std::int64_t coordinate(int k, double s) const {
+    double t = periodic[k] ? (s - std::floor(s)) / width[k] : (s - lo[k]) / width[k];
+    t = std::floor(t);
+    const double top = static_cast<double>(periodic[k] ? nb[k] - 1 : nb[k] + reach[k]);
+    const double bottom = periodic[k] ? 0.0 : static_cast<double>(-reach[k] - 1);
+    return static_cast<std::int64_t>(std::clamp(t, bottom, top));
+  }
+};
+
+Grid make_grid(const NeighbourCell& cell, const Frame& f, const PointSet& pts,
+               const PointSet* queries, double reach) {
+  Grid g;
+  g.periodic = cell.periodic;
+  const std::size_t n = pts.x.size();
+  double max_abs_x = pts.max_abs_x, max_abs_s = pts.max_abs_s;
+  if (queries) {
+    max_abs_x = std::max(max_abs_x, queries->max_abs_x);
+    max_abs_s = std::max(max_abs_s, queries->max_abs_s);
+  }
+  // Bins about one reach wide across their planes: a neighbour lies in the
+  // 27 bins around (13 of them and the own bin for a half list), ~2.7
+  // points a bin at liquid density with a 3 Å cutoff.
+  std::array<double, 3> ideal{};
+  for (int k = 0; k < 3; ++k) {
+    const double extent = cell.periodic[k] ? 1.0 : (n ? pts.hi[k] - pts.lo[k] : 0.0);
+    const double per_bin = reach * f.spread[k] * (1 + 0x1p-30);
+    ideal[k] = per_bin > 0 ? extent / per_bin : kMaxBinsPerAxis;
+    ideal[k] = std::clamp(std::floor(std::min(ideal[k], kMaxBinsPerAxis)), 1.0, kMaxBinsPerAxis);
+  }
+  // At most about two bins a point (the empty ones cost a visit each).
+  const double limit = std::max(64.0, 2.0 * static_cast<double>(n));
+  while (ideal[0] * ideal[1] * ideal[2] > limit) {
+    const int k = static_cast<int>(std::max_element(ideal.begin(), ideal.end()) - ideal.begin());
+    ideal[k] = std::max(1.0, std::floor(ideal[k] / 2));
+  }
+  double scale = 3 * max_abs_x + reach;
+  for (int k = 0; k < 3; ++k) {
+    g.nb[k] = static_cast<std::int64_t>(ideal[k]);
+    if (cell.periodic[k]) {
+      g.lo[k] = 0;
+      g.width[k] = 1.0 / ideal[k];
+      const Vec3 v = cell.vectors[k];
+      scale += (max_abs_s + reach * f.spread[k] + 3) *
+               (std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z));
+    } else {
+      g.lo[k] = n ? pts.lo[k] : 0.0;
+      const double extent = n ? pts.hi[k] - pts.lo[k] : 0.0;
+      g.width[k] = extent > 0 ? extent / ideal[k] : 1.0;
+    }
+  }
+  // Rounding: positions, fractional coordinates and wrapped positions are
+  // each within a few ulps of `scale` (|x|, |n·cell|, |S·cell| together) of
+  // their real values; 2^-40 of it is thousands of times that.
+  g.margin = 0x1p-40 * scale;
+  const double frac_error = 0x1p-40 * (1 + max_abs_s);
+  for (int k = 0; k < 3; ++k) {
+    const double r =
+        std::ceil(((reach + g.margin) * f.spread[k] * (1 + 0x1p-40) + 4 * frac_error) / g.width[k]);
+    if (cell.periodic[k]) {
+      if (!(r <= static_cast<double>(kMaxReach)))
+        refuse("cutoff: reaches more than 2^20 cells on axis " + std::to_string(k));
+      g.reach[k] = static_cast<std::int64_t>(r);
+    } else {
+      // Only offsets that land in [0, nb) are walked; the reach itself
+      // decides which bins a query outside the points' range sees.
+      g.reach[k] = static_cast<std::int64_t>(std::min(r, 0x1p40));
+    }
+  }
+  return g;
+}
+
+/// The points sorted by bin: wrapped positions and cutoff (prefilter), the
+/// position as given, wrap counts and id (the exact rule).
+struct Binned {
+  std::vector<std::int64_t> start;  // bins + 1
+  std::vector<std::array<double, 4>> w;
+  std::vector<Vec3> x;
+  std::vector<std::array<std::int32_t, 3>> n;
+  std::vector<std::uint32_t> id;
+};
+
+Binned bin_points(const Grid& g, const NeighbourCell& cell, const PointSet& pts,
+                  const std::vector<double>& cut) {
+  const std::size_t n = pts.x.size();
+  const std::int64_t bins = g.bins();
+  std::vector<std::int64_t> bin(n);
+  Binned b;
+  b.start.assign(static_cast<std::size_t>(bins) + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::int64_t c[3];
+    for (int k = 0; k < 3; ++k)
+      c[k] = std::clamp<std::int64_t>(g.coordinate(k, pts.s[i][k]), 0, g.nb[k] - 1);
+    bin[i] = (c[0] * g.nb[1] + c[1]) * g.nb[2] + c[2];
+    ++b.start[static_cast<std::size_t>(bin[i]) + 1];
+  }
+  for (std::int64_t k = 0; k < bins; ++k) b.start[k + 1] += b.start[k];
+  // The ids by bin (a scatter of 4 bytes a point), then the slots' data
+  // gathered in slot order: at 10^6 points, scattering the whole records
+  // took a sixth of the list (perf).
+  {
+    std::vector<std::int64_t> fill(b.start.begin(), b.start.end() - 1);
+    b.id.resize(n);
+    for (std::size_t i = 0; i < n; ++i)
+      b.id[static_cast<std::size_t>(fill[static_cast<std::size_t>(bin[i])]++)] =
+          static_cast<std::uint32_t>(i);
+  }
+  b.w.resize(n);
+  b.x.resize(n);
+  b.n.resize(n);
+  for (std::size_t slot = 0; slot < n; ++slot) {
+    const std::uint32_t i = b.id[slot];
+    const Vec3 o = rule::image_offset(cell, pts.n[i][0], pts.n[i][1], pts.n[i][2]);
+    b.w[slot] = {pts.x[i].x - o.x, pts.x[i].y - o.y, pts.x[i].z - o.z, cut.empty() ? 0.0 : cut[i]};
+    b.x[slot] = pts.x[i];
+    b.n[slot] = pts.n[i];
+  }
+  return b;
+}
+
+/// Per axis, the bin and wrap shift of every bin coordinate t in
+/// [-reach, nb + reach) (periodic axes; -1 for a coordinate outside a
+/// non-periodic axis): a table instead of a division per bin and offset.
+struct Wraps {
+  std::array<std::vector<std::int64_t>, 3> bin, shift;
+  std::array<std::int64_t, 3> base{};
+
+  Wraps(const Grid& g, const std::array<std::int64_t, 3>& reach) {
+    for (int k = 0; k < 3; ++k) {
+      base[k] = reach[k];
+      const std::int64_t size = g.nb[k] + 2 * reach[k];
+      bin[k].resize(static_cast<std::size_t>(size));
+      shift[k].resize(static_cast<std::size_t>(size));
+      for (std::int64_t u = 0; u < size; ++u) {
+        const std::int64_t t = u - reach[k];
+        std::int64_t sh = 0, b = t;
+        if (g.periodic[k]) {
+          sh = t >= 0 ? t / g.nb[k] : -((-t + g.nb[k] - 1) / g.nb[k]);
+          b = t - sh * g.nb[k];
+        } else if (t < 0 || t >= g.nb[k]) {
+          b = -1;
+        }
+        bin[k][static_cast<std::size_t>(u)] = b;
+        shift[k][static_cast<std::size_t>(u)] = sh;
+      }
+    }
+  }
+  /// False when t lies outside a non-periodic axis.
+  bool resolve(int k, std::int64_t t, std::int64_t& b, std::int64_t& sh) const {
+    const auto u = static_cast<std::size_t>(t + base[k]);
+    b = bin[k][u];
+    sh = shift[k][u];
+    return b >= 0;
+  }
+};
+
+/// Everything a pair test needs.
+struct Context {
+  const NeighbourCell* cell;
+  const PointSet* home;            // the points of `i` (queries in the between mode)
+  const PointSet* other;           // the points of `j`
+  const std::vector<double>* cut;  // per-point cutoffs, or empty
+  double cutoff;                   // the one cutoff
+  CutoffRule rule;
+};
+
+/// The exact rule for i at xi and j at xj (cutoffs ci, cj) under shift S.
+inline bool exact(const Context& c, Vec3 xi, Vec3 xj, double ci, double cj,
+                  const std::int64_t s[3]) {
+  const Vec3 d = rule::pair_vector(xi, xj, rule::image_offset(*c.cell, s[0], s[1], s[2]));
+  const double reach = c.cut->empty() ? c.cutoff : ci + cj;
+  return rule::within(rule::squared_length(d), reach, c.rule);
+}
+
+/// A neighbour as found for the point whose group it is in: its index and
+/// the shift on it.
+struct Found {
+  std::uint32_t j;
+  std::int32_t s[3];
+};
+
+/// The pairs found, grouped by the point they belong to (the home point
+/// for the self list, the query for the two-set list): group k is
+/// [start[k], start[k] + count[k]) of `found`.
+struct Groups {
+  std::vector<Found> found;
+  std::vector<std::int64_t> start;
+  std::vector<std::uint32_t> count;
+};
+
+void push(Groups& out, std::uint32_t j, const std::int64_t s[3]) {
+  out.found.push_back({j,
+                       {static_cast<std::int32_t>(s[0]), static_cast<std::int32_t>(s[1]),
+                        static_cast<std::int32_t>(s[2])}});
+}
+
+/// The candidates of a home bin's neighbourhood, by columns (the distance
+/// loop vectorises over them): wrapped positions moved by the bin's wrap
+/// shift, cutoffs, slots and those shifts.
+struct Candidates {
+  std::vector<double> x, y, z, c, d2;
+  std::vector<std::uint32_t> slot;
+  std::vector<std::array<std::int32_t, 3>> sb;
+  std::size_t size = 0;
+  /// Room for `more` after the first `size` (kept between bins, never
+  /// shrunk: the columns are written by index, not appended to).
+  void reserve_more(std::size_t more) {
+    if (size + more <= x.size()) return;
+    const std::size_t cap = 2 * (size + more);
+    for (auto* v : {&x, &y, &z, &c, &d2}) v->resize(cap);
+    slot.resize(cap);
+    sb.resize(cap);
+  }
+};
+
+/// Every point's pairs, found from the point itself in bin order, so that
+/// each point's pairs come out together: the output is then in index order
+/// by moving whole groups, not single pairs. At 10^6 points a half search
+/// (each pair found once, from either end) spent a third of the list
+/// scattering its pairs into index order (perf); a full search visits
+/// twice the candidates but rejects half of them by index after the
+/// distance test. The candidates of a home bin are gathered once into one
+/// buffer, so the inner loop over them is long and branch-light.
+Groups find_self(const Context& c, const Grid& g, const Binned& b, bool full,
+                 bool self_interaction) {
+  Groups out;
+  const std::size_t n = b.id.size();
+  out.start.resize(n);
+  out.count.resize(n);
+  out.found.reserve(n * 8);
+  // On an axis that is not periodic, no offset beyond nb - 1 lands in a bin.
+  std::int64_t r[3];
+  for (int k = 0; k < 3; ++k) r[k] = g.periodic[k] ? g.reach[k] : std::min(g.reach[k], g.nb[k] - 1);
+  const Wraps wraps(g, {r[0], r[1], r[2]});
+  const bool one = c.cut->empty();
+  Candidates buf;
+  const double one_reach2 = (c.cutoff + g.margin) * (c.cutoff + g.margin);
+  for (std::int64_t b0 = 0; b0 < g.nb[0]; ++b0)
+    for (std::int64_t b1 = 0; b1 < g.nb[1]; ++b1)
+      for (std::int64_t b2 = 0; b2 < g.nb[2]; ++b2) {
+        const std::int64_t home = (b0 * g.nb[1] + b1) * g.nb[2] + b2;
+        const std::int64_t hs = b.start[static_cast<std::size_t>(home)];
+        const std::int64_t he = b.start[static_cast<std::size_t>(home) + 1];
+        if (hs == he) continue;
+        const std::int64_t bc[3] = {b0, b1, b2};
+        buf.size = 0;
+        for (std::int64_t o0 = -r[0]; o0 <= r[0]; ++o0)
+          for (std::int64_t o1 = -r[1]; o1 <= r[1]; ++o1)
+            for (std::int64_t o2 = -r[2]; o2 <= r[2]; ++o2) {
+              const std::int64_t o[3] = {o0, o1, o2};
+              std::int64_t nbin[3], sb[3];
+              bool inside = true;
+              for (int k = 0; k < 3 && inside; ++k)
+                inside = wraps.resolve(k, bc[k] + o[k], nbin[k], sb[k]);
+              if (!inside) continue;
+              const std::int64_t nb = (nbin[0] * g.nb[1] + nbin[1]) * g.nb[2] + nbin[2];
+              const Vec3 off = rule::image_offset(*c.cell, sb[0], sb[1], sb[2]);
+              const std::int64_t qs = b.start[static_cast<std::size_t>(nb)];
+              const std::int64_t qe = b.start[static_cast<std::size_t>(nb) + 1];
+              buf.reserve_more(static_cast<std::size_t>(qe - qs));
+              const std::array<std::int32_t, 3> sb32 = {static_cast<std::int32_t>(sb[0]),
+                                                        static_cast<std::int32_t>(sb[1]),
+                                                        static_cast<std::int32_t>(sb[2])};
+              for (std::int64_t q = qs; q < qe; ++q) {
+                const auto& wq = b.w[static_cast<std::size_t>(q)];
+                const std::size_t k = buf.size++;
+                buf.x[k] = wq[0] + off.x;
+                buf.y[k] = wq[1] + off.y;
+                buf.z[k] = wq[2] + off.z;
+                buf.c[k] = wq[3];
+                buf.slot[k] = static_cast<std::uint32_t>(q);
+                buf.sb[k] = sb32;
+              }
+            }
+        const std::size_t m = buf.size;
+        for (std::int64_t p = hs; p < he; ++p) {
+          const auto pi = static_cast<std::size_t>(p);
+          const auto& wp = b.w[pi];
+          const std::uint32_t ip = b.id[pi];
+          out.start[pi] = static_cast<std::int64_t>(out.found.size());
+          if (self_interaction) {
+            const std::int64_t zero[3] = {0, 0, 0};
+            if (exact(c, b.x[pi], b.x[pi], wp[3], wp[3], zero)) push(out, ip, zero);
+          }
+          const double px = wp[0], py = wp[1], pz = wp[2];
+          const double* cx = buf.x.data();
+          const double* cy = buf.y.data();
+          const double* cz = buf.z.data();
+          double* d2 = buf.d2.data();
+          for (std::size_t k = 0; k < m; ++k) {
+            const double dx = cx[k] - px, dy = cy[k] - py, dz = cz[k] - pz;
+            d2[k] = dx * dx + dy * dy + dz * dz;
+          }
+          for (std::size_t k = 0; k < m; ++k) {
+            if (one) {
+              if (d2[k] > one_reach2) continue;
+            } else {
+              const double reach = (wp[3] + buf.c[k]) + g.margin;
+              if (d2[k] > reach * reach) continue;
+            }
+            const std::size_t qi = buf.slot[k];
+            const std::uint32_t iq = b.id[qi];
+            std::int64_t s[3];
+            for (int a = 0; a < 3; ++a) s[a] = std::int64_t{buf.sb[k][a]} + b.n[pi][a] - b.n[qi][a];
+            const bool zero = s[0] == 0 && s[1] == 0 && s[2] == 0;
+            if (iq == ip && zero) continue;  // the point itself
+            // Canonical: the smaller index first; a point with its own
+            // image under the kept one of S and -S.
+            const bool canonical = ip < iq || (ip == iq && rule::kept_self_shift(s[0], s[1], s[2]));
+            if (!full && !canonical) continue;
+            bool pair;
+            if (canonical) {
+              pair = exact(c, b.x[pi], b.x[qi], wp[3], b.w[qi][3], s);
+            } else {
+              const std::int64_t mirror[3] = {-s[0], -s[1], -s[2]};
+              pair = exact(c, b.x[qi], b.x[pi], b.w[qi][3], wp[3], mirror);
+            }
+            if (pair) push(out, iq, s);
+          }
+          out.count[pi] = static_cast<std::uint32_t>(static_cast<std::int64_t>(out.found.size()) -
+                                                     out.start[pi]);
+        }
+      }
+  return out;
+}
+
+/// The pairs (q, p, S) of queries against binned points, query by query.
+Groups find_between(const Context& c, const Grid& g, const Binned& b) {
+  Groups out;
+  const PointSet& qs = *c.home;
+  out.start.resize(qs.x.size());
+  out.count.resize(qs.x.size());
+  // A query walks bins in [0, nb) on an axis that is not periodic.
+  const Wraps wraps(g, {g.periodic[0] ? g.reach[0] : 0, g.periodic[1] ? g.reach[1] : 0,
+                        g.periodic[2] ? g.reach[2] : 0});
+  for (std::size_t qi = 0; qi < qs.x.size(); ++qi) {
+    out.start[qi] = static_cast<std::int64_t>(out.found.size());
+    std::int64_t bc[3];
+    for (int k = 0; k < 3; ++k) bc[k] = g.coordinate(k, qs.s[qi][k]);
+    const Vec3 qo = rule::image_offset(*c.cell, qs.n[qi][0], qs.n[qi][1], qs.n[qi][2]);
+    const Vec3 wq{qs.x[qi].x - qo.x, qs.x[qi].y - qo.y, qs.x[qi].z - qo.z};
+    const double r = c.cutoff + g.margin;
+    // The offsets to walk: all within the reach on a periodic axis, those
+    // that land in [0, nb) on the others.
+    std::int64_t lo[3], hi[3];
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = g.periodic[k] ? -g.reach[k] : std::max(-g.reach[k], -bc[k]);
+      hi[k] = g.periodic[k] ? g.reach[k] : std::min(g.reach[k], g.nb[k] - 1 - bc[k]);
+    }
+    for (std::int64_t o0 = lo[0]; o0 <= hi[0]; ++o0)
+      for (std::int64_t o1 = lo[1]; o1 <= hi[1]; ++o1)
+        for (std::int64_t o2 = lo[2]; o2 <= hi[2]; ++o2) {
+          const std::int64_t o[3] = {o0, o1, o2};
+          std::int64_t nbin[3], sb[3];
+          bool inside = true;
+          for (int k = 0; k < 3 && inside; ++k)
+            inside = wraps.resolve(k, bc[k] + o[k], nbin[k], sb[k]);
+          if (!inside) continue;
+          const std::int64_t nb = (nbin[0] * g.nb[1] + nbin[1]) * g.nb[2] + nbin[2];
+          const std::int64_t ns = b.start[static_cast<std::size_t>(nb)];
+          const std::int64_t ne = b.start[static_cast<std::size_t>(nb) + 1];
+          if (ns == ne) continue;
+          const Vec3 off = rule::image_offset(*c.cell, sb[0], sb[1], sb[2]);
+          const double px = wq.x - off.x, py = wq.y - off.y, pz = wq.z - off.z;
+          for (std::int64_t p = ns; p < ne; ++p) {
+            const auto& wp = b.w[static_cast<std::size_t>(p)];
+            const double dx = wp[0] - px, dy = wp[1] - py, dz = wp[2] - pz;
+            if (dx * dx + dy * dy + dz * dz > r * r) continue;
+            const auto pj = static_cast<std::size_t>(p);
+            std::int64_t s[3];
+            for (int k = 0; k < 3; ++k) s[k] = sb[k] + qs.n[qi][k] - b.n[pj][k];
+            if (exact(c, qs.x[qi], b.x[pj], 0.0, 0.0, s)) push(out, b.id[pj], s);
+          }
+        }
+    out.count[qi] =
+        static_cast<std::uint32_t>(static_cast<std::int64_t>(out.found.size()) - out.start[qi]);
+  }
+  return out;
+}
+
+/// The groups in index order (`group_of[i]` is point i's group), each
+/// sorted by second, then shift, with the quantities asked for. D is that
+/// of the canonical orientation (negated for a mirror) unless `between`.
+NeighbourList assemble(const Context& c, Groups& gr, const std::vector<std::uint32_t>* group_of,
+                       const NeighbourOptions& opt, bool between) {
+  const std::size_t n = gr.start.size();
+  const auto group = [&](std::size_t i) -> std::size_t { return group_of ? (*group_of)[i] : i; };
+  std::vector<std::int64_t> offsets(n + 1);
+  offsets[0] = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i + 16 < n) __builtin_prefetch(&gr.count[group(i + 16)]);
+    offsets[i + 1] = offsets[i] + gr.count[group(i)];
+  }
+  const auto total = static_cast<std::size_t>(offsets[n]);
+  const auto less = [](const Found& a, const Found& b) {
+    if (a.j != b.j) return a.j < b.j;
+    if (a.s[0] != b.s[0]) return a.s[0] < b.s[0];
+    if (a.s[1] != b.s[1]) return a.s[1] < b.s[1];
+    return a.s[2] < b.s[2];
+  };
+  NeighbourList out;
+  // Reserved, then written once (resizing zeroes them first: at 10^6
+  // points that doubled the cost of writing the outputs).
+  out.first.reserve(total);
+  out.second.reserve(total);
+  if (opt.shifts) out.shifts.reserve(3 * total);
+  if (opt.distances) out.distances.reserve(total);
+  if (opt.vectors) out.vectors.reserve(3 * total);
+  // Groups are read in index order from bin order: a cache and TLB miss
+  // each, so the group 8 points ahead is fetched while this one is written
+  // (and its start 16 ahead); at 10^6 points the misses were two thirds
+  // of this function (perf).
+  constexpr std::size_t kAhead = 8;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i + 2 * kAhead < n) __builtin_prefetch(&gr.start[group(i + 2 * kAhead)]);
+    if (i + kAhead < n) __builtin_prefetch(gr.found.data() + gr.start[group(i + kAhead)]);
+    const std::size_t k = group(i);
+    Found* lo = gr.found.data() + gr.start[k];
+    Found* hi = lo + gr.count[k];
+    if (hi - lo > 32) {
+      std::sort(lo, hi, less);
+    } else {
+      for (Found* e = lo + 1; e < hi; ++e)  // a point has a few neighbours
+        for (Found* f = e; f > lo && less(*f, f[-1]); --f) std::swap(*f, f[-1]);
+    }
+    for (const Found* e = lo; e < hi; ++e) {
+      out.first.push_back(static_cast<std::int64_t>(i));
+      out.second.push_back(e->j);
+      if (opt.shifts)
+        for (int a = 0; a < 3; ++a) out.shifts.push_back(e->s[a]);
+      if (opt.distances || opt.vectors) {
+        const auto j = static_cast<std::size_t>(e->j);
+        Vec3 d;
+        const bool canonical = between || i < j ||
+                               (i == j && (rule::kept_self_shift(e->s[0], e->s[1], e->s[2]) ||
+                                           (e->s[0] == 0 && e->s[1] == 0 && e->s[2] == 0)));
+        if (canonical) {
+          d = rule::pair_vector(c.home->x[i], c.other->x[j],
+                                rule::image_offset(*c.cell, e->s[0], e->s[1], e->s[2]));
+        } else {
+          d = rule::pair_vector(c.home->x[j], c.other->x[i],
+                                rule::image_offset(*c.cell, -e->s[0], -e->s[1], -e->s[2]));
+          d = Vec3{-d.x, -d.y, -d.z};
+        }
+        if (opt.distances) out.distances.push_back(std::sqrt(rule::squared_length(d)));
+        if (opt.vectors)
+          for (int a = 0; a < 3; ++a) out.vectors.push_back(d[a]);
+      }
+    }
+  }
+  if (opt.offsets) out.offsets = std::move(offsets);
+  return out;
+}
+
+void check_cutoff(double v, const std::string& name) {
+  if (!std::isfinite(v) || v < 0) refuse(name + ": must be finite and >= 0 (" + number(v) + ")");
+}
+
+NeighbourList self_list(const NeighbourPoints& points, const NeighbourCell& cell, double cutoff,
+                        const Column* cutoffs, const NeighbourOptions& opt) {
+  const Frame f = make_frame(cell);
+  std::vector<double> cut;
+  double reach = cutoff;
+  if (cutoffs) {
+    cut.resize(points.count);
+    double most = 0;
+    for (std::size_t i = 0; i < points.count; ++i) {
+      cut[i] = cutoffs->at(i);
+      check_cutoff(cut[i], "cutoffs[" + std::to_string(i) + "]");
+      most = std::max(most, cut[i]);
+    }
+    reach = most + most;
+  } else {
+    check_cutoff(cutoff, "cutoff");
+  }
+  const PointSet pts = read_points(points, cell, f, "positions");
+  const Grid g = make_grid(cell, f, pts, nullptr, reach);
+  const Binned b = bin_points(g, cell, pts, cut);
+  const Context c{&cell, &pts, &pts, &cut, cutoff, opt.rule};
+  Groups gr = find_self(c, g, b, opt.full, opt.self_interaction);
+  // Point i's group is its slot.
+  std::vector<std::uint32_t> group_of(pts.x.size());
+  for (std::size_t slot = 0; slot < b.id.size(); ++slot)
+    group_of[b.id[slot]] = static_cast<std::uint32_t>(slot);
+  return assemble(c, gr, &group_of, opt, false);
+}
+
+}  // namespace
+
+NeighbourList neighbour_list(const NeighbourPoints& points, const NeighbourCell& cell,
+                             double cutoff, const NeighbourOptions& options) {
+  return self_list(points, cell, cutoff, nullptr, options);
+}
+
+NeighbourList neighbour_list(const NeighbourPoints& points, const NeighbourCell& cell,
+                             Column cutoffs, const NeighbourOptions& options) {
+  if (cutoffs.empty() && points.count > 0) refuse("cutoffs: no array given");
+  return self_list(points, cell, 0.0, &cutoffs, options);
+}
+
+NeighbourList neighbour_list_between(const NeighbourPoints& queries, const NeighbourPoints& points,
+                                     const NeighbourCell& cell, double cutoff,
+                                     const NeighbourOptions& options) {
+  check_cutoff(cutoff, "cutoff");
+  const Frame f = make_frame(cell);
+  const PointSet qs = read_points(queries, cell, f, "queries");
+  const PointSet ps = read_points(points, cell, f, "points");
+  const Grid g = make_grid(cell, f, ps, &qs, cutoff);
+  const std::vector<double> none;
+  const Binned b = bin_points(g, cell, ps, none);
+  const Context c{&cell, &qs, &ps, &none, cutoff, options.rule};
+  Groups gr = find_between(c, g, b);
+  return assemble(c, gr, nullptr, options, true);
+}
+
+}  // namespace broadphase

@@ -1,0 +1,345 @@
+// Neighbour lists against a brute force that applies neighbours.hpp's exact
+// rule to every pair and every shift in a range that holds them all: free
+// space, orthorhombic and triclinic cells, mixed periodicity, cells smaller
+// than the cutoff, points outside the cell, per-point cutoffs, float32,
+// lattices whose neighbours lie exactly at the cutoff (both rules), half and
+// full lists, and the two-set query. Seeds are printed on failure.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <broadphase/neighbours.hpp>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <string>
+#include <tuple>
+#include <vector>
+
+namespace {
+
+using namespace broadphase;
+namespace rule = broadphase::neighbour_rule;
+
+using Key = std::tuple<std::int64_t, std::int64_t, std::int64_t, std::int64_t, std::int64_t>;
+
+Vec3 cross(Vec3 a, Vec3 b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+double dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+// Shifts up to this many cells on periodic axis k cover every pair of points
+// whose fractional coordinates differ by at most `spread` with a reach
+// `reach` (3 for points in [-1, 2)).
+std::array<std::int64_t, 3> shift_range(const NeighbourCell& cell, double reach,
+                                        std::int64_t spread = 3) {
+  std::array<std::int64_t, 3> r{0, 0, 0};
+  const auto& v = cell.vectors;
+  const double det = dot(v[0], cross(v[1], v[2]));
+  for (int k = 0; k < 3; ++k) {
+    if (!cell.periodic[k]) continue;
+    const Vec3 n = cross(v[(k + 1) % 3], v[(k + 2) % 3]);
+    const double height = std::fabs(det) / std::sqrt(dot(n, n));
+    r[k] = static_cast<std::int64_t>(std::ceil(reach / height)) + spread;
+  }
+  return r;
+}
+
+struct Brute {
+  std::vector<Key> half;  // canonical (i, j, S), sorted
+};
+
+Brute brute_force(const std::vector<Vec3>& x, const NeighbourCell& cell, double cutoff,
+                  const std::vector<double>* cut, CutoffRule r, bool self_interaction,
+                  std::int64_t spread = 3) {
+  double most = cutoff;
+  if (cut) {
+    most = 0;
+    for (double c : *cut) most = std::max(most, c + c);
+  }
+  const auto range = shift_range(cell, most, spread);
+  Brute b;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    for (std::size_t j = i; j < x.size(); ++j)
+      for (std::int64_t s0 = -range[0]; s0 <= range[0]; ++s0)
+        for (std::int64_t s1 = -range[1]; s1 <= range[1]; ++s1)
+          for (std::int64_t s2 = -range[2]; s2 <= range[2]; ++s2) {
+            if (i == j) {
+              const bool zero = s0 == 0 && s1 == 0 && s2 == 0;
+              if (zero ? !self_interaction : !rule::kept_self_shift(s0, s1, s2)) continue;
+            }
+            const Vec3 d = rule::pair_vector(x[i], x[j], rule::image_offset(cell, s0, s1, s2));
+            const double s = cut ? (*cut)[i] + (*cut)[j] : cutoff;
+            if (rule::within(rule::squared_length(d), s, r))
+              b.half.emplace_back(static_cast<std::int64_t>(i), static_cast<std::int64_t>(j), s0,
+                                  s1, s2);
+          }
+  std::sort(b.half.begin(), b.half.end());
+  return b;
+}
+
+std::vector<Key> keys(const NeighbourList& l) {
+  std::vector<Key> k;
+  for (std::size_t e = 0; e < l.size(); ++e)
+    k.emplace_back(l.first[e], l.second[e], l.shifts[3 * e], l.shifts[3 * e + 1],
+                   l.shifts[3 * e + 2]);
+  return k;
+}
+
+std::vector<Key> mirrored(const std::vector<Key>& half) {
+  std::vector<Key> full;
+  for (const auto& [i, j, a, b, c] : half) {
+    full.emplace_back(i, j, a, b, c);
+    if (!(i == j && a == 0 && b == 0 && c == 0)) full.emplace_back(j, i, -a, -b, -c);
+  }
+  std::sort(full.begin(), full.end());
+  return full;
+}
+
+// Distances and vectors as the rule computes them in canonical orientation.
+void check_quantities(const NeighbourList& l, const std::vector<Vec3>& x,
+                      const NeighbourCell& cell) {
+  ASSERT_EQ(l.distances.size(), l.size());
+  ASSERT_EQ(l.vectors.size(), 3 * l.size());
+  for (std::size_t e = 0; e < l.size(); ++e) {
+    std::int64_t i = l.first[e], j = l.second[e];
+    std::int64_t s[3] = {l.shifts[3 * e], l.shifts[3 * e + 1], l.shifts[3 * e + 2]};
+    const bool mirror = i > j || (i == j && !rule::kept_self_shift(s[0], s[1], s[2]) &&
+                                  (s[0] != 0 || s[1] != 0 || s[2] != 0));
+    if (mirror) {
+      std::swap(i, j);
+      for (auto& v : s) v = -v;
+    }
+    Vec3 d = rule::pair_vector(x[static_cast<std::size_t>(i)], x[static_cast<std::size_t>(j)],
+                               rule::image_offset(cell, s[0], s[1], s[2]));
+    ASSERT_EQ(l.distances[e], std::sqrt(rule::squared_length(d))) << "pair " << e;
+    if (mirror) d = Vec3{-d.x, -d.y, -d.z};
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(l.vectors[3 * e + k], d[k]) << "pair " << e;
+  }
+}
+
+void check_offsets(const NeighbourList& l, std::size_t n) {
+  ASSERT_EQ(l.offsets.size(), n + 1);
+  EXPECT_EQ(l.offsets[0], 0);
+  for (std::size_t i = 0; i < n; ++i)
+    for (auto e = l.offsets[i]; e < l.offsets[i + 1]; ++e)
+      ASSERT_EQ(l.first[static_cast<std::size_t>(e)], static_cast<std::int64_t>(i));
+  EXPECT_EQ(static_cast<std::size_t>(l.offsets[n]), l.size());
+}
+
+NeighbourCell random_cell(std::mt19937_64& rng, int kind) {
+  std::uniform_real_distribution<double> u(0, 1);
+  NeighbourCell c;
+  // kind 0 free, 1 orthorhombic, 2 triclinic, 3 small triclinic (cutoff
+  // beyond half the cell), 4 mixed periodicity.
+  const double size = kind == 3 ? 1.0 + u(rng) : 4.0 + 6.0 * u(rng);
+  c.vectors[0] = {size * (0.8 + 0.4 * u(rng)), 0, 0};
+  c.vectors[1] = {0, size * (0.8 + 0.4 * u(rng)), 0};
+  c.vectors[2] = {0, 0, size * (0.8 + 0.4 * u(rng))};
+  if (kind >= 2) {
+    c.vectors[1].x = size * (u(rng) - 0.5);
+    c.vectors[2].x = size * (u(rng) - 0.5);
+    c.vectors[2].y = size * (u(rng) - 0.5);
+  }
+  if (kind == 0)
+    c.periodic = {false, false, false};
+  else if (kind == 4)
+    c.periodic = {u(rng) < 0.5, u(rng) < 0.5, true};
+  else
+    c.periodic = {true, true, true};
+  return c;
+}
+
+// Points with fractional coordinates in [-1, 2) (some outside the cell),
+// some duplicated, some on the cell's faces.
+std::vector<Vec3> random_points(std::mt19937_64& rng, const NeighbourCell& cell, std::size_t n) {
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<Vec3> x;
+  for (std::size_t i = 0; i < n; ++i) {
+    double f[3];
+    for (double& v : f) {
+      const double t = u(rng);
+      v = t < 0.1 ? -1 + u(rng) : (t < 0.2 ? 1 + u(rng) : (t < 0.3 ? 0.0 : u(rng)));
+    }
+    Vec3 p{};
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 v = cell.periodic[k] ? cell.vectors[k]
+                                      : Vec3{k == 0 ? 6.0 : 0, k == 1 ? 6.0 : 0, k == 2 ? 6.0 : 0};
+      p = p + v * f[k];
+    }
+    if (i > 0 && u(rng) < 0.05) p = x[i - 1];
+    x.push_back(p);
+  }
+  return x;
+}
+
+TEST(Neighbours, RandomAgainstBruteForce) {
+  for (std::uint64_t seed = 1; seed <= 200; ++seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    const int kind = static_cast<int>(seed % 5);
+    const NeighbourCell cell = random_cell(rng, kind);
+    const std::size_t n = 1 + static_cast<std::size_t>(u(rng) * 40);
+    const std::vector<Vec3> x = random_points(rng, cell, n);
+    const bool per_point = seed % 3 == 0;
+    const double cutoff = kind == 3 ? 0.5 + 2.0 * u(rng) : 0.5 + 3.0 * u(rng);
+    std::vector<double> cut(n);
+    for (double& c : cut) c = cutoff * (0.2 + 0.4 * u(rng));
+    NeighbourOptions opt;
+    opt.rule = seed % 2 ? CutoffRule::strict : CutoffRule::inclusive;
+    opt.self_interaction = seed % 7 == 0;
+    opt.distances = opt.vectors = opt.offsets = true;
+    const auto points = NeighbourPoints::rows(&x[0].x, n);
+    SCOPED_TRACE("seed " + std::to_string(seed) + " kind " + std::to_string(kind) + " n " +
+                 std::to_string(n) + (per_point ? " per-point" : ""));
+    const Brute b =
+        brute_force(x, cell, cutoff, per_point ? &cut : nullptr, opt.rule, opt.self_interaction);
+    const NeighbourList half =
+        per_point ? neighbour_list(points, cell, arrays::Column::of(cut.data()), opt)
+                  : neighbour_list(points, cell, cutoff, opt);
+    ASSERT_EQ(keys(half), b.half);
+    check_quantities(half, x, cell);
+    check_offsets(half, n);
+    opt.full = true;
+    const NeighbourList full =
+        per_point ? neighbour_list(points, cell, arrays::Column::of(cut.data()), opt)
+                  : neighbour_list(points, cell, cutoff, opt);
+    ASSERT_EQ(keys(full), mirrored(b.half));
+    check_quantities(full, x, cell);
+    check_offsets(full, n);
+  }
+}
+
+// The two-set query against the brute force over every shift.
+TEST(Neighbours, BetweenAgainstBruteForce) {
+  for (std::uint64_t seed = 1; seed <= 100; ++seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    const int kind = static_cast<int>(seed % 5);
+    const NeighbourCell cell = random_cell(rng, kind);
+    const std::vector<Vec3> q = random_points(rng, cell, 1 + static_cast<std::size_t>(u(rng) * 20));
+    const std::vector<Vec3> p = random_points(rng, cell, static_cast<std::size_t>(u(rng) * 30));
+    const double cutoff = 0.5 + 3.0 * u(rng);
+    NeighbourOptions opt;
+    opt.rule = seed % 2 ? CutoffRule::strict : CutoffRule::inclusive;
+    opt.offsets = true;
+    SCOPED_TRACE("seed " + std::to_string(seed) + " kind " + std::to_string(kind));
+    const auto range = shift_range(cell, cutoff);
+    std::vector<Key> expect;
+    for (std::size_t i = 0; i < q.size(); ++i)
+      for (std::size_t j = 0; j < p.size(); ++j)
+        for (std::int64_t s0 = -range[0]; s0 <= range[0]; ++s0)
+          for (std::int64_t s1 = -range[1]; s1 <= range[1]; ++s1)
+            for (std::int64_t s2 = -range[2]; s2 <= range[2]; ++s2) {
+              const Vec3 d = rule::pair_vector(q[i], p[j], rule::image_offset(cell, s0, s1, s2));
+              if (rule::within(rule::squared_length(d), cutoff, opt.rule))
+                expect.emplace_back(static_cast<std::int64_t>(i), static_cast<std::int64_t>(j), s0,
+                                    s1, s2);
+            }
+    std::sort(expect.begin(), expect.end());
+    const NeighbourList l = neighbour_list_between(
+        NeighbourPoints::rows(&q[0].x, q.size()),
+        NeighbourPoints::rows(p.empty() ? nullptr : &p[0].x, p.size()), cell, cutoff, opt);
+    ASSERT_EQ(keys(l), expect);
+    check_offsets(l, q.size());
+  }
+}
+
+// A simple cubic lattice of spacing 1.5 (exact in binary) with the cutoff
+// the spacing: the six nearest neighbours lie exactly at the cutoff, so the
+// inclusive rule reports them and the strict rule does not.
+TEST(Neighbours, TiesAtTheCutoff) {
+  std::vector<Vec3> x;
+  for (int a = 0; a < 4; ++a)
+    for (int b = 0; b < 4; ++b)
+      for (int c = 0; c < 4; ++c) x.push_back({1.5 * a, 1.5 * b, 1.5 * c});
+  const NeighbourCell cell = NeighbourCell::orthorhombic({6, 6, 6});
+  const auto points = NeighbourPoints::rows(&x[0].x, x.size());
+  NeighbourOptions opt;
+  const NeighbourList in = neighbour_list(points, cell, 1.5, opt);
+  EXPECT_EQ(in.size(), x.size() * 3);
+  EXPECT_EQ(keys(in), brute_force(x, cell, 1.5, nullptr, opt.rule, false).half);
+  opt.rule = CutoffRule::strict;
+  EXPECT_EQ(neighbour_list(points, cell, 1.5, opt).size(), 0u);
+}
+
+// A cell smaller than the cutoff: one point sees its own images. In a cube
+// of side 1 with cutoff 1 (inclusive) the half list keeps the three images
+// whose first non-zero shift component is positive: (0,0,1), (0,1,0),
+// (1,0,0); the full list all six.
+TEST(Neighbours, SelfImagesKeptOnce) {
+  const double p[3] = {0.25, 0.5, 0.75};
+  const NeighbourCell cell = NeighbourCell::orthorhombic({1, 1, 1});
+  NeighbourOptions opt;
+  const NeighbourList half = neighbour_list(NeighbourPoints::rows(p, 1), cell, 1.0, opt);
+  const std::vector<Key> expect = {{0, 0, 0, 0, 1}, {0, 0, 0, 1, 0}, {0, 0, 1, 0, 0}};
+  EXPECT_EQ(keys(half), expect);
+  opt.full = true;
+  EXPECT_EQ(neighbour_list(NeighbourPoints::rows(p, 1), cell, 1.0, opt).size(), 6u);
+  opt.self_interaction = true;
+  EXPECT_EQ(neighbour_list(NeighbourPoints::rows(p, 1), cell, 1.0, opt).size(), 7u);
+}
+
+// float32 positions are widened exactly: the same list as their doubles.
+TEST(Neighbours, Float32Input) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<float> u(0, 10);
+  std::vector<float> f(3 * 300);
+  for (float& v : f) v = u(rng);
+  std::vector<double> d(f.begin(), f.end());
+  const NeighbourCell cell = NeighbourCell::orthorhombic({10, 10, 10});
+  const auto a = neighbour_list(NeighbourPoints::rows(f.data(), 300), cell, 1.25);
+  const auto b = neighbour_list(NeighbourPoints::rows(d.data(), 300), cell, 1.25);
+  EXPECT_GT(a.size(), 0u);
+  EXPECT_EQ(keys(a), keys(b));
+}
+
+// A larger periodic system (many bins, the bins' path rather than the
+// small-cell one) against the brute force.
+TEST(Neighbours, ManyBinsTriclinic) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0, 1);
+  NeighbourCell cell;
+  cell.vectors = {Vec3{12, 0, 0}, Vec3{3, 11, 0}, Vec3{-2, 4, 10}};
+  cell.periodic = {true, true, true};
+  std::vector<Vec3> x;
+  for (int i = 0; i < 600; ++i)
+    x.push_back(cell.vectors[0] * u(rng) + cell.vectors[1] * u(rng) + cell.vectors[2] * u(rng));
+  const auto l = neighbour_list(NeighbourPoints::rows(&x[0].x, x.size()), cell, 1.5);
+  // Points inside the cell: their fractional coordinates differ by < 1.
+  EXPECT_EQ(keys(l), brute_force(x, cell, 1.5, nullptr, CutoffRule::inclusive, false, 1).half);
+}
+
+TEST(Neighbours, BadInput) {
+  const double good[6] = {0, 0, 0, 1, 1, 1};
+  const double nan[6] = {0, 0, 0, 1, std::nan(""), 1};
+  const auto cell = NeighbourCell::orthorhombic({5, 5, 5});
+  const auto expect_message = [](auto call, const std::string& part) {
+    try {
+      call();
+      ADD_FAILURE() << "no exception, expected one naming " << part;
+    } catch (const InvalidNeighbourInput& e) {
+      EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  };
+  expect_message([&] { neighbour_list(NeighbourPoints::rows(nan, 2), cell, 1.0); },
+                 "positions[1, 1]");
+  expect_message([&] { neighbour_list(NeighbourPoints::rows(good, 2), cell, -1.0); }, "cutoff");
+  expect_message([&] { neighbour_list(NeighbourPoints::rows(good, 2), cell, INFINITY); }, "cutoff");
+  const double cuts[2] = {1, -2};
+  expect_message(
+      [&] { neighbour_list(NeighbourPoints::rows(good, 2), cell, arrays::Column::of(cuts)); },
+      "cutoffs[1]");
+  NeighbourCell flat = cell;
+  flat.vectors[2] = {1, 1, 0};
+  flat.vectors[1] = {2, 2, 0};
+  expect_message([&] { neighbour_list(NeighbourPoints::rows(good, 2), flat, 1.0); }, "cell");
+  NeighbourCell zero = cell;
+  zero.vectors[1] = {0, 0, 0};
+  expect_message([&] { neighbour_list(NeighbourPoints::rows(good, 2), zero, 1.0); }, "cell");
+  const double far[3] = {1e12, 0, 0};
+  expect_message([&] { neighbour_list(NeighbourPoints::rows(far, 1), cell, 1.0); }, "2^28");
+  expect_message([&] { neighbour_list(NeighbourPoints::rows(good, 2), cell, 1e9); }, "2^20");
+}
+
+}  // namespace
