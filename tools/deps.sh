@@ -8,7 +8,7 @@ packages=(
   python3-matplotlib python3-numpy python3-pil
   libbullet-dev libfcl-dev libode-dev libcgal-dev libembree-dev
   pybind11-dev python3-dev python3-scipy python3-sklearn python3-ase python3-rtree
-  python3-pytest
+  python3-pytest python3-mdanalysis python3-pykdtree libnanoflann-dev
   libopenmpi-dev openmpi-bin
   clang libclang-rt-14-dev
 )

@@ -37,6 +37,8 @@ import numpy as np
 
 from . import _broadphase
 from ._broadphase import IndexCore as _IndexCore
+from . import ase, mdanalysis
+from ._neighbours import neighbor_list, neighbor_list_between
 
 __all__ = [
     "sphere_pairs",
@@ -49,6 +51,10 @@ __all__ = [
     "structures",
     "scratch_bytes",
     "set_scratch_limit",
+    "neighbor_list",
+    "neighbor_list_between",
+    "ase",
+    "mdanalysis",
 ]
 __version__ = "0.1.0"
 
@@ -722,3 +728,10 @@ def to_sparse(pair_array, n: Optional[int] = None, *, format: str = "csr", symme
     if format == "csr":
         return m.tocsr()
     raise ValueError(f"format: 'csr' or 'coo', not {format!r}")
+
+
+def __dir__() -> list:
+    # dir(broadphase) lists the API only: the modules and typing names the
+    # code above uses (numpy as np, Optional, ...) stay importable attributes
+    # but are not offered.
+    return sorted(__all__ + ["__version__"])

@@ -4,7 +4,7 @@ Use the ``broadphase`` package: it converts input and wraps these buffers
 as numpy arrays.
 """
 
-from typing import Any, Iterator, List, Optional, Sequence, Tuple
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple
 
 class IntArray:
     """An int64 array owned by the module, read by numpy without a copy."""
@@ -113,3 +113,33 @@ class IndexCore:
     ) -> Tuple[IntArray, ...]: ...
     def memory_bytes(self) -> int: ...
     def validate(self) -> None: ...
+
+class NeighbourArray:
+    """An int64 or float64 array of a neighbour list (numpy wraps it)."""
+
+def neighbour_list(
+    positions: Any,
+    cell: Sequence[Sequence[float]],
+    pbc: Sequence[bool],
+    cutoff: float,
+    cutoffs: Optional[Any],
+    full: bool,
+    self_interaction: bool,
+    strict: bool,
+    shifts: bool,
+    distances: bool,
+    vectors: bool,
+    offsets: bool,
+) -> Dict[str, NeighbourArray]: ...
+def neighbour_list_between(
+    queries: Any,
+    points: Any,
+    cell: Sequence[Sequence[float]],
+    pbc: Sequence[bool],
+    cutoff: float,
+    strict: bool,
+    shifts: bool,
+    distances: bool,
+    vectors: bool,
+    offsets: bool,
+) -> Dict[str, NeighbourArray]: ...

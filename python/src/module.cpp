@@ -29,6 +29,7 @@
 
 #include "index.hpp"
 #include "input.hpp"
+#include "neighbours.hpp"
 #include "one_shot.hpp"
 #include "output.hpp"
 #include "rays.hpp"
@@ -82,6 +83,8 @@ PYBIND11_MODULE(_broadphase, m) {
       .def("__next__", &PairChunks::next)
       .def("__len__",
            [](const PairChunks& c) { return (c.pairs->size() - c.pos + c.chunk - 1) / c.chunk; });
+
+  broadphase_python::bind_neighbours(m);
 
   m.def("find_pairs", &find_pairs_once, py::arg("centers"), py::arg("radii"),
         py::arg("half_extents"), py::arg("kinds"), py::arg("sorted"), py::arg("threads"),
