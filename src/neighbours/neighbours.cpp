@@ -353,7 +353,7 @@ void push(Groups& out, std::uint32_t j, const std::int64_t s[3]) {
 /// shift, cutoffs, slots and those shifts.
 struct Candidates {
   std::vector<double> x, y, z, c, d2;
-  std::vector<std::uint32_t> slot;
+  std::vector<std::uint32_t> slot, id;
   std::vector<std::array<std::int32_t, 3>> sb;
   std::size_t size = 0;
   /// Room for `more` after the first `size` (kept between bins, never
@@ -363,6 +363,7 @@ struct Candidates {
     const std::size_t cap = 2 * (size + more);
     for (auto* v : {&x, &y, &z, &c, &d2}) v->resize(cap);
     slot.resize(cap);
+    id.resize(cap);
     sb.resize(cap);
   }
 };
@@ -423,6 +424,7 @@ Groups find_self(const Context& c, const Grid& g, const Binned& b, bool full,
                 buf.z[k] = wq[2] + off.z;
                 buf.c[k] = wq[3];
                 buf.slot[k] = static_cast<std::uint32_t>(q);
+                buf.id[k] = b.id[static_cast<std::size_t>(q)];
                 buf.sb[k] = sb32;
               }
             }
@@ -452,8 +454,9 @@ Groups find_self(const Context& c, const Grid& g, const Binned& b, bool full,
               const double reach = (wp[3] + buf.c[k]) + g.margin;
               if (d2[k] > reach * reach) continue;
             }
+            const std::uint32_t iq = buf.id[k];
+            if (!full && iq < ip) continue;  // found from iq's side
             const std::size_t qi = buf.slot[k];
-            const std::uint32_t iq = b.id[qi];
             std::int64_t s[3];
             for (int a = 0; a < 3; ++a) s[a] = std::int64_t{buf.sb[k][a]} + b.n[pi][a] - b.n[qi][a];
             const bool zero = s[0] == 0 && s[1] == 0 && s[2] == 0;
