@@ -352,8 +352,8 @@ void push(Groups& out, std::uint32_t j, const std::int64_t s[3]) {
 /// loop vectorises over them): wrapped positions moved by the bin's wrap
 /// shift, cutoffs, slots and those shifts.
 struct Candidates {
-  std::vector<double> x, y, z, c, d2;
-  std::vector<std::uint32_t> slot, id;
+  std::vector<double> x, y, z, c;
+  std::vector<std::uint32_t> slot, id, pick;
   std::vector<std::array<std::int32_t, 3>> sb;
   std::size_t size = 0;
   /// Room for `more` after the first `size` (kept between bins, never
@@ -361,9 +361,10 @@ struct Candidates {
   void reserve_more(std::size_t more) {
     if (size + more <= x.size()) return;
     const std::size_t cap = 2 * (size + more);
-    for (auto* v : {&x, &y, &z, &c, &d2}) v->resize(cap);
+    for (auto* v : {&x, &y, &z, &c}) v->resize(cap);
     slot.resize(cap);
     id.resize(cap);
+    pick.resize(cap);
     sb.resize(cap);
   }
 };
@@ -389,7 +390,7 @@ Groups find_self(const Context& c, const Grid& g, const Binned& b, bool full,
   const Wraps wraps(g, {r[0], r[1], r[2]});
   const bool one = c.cut->empty();
   Candidates buf;
-  const double one_reach2 = (c.cutoff + g.margin) * (c.cutoff + g.margin);
+  const double one_reach = c.cutoff + g.margin;
   for (std::int64_t b0 = 0; b0 < g.nb[0]; ++b0)
     for (std::int64_t b1 = 0; b1 < g.nb[1]; ++b1)
       for (std::int64_t b2 = 0; b2 < g.nb[2]; ++b2) {
@@ -442,20 +443,26 @@ Groups find_self(const Context& c, const Grid& g, const Binned& b, bool full,
           const double* cx = buf.x.data();
           const double* cy = buf.y.data();
           const double* cz = buf.z.data();
-          double* d2 = buf.d2.data();
+          const double* cc = buf.c.data();
+          const std::uint32_t* cid = buf.id.data();
+          std::uint32_t* pick = buf.pick.data();
+          // The candidates within reach (and, in a half list, not found
+          // from their own end), compacted without a branch: the branch on
+          // each distance test was a tenth of the list, mispredicted about
+          // one time in six (perf, 10^4 points).
+          const int any_id = full ? 1 : 0;
+          std::size_t picked = 0;
           for (std::size_t k = 0; k < m; ++k) {
             const double dx = cx[k] - px, dy = cy[k] - py, dz = cz[k] - pz;
-            d2[k] = dx * dx + dy * dy + dz * dz;
+            const double d2 = dx * dx + dy * dy + dz * dz;
+            const double reach = one ? one_reach : (wp[3] + cc[k]) + g.margin;
+            pick[picked] = static_cast<std::uint32_t>(k);
+            picked += static_cast<std::size_t>(static_cast<int>(d2 <= reach * reach) &
+                                               (any_id | static_cast<int>(cid[k] >= ip)));
           }
-          for (std::size_t k = 0; k < m; ++k) {
-            if (one) {
-              if (d2[k] > one_reach2) continue;
-            } else {
-              const double reach = (wp[3] + buf.c[k]) + g.margin;
-              if (d2[k] > reach * reach) continue;
-            }
-            const std::uint32_t iq = buf.id[k];
-            if (!full && iq < ip) continue;  // found from iq's side
+          for (std::size_t e = 0; e < picked; ++e) {
+            const std::size_t k = pick[e];
+            const std::uint32_t iq = cid[k];
             const std::size_t qi = buf.slot[k];
             std::int64_t s[3];
             for (int a = 0; a < 3; ++a) s[a] = std::int64_t{buf.sb[k][a]} + b.n[pi][a] - b.n[qi][a];
