@@ -39,6 +39,7 @@ from . import _broadphase
 from ._broadphase import IndexCore as _IndexCore
 from . import ase, mdanalysis
 from ._neighbours import neighbor_list, neighbor_list_between
+from ._knn import knn, within
 
 __all__ = [
     "sphere_pairs",
@@ -55,6 +56,8 @@ __all__ = [
     "neighbor_list_between",
     "ase",
     "mdanalysis",
+    "knn",
+    "within",
 ]
 __version__ = "0.1.0"
 

@@ -60,6 +60,24 @@ def structures() -> List[Tuple[str, str]]: ...
 def scratch_bytes() -> int: ...
 def set_scratch_limit(bytes: int) -> None: ...
 def scratch_limit() -> int: ...
+def knn(
+    points: Any,
+    queries: Optional[Any],
+    k: int,
+    box: Optional[Sequence[float]],
+    exclude_self: bool,
+    threads: int,
+    d2_out: Any,
+    index_out: Any,
+) -> None: ...
+def within(
+    points: Any,
+    queries: Optional[Any],
+    r: float,
+    box: Optional[Sequence[float]],
+    exclude_self: bool,
+    threads: int,
+) -> Tuple[IntArray, IntArray, IntArray]: ...
 
 class IndexCore:
     def __init__(

@@ -29,6 +29,7 @@
 
 #include "index.hpp"
 #include "input.hpp"
+#include "knn.hpp"
 #include "neighbours.hpp"
 #include "one_shot.hpp"
 #include "output.hpp"
@@ -100,6 +101,7 @@ PYBIND11_MODULE(_broadphase, m) {
         py::arg("groups") = py::none(), py::arg("masks") = py::none(),
         py::arg("other_groups") = py::none(), py::arg("other_masks") = py::none(),
         "Overlapping pairs (i in the first set, j in the second), sorted.");
+  broadphase_python::register_knn(m);
   m.def(
       "scratch_bytes", [] { return bp::scratch_bytes() + broadphase_python::kept_output_bytes(); },
       "Bytes of freed working and output memory kept for the next call.");
