@@ -1,0 +1,152 @@
+/// \file bullet.hpp
+/// `broadphase::BulletBroadphase`: a `btBroadphaseInterface` for Bullet's
+/// collision worlds, backed by any structure of the registry (`broadphase
+/// list`). A Bullet program changes one line:
+///
+///     btBroadphaseInterface* broadphase = new broadphase::BulletBroadphase();
+///
+/// and keeps its dispatcher, pair cache, filter callbacks, ghost objects
+/// and ray tests as they are. Built as the target `broadphase::bullet`
+/// (float Bullet, Debian's default) and `broadphase::bullet_double`
+/// (BT_USE_DOUBLE_PRECISION, libBullet*-float64), when libbullet-dev is
+/// found; docs/bullet.md is the page for Bullet users.
+///
+/// Pairs. `calculateOverlappingPairs` adds to Bullet's own pair cache
+/// (hashed, sorted or null; the caller's, or a hashed one of its own) each
+/// pair whose proxy boxes begin to overlap, and removes each pair whose
+/// boxes stop overlapping, so the cache holds exactly the pairs whose
+/// boxes overlap now (closed boxes, touching counts, compared in btScalar
+/// as Bullet stores them: `lo0 <= hi1 && lo1 <= hi0` on each axis; a box
+/// with a NaN never overlaps). Bullet's own btDbvtBroadphase keeps more:
+/// pairs of boxes fattened by a margin and a velocity prediction, dropped
+/// lazily. The cache's `needsBroadphaseCollision` (group and mask, or the
+/// user's btOverlapFilterCallback) is asked once when a pair begins, as
+/// btAxisSweep3 does; without a filter callback the group and mask are
+/// applied inside the structure, so filtered-out pairs cost nothing.
+///
+/// Proxies are numbered (m_uniqueId) as btAxisSweep3 numbers its handles:
+/// 1, 2, ..., a destroyed proxy's number reused first.
+///
+/// Thread-safety: as Bullet's own broad phases, one thread mutates
+/// (createProxy, destroyProxy, setAabb, calculateOverlappingPairs,
+/// resetPool). rayTest, aabbTest, getAabb and getBroadphaseAabb only read,
+/// and may run concurrently with each other when no mutation runs.
+#pragma once
+
+#include <btBulletCollisionCommon.h>
+
+#include <broadphase/pair_cache.hpp>
+#include <broadphase/structure.hpp>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace broadphase {
+
+/// The options of BulletBroadphase.
+struct BulletOptions {
+  /// The structure, as a registry spec (`broadphase list`; options after a
+  /// colon, `grid-verlet:threads=2`). The default is the structure
+  /// `broadphase advise` picks on dynamic worlds (docs/performance.md).
+  std::string structure = "grid-verlet";
+  /// The structure's Config: the region most objects live in and the
+  /// expected object count are hints; objects anywhere stay exact.
+  Config config = {};
+};
+
+/// A btBroadphaseInterface over one of our structures (see the file comment).
+/// createProxy, destroyProxy, setAabb: O(1) amortised here (the structure's
+/// own cost, docs/bullet.md); calculateOverlappingPairs: the structure's
+/// bulk update and pair pass, plus O(pairs) to find the pairs that began
+/// and ended. Proxies stay valid until destroyProxy.
+class BulletBroadphase final : public btBroadphaseInterface {
+ public:
+  /// Uses `cache` for the pairs (not owned; it must outlive this object) or,
+  /// when null, a btHashedOverlappingPairCache of its own, as
+  /// btDbvtBroadphase does. Throws broadphase::InvalidConfig for a bad
+  /// structure spec or Config.
+  explicit BulletBroadphase(btOverlappingPairCache* cache = nullptr,
+                            const BulletOptions& options = {});
+  ~BulletBroadphase() override;
+  BulletBroadphase(const BulletBroadphase&) = delete;
+  BulletBroadphase& operator=(const BulletBroadphase&) = delete;
+
+  /// Adds a proxy with its box, group and mask. Its pairs appear at the
+  /// next calculateOverlappingPairs.
+  btBroadphaseProxy* createProxy(const btVector3& aabbMin, const btVector3& aabbMax, int shapeType,
+                                 void* userPtr, int collisionFilterGroup, int collisionFilterMask,
+                                 btDispatcher* dispatcher) override;
+  /// Removes the proxy and, at once, its pairs from the pair cache.
+  void destroyProxy(btBroadphaseProxy* proxy, btDispatcher* dispatcher) override;
+  /// Sets the proxy's box; an unchanged box costs a comparison (Bullet
+  /// sets every object's box every step). Pairs change at the next
+  /// calculateOverlappingPairs.
+  void setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMin, const btVector3& aabbMax,
+               btDispatcher* dispatcher) override;
+  /// The box last given to createProxy or setAabb.
+  void getAabb(btBroadphaseProxy* proxy, btVector3& aabbMin, btVector3& aabbMax) const override;
+
+  /// Calls `callback.process` for every proxy whose box the segment from
+  /// `rayFrom` to `rayTo` meets (the structure's exact ray cast, tmax 1 on
+  /// the direction rayTo - rayFrom). With a non-zero `aabbMin`/`aabbMax`
+  /// (a swept box, as convexSweepTest passes), for every proxy whose box,
+  /// grown by -aabbMax below and -aabbMin above, the segment meets. Bullet's
+  /// own broad phases ignore what `process` returns and so does this one. A
+  /// segment the contract cannot cast (a non-finite end, a length too short
+  /// or too long to square in double) is given every proxy, as
+  /// btSimpleBroadphase does.
+  void rayTest(const btVector3& rayFrom, const btVector3& rayTo, btBroadphaseRayCallback& callback,
+               const btVector3& aabbMin = btVector3(0, 0, 0),
+               const btVector3& aabbMax = btVector3(0, 0, 0)) override;
+  /// Calls `callback.process` for every proxy whose box overlaps the
+  /// closed box [aabbMin, aabbMax] (compared in btScalar).
+  void aabbTest(const btVector3& aabbMin, const btVector3& aabbMax,
+                btBroadphaseAabbCallback& callback) override;
+
+  /// Brings the pair cache up to date: the moves since the last call go to
+  /// the structure in one bulk update, the new pairs are added to the cache
+  /// and the pairs that ended are removed (cleaning their algorithms
+  /// through `dispatcher`).
+  void calculateOverlappingPairs(btDispatcher* dispatcher) override;
+
+  btOverlappingPairCache* getOverlappingPairCache() override { return cache_; }
+  const btOverlappingPairCache* getOverlappingPairCache() const override { return cache_; }
+
+  /// The union of all proxies' boxes; a point at the origin when there are none.
+  void getBroadphaseAabb(btVector3& aabbMin, btVector3& aabbMax) const override;
+  /// With no proxy left, starts afresh: a new structure, proxy numbers from 1.
+  void resetPool(btDispatcher* dispatcher) override;
+  /// Prints the structure, the proxy count and the pairs of the last pass.
+  void printStats() override;
+
+  /// The structure behind the adapter (for checks and statistics).
+  const AnyBroadPhase& structure() const { return *structure_; }
+  /// Live proxies.
+  std::size_t proxy_count() const { return live_.size(); }
+
+ private:
+  struct Proxy;
+  void make_structure();
+  void sync_filters();
+  void remove_move(Proxy& p);
+  void remove_deferred(btDispatcher* dispatcher);
+  Proxy* live_proxy(Handle h) const;
+
+  BulletOptions options_;
+  std::unique_ptr<AnyBroadPhase> structure_;
+  btOverlappingPairCache* cache_;
+  bool owns_cache_;
+  std::vector<Proxy*> by_slot_;  // structure handle index -> proxy
+  std::vector<Proxy*> live_;     // every live proxy, in no order
+  std::vector<Move> moves_;      // boxes set since the last pass, one per proxy
+  std::vector<int> free_uids_;   // numbers of destroyed proxies, reused last first
+  int next_uid_ = 1;
+  bool settle_due_ = false;            // inserted since the last pass
+  bool filters_in_structure_ = false;  // group/mask applied by the structure
+  std::vector<HandlePair> pairs_;      // the last pass's candidates
+  PairCache tracker_;                  // the pairs of the last pass: what began, what ended
+};
+
+}  // namespace broadphase
