@@ -21,8 +21,8 @@
 /// pairs of boxes fattened by a margin and a velocity prediction, dropped
 /// lazily. The cache's `needsBroadphaseCollision` (group and mask, or the
 /// user's btOverlapFilterCallback) is asked once when a pair begins, as
-/// btAxisSweep3 does; without a filter callback the group and mask are
-/// applied inside the structure, so filtered-out pairs cost nothing.
+/// btAxisSweep3 does; without a filter callback, group and mask changed in
+/// a proxy take effect at the next pass (a pair they forbid ends).
 ///
 /// Proxies are numbered (m_uniqueId) as btAxisSweep3 numbers its handles:
 /// 1, 2, ..., a destroyed proxy's number reused first.
@@ -35,7 +35,6 @@
 
 #include <btBulletCollisionCommon.h>
 
-#include <broadphase/pair_cache.hpp>
 #include <broadphase/structure.hpp>
 #include <cstddef>
 #include <cstdint>
@@ -54,13 +53,20 @@ struct BulletOptions {
   /// The structure's Config: the region most objects live in and the
   /// expected object count are hints; objects anywhere stay exact.
   Config config = {};
+  /// The structure holds each proxy's box grown by this much on every side
+  /// and is told of a move only when the box leaves it (btDbvtBroadphase's
+  /// fat leaves, whose margin gDbvtMargin is also 0.05). Pairs stay exact
+  /// whatever the margin: it trades structure updates for candidates.
+  /// In world units, >= 0 and finite (InvalidConfig).
+  double margin = 0.05;
 };
 
 /// A btBroadphaseInterface over one of our structures (see the file comment).
-/// createProxy, destroyProxy, setAabb: O(1) amortised here (the structure's
-/// own cost, docs/bullet.md); calculateOverlappingPairs: the structure's
-/// bulk update and pair pass, plus O(pairs) to find the pairs that began
-/// and ended. Proxies stay valid until destroyProxy.
+/// createProxy, setAabb: O(1) amortised here; destroyProxy: O(its pairs);
+/// calculateOverlappingPairs: the structure's bulk update of the boxes that
+/// left their fat box, then for each proxy whose box changed one query and
+/// a look at its pairs (docs/bullet.md). Proxies stay valid until
+/// destroyProxy.
 class BulletBroadphase final : public btBroadphaseInterface {
  public:
   /// Uses `cache` for the pairs (not owned; it must outlive this object) or,
@@ -129,24 +135,32 @@ class BulletBroadphase final : public btBroadphaseInterface {
  private:
   struct Proxy;
   void make_structure();
+  Shape fatten(Proxy& p) const;
+  bool pairs(const Proxy& a, const Proxy& b) const;
   void sync_filters();
+  void mark_changed(Proxy& p);
   void remove_move(Proxy& p);
   void remove_deferred(btDispatcher* dispatcher);
-  Proxy* live_proxy(Handle h) const;
+  void enter_structure(Proxy& p, Motion motion);
+  void leave_structure(Proxy& p);
+  void add_huge(Proxy& p);
+  void drop_huge(Proxy& p);
 
   BulletOptions options_;
   std::unique_ptr<AnyBroadPhase> structure_;
   btOverlappingPairCache* cache_;
   bool owns_cache_;
+  bool filters_apply_ = true;    // group and mask decide (no filter callback)
   std::vector<Proxy*> by_slot_;  // structure handle index -> proxy
   std::vector<Proxy*> live_;     // every live proxy, in no order
-  std::vector<Move> moves_;      // boxes set since the last pass, one per proxy
+  std::vector<Proxy*> huge_;     // proxies kept out of the structure (see bullet.cpp)
+  std::vector<Proxy*> changed_;  // box or filter changed since the last pass
+  std::vector<Move> moves_;      // boxes that left their fat box, one per proxy
   std::vector<int> free_uids_;   // numbers of destroyed proxies, reused last first
   int next_uid_ = 1;
-  bool settle_due_ = false;            // inserted since the last pass
-  bool filters_in_structure_ = false;  // group/mask applied by the structure
-  std::vector<HandlePair> pairs_;      // the last pass's candidates
-  PairCache tracker_;                  // the pairs of the last pass: what began, what ended
+  bool settle_due_ = false;             // inserted since the last pass
+  std::size_t pair_count_ = 0;          // pairs of the last pass
+  std::vector<HandlePair> candidates_;  // the structure's pairs, scratch of a pass
 };
 
 }  // namespace broadphase

@@ -80,7 +80,8 @@ void random_run(const std::string& spec, CacheKind kind, std::uint64_t seed, int
   auto cache = make_cache(kind);
   ParityFilter parity;
   if (kind == CacheKind::filtered) cache->setOverlapFilterCallback(&parity);
-  BulletBroadphase bp(cache.get(), BulletOptions{spec, {}});
+  // Margins of 0 (the structure holds the exact boxes) and Bullet's 0.05.
+  BulletBroadphase bp(cache.get(), BulletOptions{spec, {}, seed % 2 == 0 ? 0.0 : 0.05});
   std::vector<btBroadphaseProxy*> proxies;
   std::uintptr_t next_client = 1;
   auto random_box = [&](btVector3& lo, btVector3& hi) {
@@ -94,6 +95,11 @@ void random_run(const std::string& spec, CacheKind kind, std::uint64_t seed, int
                                  : (rng() % 16 == 0 ? uniform(0, 8) : uniform(0, 1));
       lo[a] = c - h;
       hi[a] = c + h;
+    }
+    if (rng() % 40 == 0) {  // as wide as a plane on one axis: kept apart from the structure
+      const int a = static_cast<int>(rng() % 3);
+      lo[a] = btScalar(-1e18);
+      hi[a] = btScalar(1e18);
     }
   };
   auto random_filter = [&](int& group, int& mask) {
@@ -211,6 +217,21 @@ TEST(BulletBroadphase, RandomProxiesOnEveryStructure) {
   const broadphase::Registry registry = broadphase::Registry::library();
   for (const broadphase::StructureInfo& info : registry.entries())
     random_run(info.name, CacheKind::hashed, 7, broadphase::testing::repeats(12));
+}
+
+TEST(BulletBroadphase, BadOptionsNameWhatIsWrong) {
+  auto message = [](const BulletOptions& o) {
+    try {
+      BulletBroadphase bp(nullptr, o);
+    } catch (const broadphase::InvalidConfig& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message({"grid-verlet", {}, -1}).find("margin"), std::string::npos);
+  EXPECT_NE(message({"grid-verlet", {}, std::nan("")}).find("margin"), std::string::npos);
+  EXPECT_NE(message({"no-such-structure", {}, 0.05}).find("no-such-structure"), std::string::npos);
+  EXPECT_NE(message({"grid-verlet:cell=-3", {}, 0.05}).find("cell"), std::string::npos);
 }
 
 TEST(BulletBroadphase, ProxiesNumberedAsAxisSweep) {
