@@ -47,9 +47,13 @@ namespace broadphase {
 /// The options of BulletBroadphase.
 struct BulletOptions {
   /// The structure, as a registry spec (`broadphase list`; options after a
-  /// colon, `grid-verlet:threads=2`). The default is the structure
-  /// `broadphase advise` picks on dynamic worlds (docs/performance.md).
-  std::string structure = "grid-verlet";
+  /// colon, `grid-verlet:threads=2`). The default is `sap`, whose pair pass
+  /// reads the pairs it keeps up to date as boxes move: with most bodies of
+  /// a Bullet world at rest it was the fastest of the three measured side
+  /// by side on 3 000 boxes falling onto a plane (pass 2.3 ms, kdtree 3.4,
+  /// grid-verlet 4.9, which `broadphase advise` picks for frames where a
+  /// fifth of the objects move; docs/bullet.md).
+  std::string structure = "sap";
   /// The structure's Config: the region most objects live in and the
   /// expected object count are hints; objects anywhere stay exact.
   Config config = {};
