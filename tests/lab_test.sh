@@ -89,7 +89,8 @@ for needle in ("## The study's findings, checked", "(a) the hgrid", "(e) the oct
 if "**Where the lead is thin**" in report:
     thin = report.split("**Where the lead is thin**")[1].split("\n\n**")[0]
     for kind in ("clusters", "decades", "all-moving", "explosion", "flat", "coincident", "outside",
-                 "boxes", "half-boxes", "box-decades", "city"):
+                 "boxes", "half-boxes", "box-decades", "city", "shapes-uneven", "shapes-decades",
+                 "shapes-flat"):
         if ("| %s 2000 |" % kind) not in thin:
             errors.append("advise's pick is missing on %s" % kind)
 elif "this build has no peer adapter" not in report:

@@ -55,8 +55,8 @@ for p in $peers; do
   done
 done
 
-# Small scenes of each stress kind, checked against naive.
-for d in even uneven clusters decades all-moving explosion flat coincident outside; do
+# Small scenes of each stress kind and a shaped world, checked against naive.
+for d in even uneven clusters decades all-moving explosion flat coincident outside shapes-decades; do
   "$cli" gen --dist "$d" --n 1500 --seed 7 --out "$tmp/$d.scene"
   "$cli" run --scene "$tmp/$d.scene" --algo naive --frames 4 >"$tmp/$d.expected"
   for p in $peers; do compare "$p" "$tmp/$d.scene" "$tmp/$d.expected" 4; done

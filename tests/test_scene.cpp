@@ -2,6 +2,7 @@
 // contract's motion step, the pair hash, and the study's generator.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <broadphase/scenes/scene.hpp>
 #include <cstring>
 #include <limits>
@@ -219,6 +220,64 @@ TEST(Scene, StudyWorkloadsFollowTheContract) {
   EXPECT_DOUBLE_EQ(scaled.world, 500);
   EXPECT_THROW(parse_distribution("lumpy"), std::invalid_argument);
   EXPECT_EQ(parse_distribution("scaled-uneven"), Distribution::scaled_uneven);
+}
+
+// The shaped worlds: half spheres, half boxes in quarters (poles, slabs,
+// three independent half sides, cubes), one slab in twenty of zero
+// thickness, sizes and placement as generate() says.
+TEST(Scene, ShapedWorldsMakeTheirShapes) {
+  for (Distribution d :
+       {Distribution::shapes_uneven, Distribution::shapes_decades, Distribution::shapes_flat}) {
+    SCOPED_TRACE(to_string(d));
+    const Scene s = generate(d, 8000, 3);
+    expect_same_bits(s, generate(d, 8000, 3));
+    EXPECT_EQ(parse_distribution(to_string(d)), d);
+    const bool decades = d == Distribution::shapes_decades;
+    const double lo = decades ? 0.01 : 0.5, hi = decades ? 100 : 50;
+    std::size_t spheres = 0, poles = 0, slabs = 0, flat_slabs = 0, cubes = 0, others = 0;
+    std::size_t moving = 0, low = 0;
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      const Shape& o = s.objects[i];
+      if (s.is_moving(i)) ++moving;
+      if (o.center.y <= 100) ++low;
+      if (d == Distribution::shapes_flat) {
+        EXPECT_GE(o.center.y, 0);
+        EXPECT_LE(o.center.y, 1);
+      }
+      if (o.is_sphere()) {
+        ++spheres;
+        EXPECT_GE(o.radius(), lo * (1 - 1e-12));
+        EXPECT_LE(o.radius(), decades ? hi : 5.0);
+        continue;
+      }
+      double h[3] = {o.half.x, o.half.y, o.half.z};
+      std::sort(h, h + 3);
+      EXPECT_LE(h[2], hi * (1 + 1e-12));
+      if (h[0] == h[2]) {
+        ++cubes;
+      } else if (h[1] == h[2] && h[0] == 0) {
+        ++flat_slabs;
+      } else if (h[1] == h[2] && h[2] / h[0] >= 10 * (1 - 1e-12) &&
+                 h[2] / h[0] <= 100 * (1 + 1e-12)) {
+        ++slabs;
+      } else if (h[2] / h[1] >= 10 * (1 - 1e-12) && h[2] / h[1] <= 100 * (1 + 1e-12) &&
+                 h[2] / h[0] <= 100 * (1 + 1e-12)) {
+        ++poles;
+      } else {
+        ++others;
+        EXPECT_GE(h[0], lo * (1 - 1e-12));
+      }
+    }
+    EXPECT_EQ(moving, 1600u);
+    EXPECT_NEAR(static_cast<double>(spheres), 4000, 200);
+    // Three independent half sides fall among poles or slabs now and then.
+    for (std::size_t quarter : {poles, slabs + flat_slabs, cubes, others})
+      EXPECT_NEAR(static_cast<double>(quarter), 1000, 150);
+    EXPECT_NEAR(static_cast<double>(flat_slabs), 50, 25);
+    if (d != Distribution::shapes_flat) {
+      EXPECT_GE(low, 6400u);
+    }
+  }
 }
 
 }  // namespace

@@ -221,7 +221,8 @@ void add_gen_command(CLI::App& app) {
   cmd->add_option("--dist", o->dist,
                   "even | uneven | scaled-even | scaled-uneven (the study); clusters | decades | "
                   "all-moving | explosion | flat | coincident | outside (stress kinds); boxes | "
-                  "half-boxes | box-decades | city (box worlds)")
+                  "half-boxes | box-decades | city (box worlds); shapes-uneven | shapes-decades | "
+                  "shapes-flat (poles, slabs and boxes beside spheres)")
       ->required();
   cmd->add_option("--n", o->n, "Number of objects")
       ->required()

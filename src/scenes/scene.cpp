@@ -547,6 +547,12 @@ std::string_view to_string(Distribution d) {
       return "box-decades";
     case Distribution::city:
       return "city";
+    case Distribution::shapes_uneven:
+      return "shapes-uneven";
+    case Distribution::shapes_decades:
+      return "shapes-decades";
+    case Distribution::shapes_flat:
+      return "shapes-flat";
   }
   return "?";
 }
@@ -685,6 +691,60 @@ Vec3 box_shape(double s, Rng& rng) {
   return h;
 }
 
+// Log-uniform in [lo, hi].
+double log_uniform(double lo, double hi, Rng& rng) { return lo * std::pow(hi / lo, rng.uniform()); }
+
+// Half-extents of a box of the shaped worlds whose sizes are log-uniform
+// in [lo, hi]: a pole, a slab (of zero thickness one time in twenty), a
+// box of three independent half sides or a cube, a quarter each.
+Vec3 shaped_box(double lo, double hi, Rng& rng) {
+  const double s = log_uniform(lo, hi, rng);
+  const int axis = static_cast<int>(rng.below(3));
+  Vec3 h{s, s, s};
+  switch (rng.below(4)) {
+    case 0:  // pole along `axis`
+      for (int a = 0; a < 3; ++a)
+        if (a != axis) h[a] = s / log_uniform(10, 100, rng);
+      break;
+    case 1:  // slab across `axis`
+      h[axis] = rng.below(20) == 0 ? 0.0 : s / log_uniform(10, 100, rng);
+      break;
+    case 2:  // three independent half sides
+      h = {log_uniform(lo, hi, rng), log_uniform(lo, hi, rng), log_uniform(lo, hi, rng)};
+      break;
+    default:  // cube
+      break;
+  }
+  return h;
+}
+
+// The shaped worlds (generate()'s comment): half spheres, half boxes of
+// every shape, 20% moving.
+Scene generate_shaped_world(Distribution d, std::size_t n, Rng& rng) {
+  Scene s;
+  s.world = 1000.0;
+  const double L = s.world;
+  const bool decades = d == Distribution::shapes_decades;
+  const std::vector<char> moving = choose(n, (n * 2 + 5) / 10, rng);
+  const std::vector<char> low =
+      choose(n, d == Distribution::shapes_flat ? 0 : (n * 8 + 5) / 10, rng);
+  s.objects.reserve(n);
+  s.velocity.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    Vec3 c{rng.uniform(0, L), rng.uniform(0, L), rng.uniform(0, L)};
+    if (low[i]) c.y = rng.uniform(0, L / 10);
+    if (d == Distribution::shapes_flat) c.y = rng.uniform(0, 1);
+    Shape shape;
+    if (rng.below(2))
+      shape = Shape::box(c, decades ? shaped_box(0.01, 100, rng) : shaped_box(0.5, 50, rng));
+    else
+      shape = Shape::sphere(c, decades ? log_uniform(0.01, 100, rng) : rng.uniform(0.5, 5.0));
+    s.objects.push_back(shape);
+    s.velocity.push_back(moving[i] ? rng.direction() * rng.uniform(0.1, 2.0) : Vec3{});
+  }
+  return s;
+}
+
 // The box worlds: L = 1000 and the study's speeds, 20% moving, as the
 // other stress kinds; the city's movers are its flying spheres.
 Scene generate_box_world(Distribution d, std::size_t n, Rng& rng) {
@@ -761,6 +821,10 @@ Scene generate(Distribution d, std::size_t n, std::uint64_t seed) {
     case Distribution::box_decades:
     case Distribution::city:
       return generate_box_world(d, n, rng);
+    case Distribution::shapes_uneven:
+    case Distribution::shapes_decades:
+    case Distribution::shapes_flat:
+      return generate_shaped_world(d, n, rng);
     default:
       return generate_stress(d, n, rng);
   }

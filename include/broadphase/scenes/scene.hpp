@@ -179,30 +179,35 @@ std::string frame_line(int frame, const FrameDigest& pairs, const HitDigest* hit
 /// The study's workloads (docs/scene-format.md, "The paper's workloads"), and
 /// the stress kinds the performance work is measured on.
 enum class Distribution {
-  even,           ///< the study: centres uniform in the 1 km cube
-  uneven,         ///< the study: 80% within the lowest tenth of the cube
-  scaled_even,    ///< even at the study's density of 6400 objects per km³
-  scaled_uneven,  ///< uneven at the study's density
-  clusters,       ///< Gaussian clusters of 500 objects each (sigma L/40)
-  decades,        ///< radii log-uniform over five decades, 0.001 to 100
-  all_moving,     ///< even, but every object moves
-  explosion,      ///< debris flying out of a small ball: incoherent motion
-  flat,           ///< every centre within 1 unit of the ground (y in [0, 1])
-  coincident,     ///< a quarter of the objects share one of N/100 centres
-  outside,        ///< 10% of the centres outside the world, 1 in 5000 larger than it
-  boxes,          ///< all boxes, thin, long or cubic, largest half side over two decades
-  half_boxes,     ///< half boxes, half spheres, sizes as the stress kinds
-  box_decades,    ///< sizes over four decades (0.01 to 100), a third of them boxes
-  city,           ///< touching buildings on a ground box, spheres flying above them
+  even,            ///< the study: centres uniform in the 1 km cube
+  uneven,          ///< the study: 80% within the lowest tenth of the cube
+  scaled_even,     ///< even at the study's density of 6400 objects per km³
+  scaled_uneven,   ///< uneven at the study's density
+  clusters,        ///< Gaussian clusters of 500 objects each (sigma L/40)
+  decades,         ///< radii log-uniform over five decades, 0.001 to 100
+  all_moving,      ///< even, but every object moves
+  explosion,       ///< debris flying out of a small ball: incoherent motion
+  flat,            ///< every centre within 1 unit of the ground (y in [0, 1])
+  coincident,      ///< a quarter of the objects share one of N/100 centres
+  outside,         ///< 10% of the centres outside the world, 1 in 5000 larger than it
+  boxes,           ///< all boxes, thin, long or cubic, largest half side over two decades
+  half_boxes,      ///< half boxes, half spheres, sizes as the stress kinds
+  box_decades,     ///< sizes over four decades (0.01 to 100), a third of them boxes
+  city,            ///< touching buildings on a ground box, spheres flying above them
+  shapes_uneven,   ///< half spheres, half poles, slabs, boxes of three half-extents and cubes,
+                   ///< under the study's uneven placement
+  shapes_decades,  ///< the same, uneven, with sizes over four decades (0.01 to 100)
+  shapes_flat,     ///< the same shapes, every centre within 1 unit of the ground
 };
 
 /// Every distribution, in enum order.
 inline constexpr Distribution kAllDistributions[] = {
-    Distribution::even,          Distribution::uneven,      Distribution::scaled_even,
-    Distribution::scaled_uneven, Distribution::clusters,    Distribution::decades,
-    Distribution::all_moving,    Distribution::explosion,   Distribution::flat,
-    Distribution::coincident,    Distribution::outside,     Distribution::boxes,
-    Distribution::half_boxes,    Distribution::box_decades, Distribution::city};
+    Distribution::even,          Distribution::uneven,         Distribution::scaled_even,
+    Distribution::scaled_uneven, Distribution::clusters,       Distribution::decades,
+    Distribution::all_moving,    Distribution::explosion,      Distribution::flat,
+    Distribution::coincident,    Distribution::outside,        Distribution::boxes,
+    Distribution::half_boxes,    Distribution::box_decades,    Distribution::city,
+    Distribution::shapes_uneven, Distribution::shapes_decades, Distribution::shapes_flat};
 
 /// Parses a distribution name ("even", "scaled-even", "all-moving", ...).
 /// Throws std::invalid_argument listing the valid names.
@@ -242,7 +247,17 @@ class Rng {
 /// as the stress kinds; `box-decades` sizes log-uniform in [0.01, 100];
 /// `city` lots of side 8 each filled by a building of half height 1..40
 /// standing on a ground box (neighbours and the ground touch exactly), and
-/// 30% spheres (the movers) flying at heights 50 to L.
+/// 30% spheres (the movers) flying at heights 50 to L. The shaped worlds
+/// (`shapes-uneven`, `shapes-decades`, `shapes-flat`) are half spheres and
+/// half boxes, the boxes in quarters: poles (two half sides each 10 to 100
+/// times thinner than the third, log-uniform), slabs (one half side 10 to
+/// 100 times thinner than the other two, and 0 in one slab of twenty),
+/// boxes of three independent half sides, and cubes. `shapes-uneven` and
+/// `shapes-flat`: radii as the stress kinds, a box's largest half side
+/// log-uniform in [0.5, 50] (a pole crosses up to a hundred cells of the
+/// smallest objects); `shapes-decades`: both log-uniform in [0.01, 100].
+/// 20% move at the study's speeds. Placement: the study's uneven (80%
+/// within the lowest tenth), or y in [0, 1] (`shapes-flat`).
 Scene generate(Distribution d, std::size_t n, std::uint64_t seed);
 
 /// How `add_filters` gives the objects their filters (version 3).
