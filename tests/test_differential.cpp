@@ -20,6 +20,13 @@ TEST_P(Differential, MatchesNaiveOnRandomOperations) {
     }
 }
 
+TEST_P(Differential, MatchesNaiveWithPolesAndSlabs) {
+  for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+    differential(GetParam(), World::shaped, 3000 + seed, 700);
+    if (HasFailure()) return;
+  }
+}
+
 TEST_P(Differential, MatchesNaiveWithThousandsInOneCell) {
   differential(GetParam(), World::crowded, 42, 2500);
 }

@@ -102,6 +102,8 @@ const char* to_string(World w) {
       return "many";
     case World::tiny:
       return "tiny";
+    case World::shaped:
+      return "shaped";
   }
   return "?";
 }
@@ -193,6 +195,23 @@ class ShapeSource {
         const Vec3 c{coord(), coord(), coord()};
         return shaped(c, rng_.uniform() < 0.1 ? 0.0 : tiny());
       }
+      case World::shaped: {
+        // The shaped worlds of `gen` (shapes-uneven, shapes-decades), more
+        // crowded: 80% of the centres in the lowest tenth of a cube of side
+        // 300, sizes over four decades; one
+        // object in five on a lattice of pitch 8 with dyadic half sides, so
+        // that faces and ends touch exactly.
+        if (rng_.below(5) == 0) {
+          auto lattice = [&] { return 8.0 * static_cast<double>(rng_.below(6)); };
+          const double s = 4.0 * static_cast<double>(1 + rng_.below(4));
+          return elongated({lattice(), lattice(), lattice()}, s, s / 16);
+        }
+        const Vec3 c{rng_.uniform(0, 300),
+                     rng_.uniform() < 0.8 ? rng_.uniform(0, 30) : rng_.uniform(0, 300),
+                     rng_.uniform(0, 300)};
+        const double s = std::pow(10.0, rng_.uniform(-2, 2));
+        return elongated(c, s, s / std::pow(10.0, rng_.uniform(1, 2)));
+      }
     }
     return {};
   }
@@ -219,6 +238,30 @@ class ShapeSource {
       return Shape::box(c, {size * rng_.uniform(0.1, 1), size * rng_.uniform(0.1, 1),
                             size * rng_.uniform(0.1, 1)});
     return Shape::sphere(c, size);
+  }
+  // A sphere of radius `s`, or a box whose largest half side is `s`: a pole
+  // (the two other sides `thin`), a slab (one side `thin`, or 0 one time in
+  // four), three independent half sides up to `s`, or a cube.
+  Shape elongated(Vec3 c, double s, double thin) {
+    const int axis = static_cast<int>(rng_.below(3));
+    Vec3 h{s, s, s};
+    switch (rng_.below(5)) {
+      case 0:
+        return Shape::sphere(c, s);
+      case 1:
+        h = {thin, thin, thin};
+        h[axis] = s;
+        break;
+      case 2:
+        h[axis] = rng_.below(4) == 0 ? 0.0 : thin;
+        break;
+      case 3:
+        h = {s * rng_.uniform(), s * rng_.uniform(), s * rng_.uniform()};
+        break;
+      default:
+        break;
+    }
+    return Shape::box(c, h);
   }
   World w_;
   Rng& rng_;

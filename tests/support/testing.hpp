@@ -99,6 +99,8 @@ enum class World {
   tiny,      ///< coordinates and sizes down to subnormals, where its squares underflow
   outside,   ///< most objects far outside the world, some larger than it
   many,      ///< 2 600 ordinary objects (enough to outgrow a table sized for 100)
+  shaped,    ///< poles, slabs (some of zero thickness), boxes of three half sides and
+             ///< spheres, sizes over four decades, mostly near the ground, some touching
 };
 const char* to_string(World w);
 
