@@ -3,7 +3,6 @@
 #include <broadphase/detail/verlet_lists.hpp>
 #include <broadphase/detail/worker_pool.hpp>
 #include <cmath>
-#include <limits>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -262,7 +261,6 @@ void VerletLists::renew_range(const LevelGrid& fixed, const LevelGrid& moving, s
   // layers apart would, 1.00-1.03 times their pair time, where testing the
   // bits of every candidate of the full lists took 2.6-4.6 times
   // (bench/filters/layers_bench.cpp, docs/architecture.md).
-  const double nan = std::numeric_limits<double>::quiet_NaN();
   for (std::size_t i = begin; i < end; ++i) {
     const GridEntry& e = moving.entries[i];
     Mover& mv = movers_[i];
@@ -278,7 +276,7 @@ void VerletLists::renew_range(const LevelGrid& fixed, const LevelGrid& moving, s
       if (!bits_pass(filters, e.slot, fixed.entries[k].slot)) return true;
       const Shape& s = fixed.shapes[k];
       part.push_back({{s.center.x, s.center.y, s.center.z},
-                      s.kind == ShapeKind::sphere ? s.half.x : nan,
+                      s.kind == ShapeKind::sphere ? s.half.x : Candidate::box_radius(k),
                       fixed.entries[k].handle()});
       return true;
     });
@@ -330,7 +328,8 @@ void VerletLists::validate(
       const GridEntry& o = fixed.entries[*k_fixed];
       const Shape& sh = fixed.shapes[*k_fixed];
       if (!(c.handle == o.handle()) || sh.center.x != c.c[0] || sh.center.y != c.c[1] ||
-          sh.center.z != c.c[2] || (sh.is_sphere() ? sh.half.x != c.r : c.r == c.r))
+          sh.center.z != c.c[2] ||
+          (sh.is_sphere() ? sh.half.x != c.r : !c.is_box() || c.box_entry() != *k_fixed))
         fail("candidate copy differs from its fixed object");
       if (!o.overlaps(mv.fat)) fail("candidate outside its list's box");
       if (current && !bits_pass(filters, moving.entries[k].slot, c.handle.index))

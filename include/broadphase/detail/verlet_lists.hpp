@@ -10,6 +10,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <broadphase/detail/level_grid.hpp>
 #include <broadphase/detail/work_shares.hpp>
 #include <broadphase/geometry.hpp>
@@ -42,11 +43,23 @@ struct VerletMover {
 
 /// One fixed object in a candidate list: a copy of its sphere (so that a
 /// frame reads lists front to back, never the fixed grid) and its handle.
-/// A box has a NaN radius and is tested from the grid's shape copy.
+/// A box has a NaN radius whose payload is its entry in the fixed grid
+/// (`box_entry`): its shape is read from the grid's copy at once, without
+/// the slot lookup (the lists are renewed whenever the grid is rebuilt).
 struct VerletCandidate {
   double c[3];
   double r;
   Handle handle;
+  /// The radius of a box at entry `k` of the fixed grid: a quiet NaN
+  /// carrying `k`.
+  static double box_radius(std::uint32_t k) {
+    return std::bit_cast<double>(0x7ff8000000000000ull | k);
+  }
+  bool is_box() const { return r != r; }
+  /// A box's entry in the fixed grid (the payload of its NaN radius).
+  std::uint32_t box_entry() const {
+    return static_cast<std::uint32_t>(std::bit_cast<std::uint64_t>(r));
+  }
 };
 static_assert(sizeof(VerletCandidate) == 40, "candidates are packed for the list scans");
 
