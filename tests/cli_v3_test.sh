@@ -2,8 +2,7 @@
 # Scene format version 3 on the command line (filters, rays, periodic worlds).
 #   cli_v3_test.sh CLI DATA input    bad input (a message naming the line, a
 #                                    non-zero exit, nothing printed), `run
-#                                    --oracle` on the reference scenes,
-#                                    --arrays refusing periodic worlds, sim
+#                                    --oracle` on the reference scenes, sim
 #                                    refusing what it cannot do, `gen`'s
 #                                    filters, rays and periodic worlds,
 #                                    --arrays against --oracle on them
@@ -12,8 +11,9 @@
 #                                    and no filters
 #   cli_v3_test.sh CLI DATA filters  every structure of `list` and the lean
 #                                    path on the reference scenes with filters
-#   cli_v3_test.sh CLI DATA periodic every structure of `list` on the periodic
-#                                    reference scenes and on ones `gen` makes
+#   cli_v3_test.sh CLI DATA periodic every structure of `list` and the lean
+#                                    path on the periodic reference scenes and
+#                                    on ones `gen` makes
 set -u
 cli=$1
 data=$2
@@ -46,9 +46,8 @@ replay_all() {  # replay_all rays|filters|periodic
       "$cli" run --scene "$s" --algo "$a" --frames "$frames" >"$tmp/out" 2>"$tmp/err"
       check "$a on v3/$(basename "$s")" cmp -s "$tmp/out" "$exp"
     done
-    # The lean path too, with its filter columns and its rays (it does not
-    # wrap yet).
-    is_periodic "$s" && continue
+    # The lean path too, with its filter columns and its rays (wrapping in
+    # a periodic world).
     "$cli" run --scene "$s" --arrays --frames "$frames" >"$tmp/out" 2>"$tmp/err"
     check "arrays on v3/$(basename "$s")" cmp -s "$tmp/out" "$exp"
   done
@@ -111,12 +110,7 @@ input_checks() {
   done
   expect_error "--oracle with --arrays" "excludes" run --scene "$data/scenes/single.scene" --oracle --arrays
 
-  # The lean path, sim and broadphase-mpi refuse periodic worlds rather than
-  # replay them with walls.
-  for s in "$data"/scenes/v3/periodic-*.scene; do
-    expect_error "arrays refuses v3/$(basename "$s")" "does not take periodic worlds yet" \
-      run --scene "$s" --arrays --frames 1
-  done
+  # sim refuses periodic worlds rather than replay them with walls.
   expect_error "sim: periodic" "sim does not take periodic worlds yet" \
     sim --scene "$data/scenes/v3/periodic-xyz-300.scene" --frames 1
 
@@ -193,7 +187,15 @@ periodic_gen() {
       "$cli" run --scene "$s" --algo "$a" --frames 4 >"$tmp/out" 2>"$tmp/err"
       check "$a on gen $(basename "$s")" cmp -s "$tmp/out" "$tmp/want"
     done
+    "$cli" run --scene "$s" --arrays --frames 4 >"$tmp/out" 2>"$tmp/err"
+    check "arrays on gen $(basename "$s")" cmp -s "$tmp/out" "$tmp/want"
   done
+  # The lean path over many frames of a periodic world: objects wrap at
+  # every face, the tracker's candidates renewed as they go.
+  "$cli" gen --dist even --n 600 --seed 9 --periodic xyz --out "$tmp/wrap.scene"
+  "$cli" run --scene "$tmp/wrap.scene" --oracle --frames 40 >"$tmp/want"
+  "$cli" run --scene "$tmp/wrap.scene" --arrays --frames 40 >"$tmp/out" 2>"$tmp/err"
+  check "arrays on 40 frames of gen even 600 xyz" cmp -s "$tmp/out" "$tmp/want"
   "$cli" run --scene "$tmp/bulk.scene" --algo grid-verlet --frames 2 --json >"$tmp/j"
   check "json names the periodic axes and images" python3 -c "import json,sys; j=json.load(open('$tmp/j')); sys.exit(0 if j['periodic'] == 'xyz' and j['images'] > 0 else 1)"
 }

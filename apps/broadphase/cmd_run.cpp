@@ -112,15 +112,7 @@ void run_oracle(const RunOptions& o) {
 }
 
 void run(const RunOptions& o) {
-  if (o.arrays) {
-    // The lean path does not wrap yet: refuse rather than print the lines of
-    // a world with walls. (The scene is read twice; only until it wraps.)
-    if (read_scene(o.scene).is_periodic())
-      throw SceneError(o.scene +
-                       ": the lean path (--arrays) does not take periodic worlds yet; run this "
-                       "scene with --algo NAME (any structure, through the periodic adapter)");
-    return run_arrays(o.scene, o.frames, o.json);
-  }
+  if (o.arrays) return run_arrays(o.scene, o.frames, o.json);
   if (o.oracle) return run_oracle(o);
   Scene scene = read_scene(o.scene);
   Config config;

@@ -1,8 +1,10 @@
 // `broadphase run --arrays`: replays a scene through the lean path
 // (PairTracker over the scene's objects held as the caller's arrays, with
-// their filter columns, and its RayCaster for the scene's rays), printing
-// the same lines as any structure.
+// their filter columns, and its RayCaster for the scene's rays; in a
+// periodic world the PeriodicPairTracker, the caller wrapping its objects),
+// printing the same lines as any structure.
 #include <broadphase/arrays/arrays.hpp>
+#include <broadphase/arrays/periodic.hpp>
 #include <broadphase/arrays/rays.hpp>
 #include <broadphase/detail/median.hpp>
 #include <broadphase/scenes/array_caller.hpp>
@@ -11,6 +13,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,6 +30,8 @@ void run_arrays(const std::string& path, int frames, bool json) {
   const std::vector<std::uint32_t>& movers = caller.movers();
 
   PairTracker tracker;
+  std::optional<PeriodicPairTracker> periodic;
+  if (scene.is_periodic()) periodic.emplace(scene.cell());
   FrameDigest total;
   std::uint64_t tests = 0;
   std::vector<double> call_ms;
@@ -46,13 +51,22 @@ void run_arrays(const std::string& path, int frames, bool json) {
     }
     FrameDigest d;
     const auto t0 = std::chrono::steady_clock::now();
-    const ArrayCallStats stats = tracker.find_pairs(
-        objects,
-        [&](std::span<const IndexPair> c) {
-          for (const IndexPair& p : c) d.add(p.i, p.j);
-          return true;
-        },
-        f == 0 ? Changes::everything() : Changes::only(movers));
+    const Changes changes = f == 0 ? Changes::everything() : Changes::only(movers);
+    const ArrayCallStats stats = periodic ? periodic->find_pairs(
+                                                objects,
+                                                [&](std::span<const ShiftedPair> c) {
+                                                  for (const ShiftedPair& p : c)
+                                                    d.add(p.i, p.j, p.shift);
+                                                  return true;
+                                                },
+                                                changes)
+                                          : tracker.find_pairs(
+                                                objects,
+                                                [&](std::span<const IndexPair> c) {
+                                                  for (const IndexPair& p : c) d.add(p.i, p.j);
+                                                  return true;
+                                                },
+                                                changes);
     call_ms.push_back(
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     total_ms += call_ms.back();
@@ -64,7 +78,12 @@ void run_arrays(const std::string& path, int frames, bool json) {
     HitDigest h;
     if (!rays.empty()) {
       const auto r0 = std::chrono::steady_clock::now();
-      tracker.ray_caster(objects).all(rays, rows);
+      // Rays do not wrap: a periodic world's are cast at the objects as
+      // they lie, by a caster of the frame.
+      if (periodic)
+        arrays::RayCaster(objects).all(rays, rows);
+      else
+        tracker.ray_caster(objects).all(rays, rows);
       rays_ms +=
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - r0).count();
       for (std::size_t r = 0; r < rays.size(); ++r) {
@@ -106,7 +125,7 @@ void run_arrays(const std::string& path, int frames, bool json) {
   j["median_frame_ms"] = detail::median(call_ms);  // the calls, as `run` gives a structure's frames
   j["total_ms"] = total_ms;
   if (!rays.empty()) j["rays_total_ms"] = rays_ms;
-  j["memory_bytes"] = tracker.memory_bytes();
+  j["memory_bytes"] = periodic ? periodic->memory_bytes() : tracker.memory_bytes();
   std::printf("%s\n", j.dump(2).c_str());
 }
 

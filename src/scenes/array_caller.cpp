@@ -4,7 +4,8 @@
 
 namespace broadphase {
 
-ArrayCaller::ArrayCaller(const Scene& scene) : world_(scene.world), boxes_(scene.has_boxes()) {
+ArrayCaller::ArrayCaller(const Scene& scene)
+    : world_(scene.world), boxes_(scene.has_boxes()), periodic_(scene.periodic) {
   const std::size_t n = scene.size();
   for (auto* v : {&x_, &y_, &z_, &hx_}) v->resize(n);
   if (boxes_) {
@@ -61,9 +62,15 @@ std::size_t ArrayCaller::step() {
   std::size_t bad = SIZE_MAX;
   for (std::size_t m = 0; m < movers_.size(); ++m) {
     const std::uint32_t i = movers_[m];
-    step_axis(x_[i], vx_[m], world_);
-    step_axis(y_[i], vy_[m], world_);
-    step_axis(z_[i], vz_[m], world_);
+    // The axes in the contract's order, each reflecting or wrapping.
+    double* p[3] = {&x_[i], &y_[i], &z_[i]};
+    double* v[3] = {&vx_[m], &vy_[m], &vz_[m]};
+    for (std::size_t a = 0; a < 3; ++a) {
+      if (periodic_[a])
+        step_axis_periodic(*p[a], *v[a], world_);
+      else
+        step_axis(*p[a], *v[a], world_);
+    }
     if (bad == SIZE_MAX && !(std::isfinite(x_[i]) && std::isfinite(y_[i]) && std::isfinite(z_[i])))
       bad = i;
   }

@@ -6,6 +6,7 @@
 /// measure the same caller.
 #pragma once
 
+#include <array>
 #include <broadphase/arrays/arrays.hpp>
 #include <broadphase/scenes/scene.hpp>
 #include <cstddef>
@@ -28,7 +29,8 @@ class ArrayCaller {
   Objects objects() const;
   /// The indices of the objects that move (a frame changes only these).
   const std::vector<std::uint32_t>& movers() const { return movers_; }
-  /// Moves every mover by one frame, exactly as `step(Scene&)` does.
+  /// Moves every mover by one frame, exactly as `step(Scene&)` does
+  /// (wrapping on the periodic axes of a periodic scene).
   /// Returns the first mover whose centre is no longer finite (its motion
   /// overflowed a double), or SIZE_MAX.
   std::size_t step();
@@ -40,6 +42,7 @@ class ArrayCaller {
  private:
   double world_ = 0;
   bool boxes_ = false;
+  std::array<bool, 3> periodic_{false, false, false};
   std::vector<double> x_, y_, z_, hx_, hy_, hz_, vx_, vy_, vz_;
   std::vector<std::uint8_t> kind_;
   std::vector<std::uint32_t> groups_, masks_;  // empty without filters
