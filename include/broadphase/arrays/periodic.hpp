@@ -117,6 +117,8 @@ class PeriodicPairTracker {
 
 namespace broadphase {
 using arrays::check_periodic;
+// Again here: a using-declaration names only the overloads declared before it.
+using arrays::find_pairs;
 using arrays::PeriodicPairTracker;
 using arrays::ShiftedPair;
 using arrays::ShiftedPairSink;
