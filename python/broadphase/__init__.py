@@ -146,6 +146,35 @@ def _filters(groups, masks, n: int, prefix: str = ""):
     return g, m
 
 
+def _periodic_cell(box, periodic):
+    """(lengths, axes) of a periodic cell from ``box`` and ``periodic``."""
+    if box is None:
+        raise ValueError("box: periodic axes need the cell's lengths (box=(Lx, Ly, Lz))")
+    try:
+        b = np.asarray(box, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"box: cannot be read as numbers ({e})") from None
+    if b.ndim == 0:
+        b = np.repeat(b, 3)
+    if b.shape != (3,):
+        raise ValueError(f"box: expected one length or three (Lx, Ly, Lz), got shape {b.shape}")
+    axes = "xyz" if periodic is None else periodic
+    if not isinstance(axes, str) or not axes:
+        raise ValueError(f"periodic: expected letters among 'xyz', got {axes!r}")
+    flags = [False, False, False]
+    for ch in axes:
+        if ch not in "xyz":
+            raise ValueError(f"periodic: {ch!r} is not an axis (x, y or z)")
+        if flags["xyz".index(ch)]:
+            raise ValueError(f"periodic: axis {ch!r} given twice")
+        flags["xyz".index(ch)] = True
+    for a in range(3):
+        if flags[a] and not (np.isfinite(b[a]) and b[a] > 0):
+            raise ValueError(f"box[{a}]: the length of a periodic axis must be finite and "
+                             f"positive, got {b[a]!r}")
+    return [float(v) for v in b], flags
+
+
 def _rows(centers) -> int:
     return int(centers.shape[0]) if centers.ndim >= 1 else 0
 
@@ -166,7 +195,9 @@ def pairs(
     threads: int = 1,
     groups=None,
     masks=None,
-) -> np.ndarray:
+    box=None,
+    periodic=None,
+):
     """All overlapping pairs of a set of spheres and/or boxes.
 
     Args:
@@ -180,17 +211,43 @@ def pairs(
         threads: threads to use (1: the calling thread only; 0: every core).
         groups, masks: (N,) collision filter bits (see the module's
             documentation); None: every pair passes.
+        box: a periodic cell ``(Lx, Ly, Lz)`` (or one length for a cube),
+            the cell ``[0, L]`` per axis; None: no cell.
+        periodic: the periodic axes of ``box``, letters among ``"xyz"``
+            (``"xy"`` a slab, ``"x"`` a tube); default ``"xyz"``. On them
+            every centre lies in ``[0, L]`` and every size is below ``L/2``.
 
     Returns:
-        int64 array of shape (M, 2), each row ``i < j``.
+        int64 array of shape (M, 2), each row ``i < j``. With ``box``, a
+        tuple ``(pairs, shifts)``: ``shifts`` an int8 (M, 3) array S in
+        {-1, 0, 1} per axis, row k meaning that object i overlaps object j
+        moved by ``S * (Lx, Ly, Lz)`` (docs/periodic.md); a pair may come
+        with two shifts near half the cell; each pair's shifts in
+        increasing order of ``(Sx+1) + 3(Sy+1) + 9(Sz+1)``.
 
     Raises:
         ValueError: a wrong shape, NaN, infinity or negative size, filter
             columns of another length or of a non-integer dtype (the
-            message names the argument and the index).
+            message names the argument and the index); with ``box``, a
+            centre outside ``[0, L]`` or a size of ``L/2`` or more on a
+            periodic axis, a bad length or axis.
     """
     c = _centers(centers)
     g, m = _filters(groups, masks, _rows(c))
+    if box is not None or periodic is not None:
+        lengths, axes = _periodic_cell(box, periodic)
+        p, s = _broadphase.find_periodic_pairs(
+            c,
+            _radii(radii),
+            None if half_extents is None else _real(half_extents, "half_extents"),
+            _kinds(kinds),
+            lengths,
+            axes,
+            bool(sorted),
+            g,
+            m,
+        )
+        return _out(p), _out(s).astype(np.int8)
     return _out(
         _broadphase.find_pairs(
             c,

@@ -26,6 +26,17 @@ def find_pairs(
     groups: Optional[Any] = None,
     masks: Optional[Any] = None,
 ) -> IntArray: ...
+def find_periodic_pairs(
+    centers: Any,
+    radii: Optional[Any],
+    half_extents: Optional[Any],
+    kinds: Optional[Any],
+    box: Sequence[float],
+    periodic: Sequence[bool],
+    sorted: bool,
+    groups: Optional[Any] = None,
+    masks: Optional[Any] = None,
+) -> Tuple[IntArray, IntArray]: ...
 def ray_cast(
     centers: Any,
     radii: Optional[Any],

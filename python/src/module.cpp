@@ -91,6 +91,12 @@ PYBIND11_MODULE(_broadphase, m) {
         py::arg("half_extents"), py::arg("kinds"), py::arg("sorted"), py::arg("threads"),
         py::arg("groups") = py::none(), py::arg("masks") = py::none(),
         "Overlapping pairs of one set of objects (int64 (M, 2), i < j) that pass the filters.");
+  m.def("find_periodic_pairs", &broadphase_python::find_periodic_pairs_once, py::arg("centers"),
+        py::arg("radii"), py::arg("half_extents"), py::arg("kinds"), py::arg("box"),
+        py::arg("periodic"), py::arg("sorted"), py::arg("groups") = py::none(),
+        py::arg("masks") = py::none(),
+        "Periodic pairs of one set in an orthorhombic cell: (pairs int64 (M, 2), shifts int64 "
+        "(M, 3)).");
   m.def("ray_cast", &broadphase_python::ray_cast_once, py::arg("centers"), py::arg("radii"),
         py::arg("half"), py::arg("kinds"), py::arg("groups"), py::arg("masks"), py::arg("origins"),
         py::arg("directions"), py::arg("tmax"), py::arg("ray_masks"), py::arg("all_hits"),

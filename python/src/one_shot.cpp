@@ -3,6 +3,8 @@
 /// with the GIL released, and handed back as an `IntArray`.
 #include "one_shot.hpp"
 
+#include <broadphase/arrays/periodic.hpp>
+
 #include "input.hpp"
 
 namespace broadphase_python {
@@ -62,6 +64,37 @@ IntArray find_pairs_between(const py::buffer& a_centers, const py::object& a_rad
   return pairs_array([&](const bp::PairSink& sink) {
     bp::find_pairs(a.objects, b.objects, sink, array_options(threads, true));
   });
+}
+
+py::tuple find_periodic_pairs_once(const py::buffer& centers, const py::object& radii,
+                                   const py::object& half, const py::object& kinds,
+                                   std::array<double, 3> box, std::array<bool, 3> periodic,
+                                   bool sorted, const py::object& groups, const py::object& masks) {
+  ObjectArrays o = object_arrays(centers, radii, half, kinds);
+  attach_filters(o, groups, masks);
+  const bp::PeriodicCell cell{{box[0], box[1], box[2]}, periodic};
+  IntArray pairs, shifts;
+  pairs.cols = 2;
+  shifts.cols = 3;
+  {
+    py::gil_scoped_release nogil;
+    const bp::ShiftedPairSink sink = [&](std::span<const bp::ShiftedPair> chunk) {
+      for (const bp::ShiftedPair& p : chunk) {
+        pairs.data.push_back(p.i);
+        pairs.data.push_back(p.j);
+        shifts.data.push_back(p.shift.x);
+        shifts.data.push_back(p.shift.y);
+        shifts.data.push_back(p.shift.z);
+      }
+      return true;
+    };
+    bp::find_pairs(o.objects, cell, sink, array_options(1, sorted));
+  }
+  pairs.data.trim();
+  shifts.data.trim();
+  pairs.rows = pairs.data.size() / 2;
+  shifts.rows = shifts.data.size() / 3;
+  return py::make_tuple(py::cast(std::move(pairs)), py::cast(std::move(shifts)));
 }
 
 }  // namespace broadphase_python

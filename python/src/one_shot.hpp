@@ -5,6 +5,7 @@
 
 #include <pybind11/pybind11.h>
 
+#include <array>
 #include <broadphase/arrays/arrays.hpp>
 
 #include "output.hpp"
@@ -28,5 +29,12 @@ IntArray find_pairs_between(const py::buffer& a_centers, const py::object& a_rad
                             const py::object& b_half, const py::object& b_kinds, unsigned threads,
                             const py::object& a_groups, const py::object& a_masks,
                             const py::object& b_groups, const py::object& b_masks);
+
+/// One-shot in a periodic cell (arrays/periodic.hpp): a tuple of the pairs,
+/// int64 (M, 2) with i < j, and their shifts, int64 (M, 3) in {-1, 0, 1}.
+py::tuple find_periodic_pairs_once(const py::buffer& centers, const py::object& radii,
+                                   const py::object& half, const py::object& kinds,
+                                   std::array<double, 3> box, std::array<bool, 3> periodic,
+                                   bool sorted, const py::object& groups, const py::object& masks);
 
 }  // namespace broadphase_python

@@ -13,10 +13,11 @@ DATA = pathlib.Path(os.environ.get("BROADPHASE_TEST_DATA",
 QUICK = os.environ.get("BROADPHASE_TEST_QUICK") == "1"
 
 
-def oracle_pairs(centers, radii=None, half=None, kinds=None):
+def oracle_pairs(centers, radii=None, half=None, kinds=None, shift=None):
     """Every pair i < j the contract reports, by brute force in numpy, with
     the predicates' arithmetic exactly as written (one IEEE operation per
-    ufunc, so nothing is contracted into an FMA)."""
+    ufunc, so nothing is contracted into an FMA). With ``shift`` (three
+    numbers), j's centre is moved by it first (a periodic pair's S·L)."""
     c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
     n = len(c)
     if n < 2:
@@ -28,6 +29,8 @@ def oracle_pairs(centers, radii=None, half=None, kinds=None):
     h = np.zeros((n, 3)) if half is None else np.asarray(half, np.float64).reshape(n, 3)
     i, j = np.triu_indices(n, 1)
     ci, cj = c[i], c[j]
+    if shift is not None:
+        cj = cj + np.asarray(shift, dtype=np.float64)
     ki, kj = kinds[i], kinds[j]
     # sphere-sphere
     dx = ci[:, 0] - cj[:, 0]
