@@ -71,14 +71,17 @@ ArrayCallStats find_pairs(const Objects& objects, const PeriodicCell& cell,
 /// too) are kept between calls, and each call tests only the candidates
 /// with an object listed as changed (the others keep their last answer).
 /// Objects that cross a face wrap (the caller moves them back into
-/// [0, L_a]); a move is measured the short way round. When an object has
-/// moved more than half the skin from where the candidates were found, or
-/// grown, the candidates are found again (a rebuild). The skin is
-/// `ArrayOptions::skin` times the median largest half-extent, by default
-/// 0.25, doubled (up to 4) while rebuilds come within two calls of each
-/// other; a skin given is kept.
+/// [0, L_a]); a move is measured the short way round. Each object may
+/// move by its allowance from where the candidates were found: half the
+/// skin (`ArrayOptions::skin` times the median largest half-extent, by
+/// default 0.25), or, for an object that moved before the last rebuild,
+/// eight calls of its speed then (at most four times its size plus the
+/// median size). When one moves farther, or grows, the candidates are
+/// found again (a rebuild).
 ///
-/// Growing and shrinking the count rebuilds. `Changes` as for PairTracker.
+/// Growing and shrinking the count rebuilds. `Changes` as for PairTracker;
+/// a call that lists its changes on the same count checks and reads only
+/// the listed objects (besides the partners of their candidates).
 class PeriodicPairTracker {
  public:
   /// Throws std::invalid_argument for a periodic axis whose length is not
@@ -96,14 +99,14 @@ class PeriodicPairTracker {
                             const Changes& changes = Changes::everything());
 
   const PeriodicCell& cell() const;
-  /// The skin in use (absolute; 0 before the first call).
+  /// The skin of the last rebuild (absolute; 0 before the first call).
   double skin() const;
   /// Bytes kept between calls (the candidates, where they were found).
   std::size_t memory_bytes() const;
   /// Forgets everything; the next call rebuilds.
   void clear();
   /// Checks the invariants against `objects` (the last call's arrays): every
-  /// object within half the skin of where it was when the candidates were
+  /// object within its allowance of where it was when the candidates were
   /// found, the candidates sorted and unique, and every kept answer the
   /// exact test's; throws std::logic_error naming the first that fails.
   void validate(const Objects& objects) const;
