@@ -14,8 +14,14 @@
 // frame's count and hash agree, and prints its median.
 // `--all` tells the tracker that everything may have changed (it then
 // finds the movers itself) instead of passing the movers' indices.
+// `--periodic AXES` makes the scene periodic on AXES as `gen --periodic`
+// does and measures the PeriodicPairTracker (arrays/periodic.hpp), its
+// `--compare ALGO` the periodic adapter over ALGO; `--static` stops every
+// object (a frame then changes nothing).
 #include <algorithm>
+#include <array>
 #include <broadphase/arrays/arrays.hpp>
+#include <broadphase/arrays/periodic.hpp>
 #include <broadphase/detail/median.hpp>
 #include <broadphase/registry.hpp>
 #include <broadphase/scenes/array_caller.hpp>
@@ -62,7 +68,7 @@ int main(int argc, char** argv) {
     std::fprintf(
         stderr,
         "usage: arrays_bench DIST N [FRAMES] [--threads T] [--skin S] [--spare BYTES] [--all] "
-        "[--compare ALGO] [--seed S] [--quiet] [--one-shot]\n");
+        "[--compare ALGO] [--seed S] [--quiet] [--one-shot] [--periodic AXES] [--static]\n");
     return 2;
   }
   const Distribution dist = parse_distribution(argv[1]);
@@ -71,7 +77,8 @@ int main(int argc, char** argv) {
   int argi = 3;
   if (argc > 3 && argv[3][0] != '-') frames = std::atoi(argv[argi++]);
   ArrayOptions opt;
-  bool tell_all = false, quiet = false, one_shot = false;
+  bool tell_all = false, quiet = false, one_shot = false, still = false;
+  std::array<bool, 3> periodic{false, false, false};
   std::string compare;
   std::uint64_t seed = 1;
   for (; argi < argc; ++argi) {
@@ -92,14 +99,28 @@ int main(int argc, char** argv) {
       compare = argv[++argi];
     else if (a == "--seed" && argi + 1 < argc)
       seed = std::strtoull(argv[++argi], nullptr, 10);
+    else if (a == "--periodic" && argi + 1 < argc)
+      periodic = parse_periodic_axes(argv[++argi]);
+    else if (a == "--static")
+      still = true;
     else {
       std::fprintf(stderr, "unknown argument %s\n", a.c_str());
       return 2;
     }
   }
 
+  const bool wraps = periodic[0] || periodic[1] || periodic[2];
+  // The scene as `gen` makes it with --periodic, stopped with --static.
+  auto make_scene = [&] {
+    Scene s = generate(dist, n, seed);
+    if (wraps) make_periodic(s, periodic);
+    if (still)
+      for (Vec3& v : s.velocity) v = {0, 0, 0};
+    return s;
+  };
   const auto g0 = Clock::now();
-  Scene scene = generate(dist, n, seed);
+  Scene scene = make_scene();
+  const PeriodicCell cell = scene.cell();
   const double gen_s = std::chrono::duration<double>(Clock::now() - g0).count();
   ArrayCaller caller(scene);  // the caller's columns (lab/array_caller.hpp)
   scene = Scene{};            // the caller keeps only its arrays
@@ -111,6 +132,7 @@ int main(int argc, char** argv) {
   std::vector<FrameDigest> digests;
   std::vector<double> call_ms, move_ms, cpu_call_ms;
   PairTracker tracker(opt);
+  PeriodicPairTracker wrapping(cell, opt);
   std::size_t rebuilds = 0;
   for (int f = 0; f < frames; ++f) {
     const auto t0 = Clock::now();
@@ -122,11 +144,16 @@ int main(int argc, char** argv) {
       for (const IndexPair& p : c) d.add(p.i, p.j);
       return true;
     };
-    const auto stats =
-        one_shot ? find_pairs(caller.objects(), digest, opt)
-                 : tracker.find_pairs(
-                       caller.objects(), digest,
-                       f == 0 || tell_all ? Changes::everything() : Changes::only(caller.movers()));
+    const ShiftedPairSink shifted = [&](std::span<const ShiftedPair> c) {
+      for (const ShiftedPair& p : c) d.add(p.i, p.j, p.shift);
+      return true;
+    };
+    const Changes changes =
+        f == 0 || tell_all ? Changes::everything() : Changes::only(caller.movers());
+    const auto stats = wraps ? (one_shot ? find_pairs(caller.objects(), cell, shifted, opt)
+                                         : wrapping.find_pairs(caller.objects(), shifted, changes))
+                             : (one_shot ? find_pairs(caller.objects(), digest, opt)
+                                         : tracker.find_pairs(caller.objects(), digest, changes));
     const auto t2 = Clock::now();
     cpu_call_ms.push_back(cpu_ms() - c1);
     digests.push_back(d);
@@ -142,13 +169,15 @@ int main(int argc, char** argv) {
           static_cast<unsigned long long>(stats.renewed),
           static_cast<unsigned long long>(stats.quiet),
           static_cast<unsigned long long>(stats.tests),
-          static_cast<double>(tracker.memory_bytes()) / static_cast<double>(n));
+          static_cast<double>(wraps ? wrapping.memory_bytes() : tracker.memory_bytes()) /
+              static_cast<double>(n));
   }
   // The first call builds; the frame figure is the median of the others.
   std::vector<double> later(call_ms.begin() + (frames > 1 ? 1 : 0), call_ms.end());
   std::vector<double> later_move(move_ms.begin() + (frames > 1 ? 1 : 0), move_ms.end());
   std::vector<double> later_cpu(cpu_call_ms.begin() + (frames > 1 ? 1 : 0), cpu_call_ms.end());
-  const double own = static_cast<double>(tracker.memory_bytes()) / static_cast<double>(n);
+  const double own = static_cast<double>(wraps ? wrapping.memory_bytes() : tracker.memory_bytes()) /
+                     static_cast<double>(n);
   std::printf(
       "arrays: first call %.1f ms, median call %.3f ms (cpu %.3f, mean cpu %.3f), median move "
       "%.2f ms, frame %.2f ms, rebuilds %zu, own %.1f B/object, scratch kept %.1f B/object, caller "
@@ -165,7 +194,7 @@ int main(int argc, char** argv) {
       status_kb("VmHWM:"));
 
   if (!compare.empty()) {
-    Scene fresh = generate(dist, n, seed);
+    Scene fresh = make_scene();
     Config config;
     config.world = {{0, 0, 0}, {fresh.world, fresh.world, fresh.world}};
     config.expected_objects = n;
@@ -173,18 +202,26 @@ int main(int argc, char** argv) {
     Replay replay(*bp, std::move(fresh));
     std::vector<double> ms, cms;
     int mismatches = 0;
+    std::printf("%s: build %.1f ms\n", compare.c_str(), replay.build_seconds() * 1e3);
     for (int f = 0; f < frames; ++f) {
       const double c0 = cpu_ms();
       const FrameResult r = replay.next();
+      if (f == 0) std::printf("%s: first frame %.1f ms\n", compare.c_str(), r.seconds() * 1e3);
       if (f > 0) ms.push_back(r.seconds() * 1e3);
       if (f > 0) cms.push_back(cpu_ms() - c0);
       if (!(r.digest == digests[static_cast<std::size_t>(f)])) ++mismatches;
     }
     std::printf(
-        "%s: median frame %.2f ms (cpu %.2f incl. the motion), memory %.1f B/object, frames "
-        "disagreeing: %d\n",
+        "%s: median frame %.2f ms (cpu %.2f incl. the motion, mean cpu %.2f), memory %.1f "
+        "B/object, frames disagreeing: %d\n",
         compare.c_str(), median(ms), median(cms),
-        static_cast<double>(bp->memory_bytes()) / static_cast<double>(n), mismatches);
+        cms.empty()
+            ? 0.0
+            : std::accumulate(cms.begin(), cms.end(), 0.0) / static_cast<double>(cms.size()),
+        static_cast<double>(replay.periodic() != nullptr ? replay.periodic()->memory_bytes()
+                                                         : bp->memory_bytes()) /
+            static_cast<double>(n),
+        mismatches);
     if (mismatches) return 1;
   }
   return 0;
