@@ -3,9 +3,9 @@
 // caller's arrays for a call (one-shot) or for a tracker's candidates.
 //
 // Why it is exact. An object's level has cells at least `need` wide on
-// every axis, where `need` is twice its largest half-extent (plus the
-// tracker's skin) grown by 2^-20 of itself and of the largest magnitude in
-// play: if i overlaps j moved by S·L in double, then on each axis the
+// every axis, where `need` is twice its largest half-extent (plus its
+// allowance in a tracker) grown by 2^-20 of itself and of the largest
+// magnitude in play: if i overlaps j moved by S·L in double, then on each axis the
 // distance between them, the short way round on a periodic axis, is at
 // most e_i + e_j up to rounding (2^-50 of those magnitudes), below the
 // cell width of the coarser one's level by more than the rounding of the
@@ -46,13 +46,14 @@ constexpr double kWidthSlack = 0x1p-20;
 constexpr double kMaxAxisCells = 1 << 20;
 // The tracker's allowance for an object that moved: this many calls of its
 // speed since the last build, at most kAllowSizes times its size plus the
-// median size (docs/periodic.md).
+// median size (measured in Impl::build against one skin for all; the two
+// numbers themselves were not tuned).
 constexpr double kAllowCalls = 8;
 constexpr double kAllowSizes = 4;
 // Levels double in width; the last one has a single cell on every axis and
 // takes every object too large for the others (any size, infinite reach).
 constexpr int kLevels = 64;
-// A level keeps at most this many cells per object it holds (at least
+// A level keeps at most this many cells per object of the call (at least
 // kMinCells), wider cells otherwise, and the finest cells are at least as
 // wide as the space of one object in eight cells: one-shot, 20 000
 // half-boxes periodic xyz, 8.8 ms of CPU against 9.7 with two.
@@ -151,9 +152,8 @@ double largest_half(const Shape& s) { return std::max({s.half.x, s.half.y, s.hal
 
 // The multi-level wrapping grid over `shapes`, each object i grown by
 // `grow[i]` on every side (the tracker's allowances; none when null).
-// visit(p, q) is called
-// once for every unordered pair of objects that may overlap under some
-// shift (p != q, in no particular order of the two).
+// pairs() calls visit(p, q) once for every unordered pair of objects that
+// may overlap under some shift (p != q, in no particular order of the two).
 class WrapGrid {
  public:
   WrapGrid(const std::vector<Shape>& shapes, const PeriodicCell& cell,
