@@ -1,0 +1,183 @@
+/// \file fcl.hpp
+/// `broadphase::fcl`: an FCL broad-phase manager backed by any structure of
+/// `broadphase list`, for programs that collide through FCL 0.7's
+/// `fcl::BroadPhaseCollisionManager` (MoveIt, most of ROS). The one-line
+/// change:
+///
+///     auto manager = std::make_shared<fcl::DynamicAABBTreeCollisionManagerd>();
+///     auto manager = std::make_shared<broadphase::FclCollisionManagerd>();
+///
+/// What it reports. Every FCL manager tests the AABBs of its objects with
+/// FCL's own inclusive `AABB::overlap` (touching boxes pair) and hands each
+/// overlapping pair to the user's callback once; this one does the same,
+/// with the same predicate on the same AABBs (FCL's own function is called
+/// on every candidate, so the result is FCL's bit for bit, in float as in
+/// double). The structure only culls: each object enters it as a box a
+/// little larger than its FCL AABB (kBoundsSlack), so the structure's pairs
+/// are a superset of FCL's. Like FCL's tree, a collide tests the AABBs as
+/// they were at the object's registration or last `update`, and
+/// `collide(obj)` and `distance(obj)` the query object's current AABB.
+/// Objects whose AABB is not finite, is inverted, or reaches beyond 2^1000
+/// (FCL's planes and half-spaces span ±max) are kept apart and tested
+/// against every object, with the same predicate.
+///
+/// Callbacks follow FCL's contract: a callback returning true stops the
+/// search at once; `cdata` is passed through unchanged. Argument order: a
+/// self pair comes earlier-registered object first (NaiveCollisionManager's
+/// order); `collide(obj)` and `distance(obj)` pass the query first and skip
+/// the query object itself when it is registered (SaP's and spatial
+/// hashing's behaviour; FCL's tree passes it second and also reports the
+/// object with itself); against another manager, this manager's object
+/// first (all of FCL's managers).
+///
+/// Distance is exact, by an expanding search: pairs whose AABBs touch
+/// first, then pairs within a reach that doubles until the callback has
+/// lowered `dist` below it, then every pair with an AABB distance below
+/// `dist`, each phase's pairs in increasing AABB distance. A pair is handed
+/// to the callback only when FCL's `AABB::distance` is below the current
+/// `dist`, as every FCL manager does; with FCL's DefaultDistanceFunction
+/// the result equals NaiveCollisionManager's. A callback that never lowers
+/// `dist` gets every pair, as from FCL's managers.
+///
+/// Thread-safety: the const calls (collide, distance, getObjects, size,
+/// empty) may run concurrently with each other when the structure's const
+/// calls may (every structure of the library); registration, `update`,
+/// `setup` and `clear` need exclusive access. The callbacks run on the
+/// calling thread.
+#pragma once
+
+#include <fcl/broadphase/broadphase_collision_manager.h>
+
+#include <broadphase/registry.hpp>
+#include <broadphase/structure.hpp>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string_view>
+#include <unordered_map>
+#include <vector>
+
+namespace broadphase {
+
+/// The structure an FclCollisionManager uses when none is named: the one
+/// `broadphase advise` picks for a dynamic world (docs/performance.md).
+inline constexpr std::string_view kFclDefaultStructure = "grid-verlet";
+
+/// A `fcl::BroadPhaseCollisionManager<S>` over a structure of the library
+/// (S = double or float; FCL 0.7 instantiates its own managers in double
+/// only, this one is compiled for both). Registration and update: O(1)
+/// amortised per object plus the structure's cost (a bulk update per
+/// `update()` call); `collide()`: the structure's pair pass plus one FCL
+/// AABB test per candidate. Objects are not owned: each registered object
+/// must outlive its registration.
+template <class S>
+class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
+ public:
+  using Object = ::fcl::CollisionObject<S>;
+  using Manager = ::fcl::BroadPhaseCollisionManager<S>;
+
+  /// A manager over the structure `spec` (`broadphase list`, with options:
+  /// `"sap"`, `"grid-verlet:threads=2"`). Throws InvalidConfig
+  /// (UnknownStructure for an unknown name).
+  explicit FclCollisionManager(std::string_view spec = kFclDefaultStructure,
+                               const Config& config = {});
+  /// A manager over an empty structure the caller made. Throws
+  /// std::invalid_argument when it is null or not empty.
+  explicit FclCollisionManager(std::unique_ptr<AnyBroadPhase> structure);
+  ~FclCollisionManager() override;
+  FclCollisionManager(const FclCollisionManager&) = delete;
+  FclCollisionManager& operator=(const FclCollisionManager&) = delete;
+
+  /// Registers the objects with their current AABBs (computeAABB() must
+  /// have been called, as for FCL's managers). Throws std::invalid_argument
+  /// for a null object or one already registered (nothing of the batch is
+  /// registered then).
+  void registerObjects(const std::vector<Object*>& objs) override;
+  /// Registers one object. Throws std::invalid_argument (see above).
+  void registerObject(Object* obj) override;
+  /// Unregisters an object; one not registered is ignored (as
+  /// NaiveCollisionManager does).
+  void unregisterObject(Object* obj) override;
+  /// Commits the registrations (the structure's settle()); results never
+  /// depend on it.
+  void setup() override;
+  /// Reads every object's AABB and moves those that changed: O(n) plus one
+  /// bulk update of the structure.
+  void update() override;
+  /// Reads one object's AABB (an object not registered is ignored).
+  void update(Object* updated_obj) override;
+  /// Reads the AABBs of these objects, then one bulk update.
+  void update(const std::vector<Object*>& updated_objs) override;
+  /// Unregisters every object.
+  void clear() override;
+  /// The registered objects, in registration order.
+  void getObjects(std::vector<Object*>& objs) const override;
+
+  /// Every registered object whose AABB overlaps `obj`'s: callback(obj, it).
+  void collide(Object* obj, void* cdata, ::fcl::CollisionCallBack<S> callback) const override;
+  /// Nearest objects to `obj` by expanding search: callback(obj, it, dist).
+  void distance(Object* obj, void* cdata, ::fcl::DistanceCallBack<S> callback) const override;
+  /// Every pair of registered objects whose AABBs overlap, once.
+  void collide(void* cdata, ::fcl::CollisionCallBack<S> callback) const override;
+  /// The nearest pair of registered objects, by expanding search.
+  void distance(void* cdata, ::fcl::DistanceCallBack<S> callback) const override;
+  /// Every (ours, theirs) pair whose AABBs overlap; `other` may be any FCL
+  /// manager (another FclCollisionManager is queried through its structure,
+  /// any other through getObjects). `other == this` is a self collide.
+  void collide(Manager* other, void* cdata, ::fcl::CollisionCallBack<S> callback) const override;
+  /// The nearest (ours, theirs) pair, by expanding search.
+  void distance(Manager* other, void* cdata, ::fcl::DistanceCallBack<S> callback) const override;
+
+  bool empty() const override;
+  std::size_t size() const override;
+
+  /// The structure underneath (for its statistics and `validate`).
+  const AnyBroadPhase& structure() const { return *structure_; }
+  /// Checks the manager's records against the structure and the
+  /// structure's own invariants; throws std::logic_error naming the first
+  /// that fails.
+  void validate() const;
+
+ private:
+  static constexpr std::uint32_t kNone = 0xffffffffu;
+  struct Record {
+    Object* object = nullptr;     ///< null: a free slot
+    ::fcl::AABB<S> box;           ///< the AABB at registration or the last update
+    Handle handle;                ///< in the structure; null while kept apart
+    std::uint64_t order = 0;      ///< registration order
+    std::uint32_t apart = kNone;  ///< index in apart_, or kNone
+    bool moving = false;          ///< has moved since registration
+  };
+  struct Probe;
+  struct Candidate;
+
+  std::uint32_t add(Object* obj);
+  void place(std::uint32_t slot, bool moving);
+  void unplace(std::uint32_t slot);
+  bool refresh(std::uint32_t slot, std::vector<Move>& moves);
+  void commit(std::vector<Move>& moves);
+  template <class Visit>
+  bool candidates_of(const Probe& p, double reach, Visit&& visit) const;
+  bool collide_probes(const std::vector<Probe>& probes, bool probes_first, void* cdata,
+                      ::fcl::CollisionCallBack<S> callback) const;
+  void distance_probes(const std::vector<Probe>& probes, bool self, bool probes_first, void* cdata,
+                       ::fcl::DistanceCallBack<S> callback) const;
+  std::vector<Probe> own_probes() const;
+
+  std::unique_ptr<AnyBroadPhase> structure_;
+  std::vector<Record> records_;
+  std::vector<std::uint32_t> free_;
+  std::unordered_map<const Object*, std::uint32_t> slot_of_;
+  std::vector<std::uint32_t> slot_of_handle_;  ///< structure handle index -> slot
+  std::vector<std::uint32_t> apart_;           ///< slots of the objects kept apart
+  std::size_t count_ = 0;
+  std::uint64_t next_order_ = 0;
+};
+
+extern template class FclCollisionManager<double>;
+extern template class FclCollisionManager<float>;
+
+using FclCollisionManagerd = FclCollisionManager<double>;
+using FclCollisionManagerf = FclCollisionManager<float>;
+
+}  // namespace broadphase

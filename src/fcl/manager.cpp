@@ -1,0 +1,578 @@
+// FclCollisionManager: FCL's broad-phase manager interface over a structure
+// of the library (include/broadphase/fcl.hpp says what it reports).
+#include <algorithm>
+#include <broadphase/fcl.hpp>
+#include <broadphase/geometry.hpp>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace broadphase {
+
+namespace {
+
+/// AABBs with a coordinate beyond this are kept apart from the structure:
+/// the box around them (centre ± half) stays far from overflow, and FCL's
+/// planes and half-spaces (±max) land there.
+constexpr double kFar = 0x1p1000;
+
+/// Relative growth of a distance search's reach, so that every pair whose
+/// AABB distance FCL computes as at most `reach` is inside the grown query
+/// box: AABB::distance rounds each gap, square, sum and the square root by
+/// at most a few ulps of S (2^-23 relative in float); 2^-20 covers float
+/// and double with a margin.
+constexpr double kReachSlack = 0x1p-20;
+
+/// A box of the library's shape vocabulary that contains FCL's AABB `b`
+/// grown by `reach` on every side, with the slack of `bounds()` (geometry.hpp)
+/// so that the structure's own rounded box test never misses a pair whose
+/// FCL AABBs overlap. False for an AABB that is not finite, is inverted or
+/// reaches beyond kFar: such objects are tested apart.
+template <class S>
+bool box_around(const ::fcl::AABB<S>& b, double reach, Shape& out) {
+  Vec3 c, h;
+  for (int a = 0; a < 3; ++a) {
+    const double lo = static_cast<double>(b.min_[a]);
+    const double hi = static_cast<double>(b.max_[a]);
+    if (!(lo <= hi) || !(std::fabs(lo) <= kFar) || !(std::fabs(hi) <= kFar)) return false;
+    c[a] = lo * 0.5 + hi * 0.5;
+    const double half = hi * 0.5 - lo * 0.5;
+    h[a] = half + (std::fabs(c[a]) + half) * kBoundsSlack + kBoundsFloor + reach;
+  }
+  out = Shape::box(c, h);
+  return true;
+}
+
+template <class S>
+bool same_box(const ::fcl::AABB<S>& a, const ::fcl::AABB<S>& b) {
+  for (int k = 0; k < 3; ++k)
+    if (!(a.min_[k] == b.min_[k]) || !(a.max_[k] == b.max_[k])) return false;
+  return true;
+}
+
+}  // namespace
+
+/// One side of a pair search: an object with the AABB to test it by, its
+/// registration order and its slot when it is one of ours (else kNone).
+template <class S>
+struct FclCollisionManager<S>::Probe {
+  Object* object;
+  ::fcl::AABB<S> box;
+  std::uint64_t order;
+  std::uint32_t slot;
+};
+
+/// A pair found by a distance search, with FCL's AABB distance.
+template <class S>
+struct FclCollisionManager<S>::Candidate {
+  S d;
+  std::uint64_t first_order, second_order;
+  Object* first;
+  Object* second;
+  friend bool operator<(const Candidate& x, const Candidate& y) {
+    if (x.d != y.d) return x.d < y.d;
+    if (x.first_order != y.first_order) return x.first_order < y.first_order;
+    return x.second_order < y.second_order;
+  }
+};
+
+template <class S>
+FclCollisionManager<S>::FclCollisionManager(std::string_view spec, const Config& config)
+    : FclCollisionManager(make_structure(spec, config)) {}
+
+template <class S>
+FclCollisionManager<S>::FclCollisionManager(std::unique_ptr<AnyBroadPhase> structure)
+    : structure_(std::move(structure)) {
+  if (!structure_)
+    throw std::invalid_argument("broadphase::FclCollisionManager: the structure is null");
+  if (structure_->size() != 0)
+    throw std::invalid_argument("broadphase::FclCollisionManager: the structure holds " +
+                                std::to_string(structure_->size()) +
+                                " objects; it must start empty");
+}
+
+template <class S>
+FclCollisionManager<S>::~FclCollisionManager() = default;
+
+template <class S>
+std::uint32_t FclCollisionManager<S>::add(Object* obj) {
+  std::uint32_t slot;
+  if (!free_.empty()) {
+    slot = free_.back();
+    free_.pop_back();
+  } else {
+    slot = static_cast<std::uint32_t>(records_.size());
+    records_.emplace_back();
+  }
+  Record& r = records_[slot];
+  r = Record{};
+  r.object = obj;
+  r.box = obj->getAABB();
+  r.order = next_order_++;
+  slot_of_.emplace(obj, slot);
+  ++count_;
+  place(slot, false);
+  return slot;
+}
+
+// Objects enter the structure as `fixed` and become `dynamic` at their first
+// move (a removal and an insertion): FCL does not say which objects move, and
+// the default structure caches the pairs among fixed objects and keeps Verlet
+// lists for the moving ones (docs/performance.md), so a world whose objects
+// all entered as dynamic re-sorted all of them every update.
+template <class S>
+void FclCollisionManager<S>::place(std::uint32_t slot, bool moving) {
+  Record& r = records_[slot];
+  r.moving = moving;
+  Shape shape;
+  if (box_around(r.box, 0.0, shape)) {
+    r.handle = structure_->insert(shape, slot, moving ? Motion::dynamic : Motion::fixed);
+    if (slot_of_handle_.size() <= r.handle.index) slot_of_handle_.resize(r.handle.index + 1, kNone);
+    slot_of_handle_[r.handle.index] = slot;
+  } else {
+    r.apart = static_cast<std::uint32_t>(apart_.size());
+    apart_.push_back(slot);
+  }
+}
+
+template <class S>
+void FclCollisionManager<S>::unplace(std::uint32_t slot) {
+  Record& r = records_[slot];
+  if (!r.handle.is_null()) {
+    structure_->remove(r.handle);
+    slot_of_handle_[r.handle.index] = kNone;
+    r.handle = Handle{};
+  } else {
+    const std::uint32_t last = apart_.back();
+    apart_[r.apart] = last;
+    records_[last].apart = r.apart;
+    apart_.pop_back();
+    r.apart = kNone;
+  }
+}
+
+template <class S>
+void FclCollisionManager<S>::registerObjects(const std::vector<Object*>& objs) {
+  for (std::size_t i = 0; i < objs.size(); ++i) {
+    if (objs[i] == nullptr)
+      throw std::invalid_argument("broadphase::FclCollisionManager::registerObjects: object " +
+                                  std::to_string(i) + " of the batch is null");
+    if (slot_of_.count(objs[i]) != 0)
+      throw std::invalid_argument("broadphase::FclCollisionManager::registerObjects: object " +
+                                  std::to_string(i) + " of the batch is already registered");
+  }
+  std::vector<const Object*> seen(objs.begin(), objs.end());
+  std::sort(seen.begin(), seen.end());
+  if (std::adjacent_find(seen.begin(), seen.end()) != seen.end())
+    throw std::invalid_argument(
+        "broadphase::FclCollisionManager::registerObjects: an object appears twice in the batch");
+  for (Object* o : objs) add(o);
+  structure_->settle();
+}
+
+template <class S>
+void FclCollisionManager<S>::registerObject(Object* obj) {
+  if (obj == nullptr)
+    throw std::invalid_argument("broadphase::FclCollisionManager::registerObject: null object");
+  if (slot_of_.count(obj) != 0)
+    throw std::invalid_argument(
+        "broadphase::FclCollisionManager::registerObject: the object is already registered");
+  add(obj);
+}
+
+template <class S>
+void FclCollisionManager<S>::unregisterObject(Object* obj) {
+  const auto it = slot_of_.find(obj);
+  if (it == slot_of_.end()) return;
+  const std::uint32_t slot = it->second;
+  unplace(slot);
+  records_[slot].object = nullptr;
+  free_.push_back(slot);
+  slot_of_.erase(it);
+  --count_;
+}
+
+template <class S>
+void FclCollisionManager<S>::setup() {
+  structure_->settle();
+}
+
+// FCL's tree skips an object whose AABB equals the stored one within 100
+// epsilon (AABB::equal); here any change of a bit counts, so the AABBs
+// tested are always the ones read at the last update.
+template <class S>
+bool FclCollisionManager<S>::refresh(std::uint32_t slot, std::vector<Move>& moves) {
+  Record& r = records_[slot];
+  const ::fcl::AABB<S>& now = r.object->getAABB();
+  if (same_box(now, r.box)) return false;
+  r.box = now;
+  Shape shape;
+  if (r.moving && !r.handle.is_null() && box_around(r.box, 0.0, shape)) {
+    moves.push_back({r.handle, shape});
+  } else {
+    unplace(slot);
+    place(slot, true);
+  }
+  return true;
+}
+
+template <class S>
+void FclCollisionManager<S>::commit(std::vector<Move>& moves) {
+  if (!moves.empty()) structure_->update(moves);
+}
+
+template <class S>
+void FclCollisionManager<S>::update() {
+  std::vector<Move> moves;
+  for (std::uint32_t slot = 0; slot < records_.size(); ++slot)
+    if (records_[slot].object != nullptr) refresh(slot, moves);
+  commit(moves);
+}
+
+template <class S>
+void FclCollisionManager<S>::update(Object* updated_obj) {
+  const auto it = slot_of_.find(updated_obj);
+  if (it == slot_of_.end()) return;
+  std::vector<Move> moves;
+  refresh(it->second, moves);
+  commit(moves);
+}
+
+template <class S>
+void FclCollisionManager<S>::update(const std::vector<Object*>& updated_objs) {
+  std::vector<Move> moves;
+  for (Object* o : updated_objs) {
+    const auto it = slot_of_.find(o);
+    if (it != slot_of_.end()) refresh(it->second, moves);
+  }
+  commit(moves);
+}
+
+template <class S>
+void FclCollisionManager<S>::clear() {
+  for (std::uint32_t slot = 0; slot < records_.size(); ++slot)
+    if (records_[slot].object != nullptr) unplace(slot);
+  records_.clear();
+  free_.clear();
+  slot_of_.clear();
+  slot_of_handle_.clear();
+  apart_.clear();
+  count_ = 0;
+}
+
+template <class S>
+void FclCollisionManager<S>::getObjects(std::vector<Object*>& objs) const {
+  std::vector<std::pair<std::uint64_t, Object*>> by_order;
+  by_order.reserve(count_);
+  for (const Record& r : records_)
+    if (r.object != nullptr) by_order.emplace_back(r.order, r.object);
+  std::sort(by_order.begin(), by_order.end());
+  objs.resize(by_order.size());
+  for (std::size_t i = 0; i < by_order.size(); ++i) objs[i] = by_order[i].second;
+}
+
+template <class S>
+bool FclCollisionManager<S>::empty() const {
+  return count_ == 0;
+}
+
+template <class S>
+std::size_t FclCollisionManager<S>::size() const {
+  return count_;
+}
+
+template <class S>
+std::vector<typename FclCollisionManager<S>::Probe> FclCollisionManager<S>::own_probes() const {
+  std::vector<Probe> probes;
+  probes.reserve(count_);
+  for (std::uint32_t slot = 0; slot < records_.size(); ++slot) {
+    const Record& r = records_[slot];
+    if (r.object != nullptr) probes.push_back({r.object, r.box, r.order, slot});
+  }
+  return probes;
+}
+
+/// Visits the slot of every registered object that may lie within `reach`
+/// of the probe's AABB (a superset: the structure's objects whose boxes meet
+/// the probe's box grown by `reach`, and every object kept apart), or of
+/// every object when the probe itself cannot be boxed. `visit(slot)` returns
+/// false to stop; returns true when it stopped.
+template <class S>
+template <class Visit>
+bool FclCollisionManager<S>::candidates_of(const Probe& p, double reach, Visit&& visit) const {
+  Shape shape;
+  if (!box_around(p.box, reach + reach * kReachSlack, shape)) {
+    for (std::uint32_t slot = 0; slot < records_.size(); ++slot)
+      if (records_[slot].object != nullptr && !visit(slot)) return true;
+    return false;
+  }
+  const QueryCost cost = structure_->query(
+      shape, [&](Handle h) { return static_cast<bool>(visit(slot_of_handle_[h.index])); });
+  if (cost.stopped) return true;
+  for (const std::uint32_t slot : apart_)
+    if (!visit(slot)) return true;
+  return false;
+}
+
+template <class S>
+bool FclCollisionManager<S>::collide_probes(const std::vector<Probe>& probes, bool probes_first,
+                                            void* cdata,
+                                            ::fcl::CollisionCallBack<S> callback) const {
+  for (const Probe& p : probes) {
+    const bool stopped = candidates_of(p, 0.0, [&](std::uint32_t slot) {
+      const Record& r = records_[slot];
+      if (r.object == p.object || !r.box.overlap(p.box)) return true;
+      return !(probes_first ? callback(p.object, r.object, cdata)
+                            : callback(r.object, p.object, cdata));
+    });
+    if (stopped) return true;
+  }
+  return false;
+}
+
+template <class S>
+void FclCollisionManager<S>::collide(Object* obj, void* cdata,
+                                     ::fcl::CollisionCallBack<S> callback) const {
+  if (count_ == 0) return;
+  collide_probes({Probe{obj, obj->getAABB(), 0, kNone}}, true, cdata, callback);
+}
+
+template <class S>
+void FclCollisionManager<S>::collide(void* cdata, ::fcl::CollisionCallBack<S> callback) const {
+  if (count_ == 0) return;
+  // Through the structure's pair pass (find_pairs: no call per pair), then
+  // FCL's test of the stored AABBs on each candidate.
+  std::vector<HandlePair> pairs;
+  structure_->find_pairs(pairs);
+  for (const HandlePair& hp : pairs) {
+    const Record* a = &records_[slot_of_handle_[hp.a.index]];
+    const Record* b = &records_[slot_of_handle_[hp.b.index]];
+    if (!a->box.overlap(b->box)) continue;
+    if (b->order < a->order) std::swap(a, b);
+    if (callback(a->object, b->object, cdata)) return;
+  }
+  for (const std::uint32_t slot : apart_) {
+    const Record& a = records_[slot];
+    for (const Record& b : records_) {
+      if (b.object == nullptr || b.object == a.object) continue;
+      if (b.apart != kNone && b.order < a.order) continue;  // that pair came from b
+      if (!a.box.overlap(b.box)) continue;
+      const bool stop = a.order < b.order ? callback(a.object, b.object, cdata)
+                                          : callback(b.object, a.object, cdata);
+      if (stop) return;
+    }
+  }
+}
+
+template <class S>
+void FclCollisionManager<S>::collide(Manager* other, void* cdata,
+                                     ::fcl::CollisionCallBack<S> callback) const {
+  if (other == this) {
+    collide(cdata, callback);
+    return;
+  }
+  if (count_ == 0 || other->size() == 0) return;
+  if (const auto* ours = dynamic_cast<const FclCollisionManager*>(other)) {
+    // The smaller side probes the larger one's structure.
+    if (ours->size() > size()) {
+      ours->collide_probes(own_probes(), true, cdata, callback);
+    } else {
+      collide_probes(ours->own_probes(), false, cdata, callback);
+    }
+    return;
+  }
+  std::vector<Object*> objs;
+  other->getObjects(objs);
+  std::vector<Probe> probes;
+  probes.reserve(objs.size());
+  for (Object* o : objs) probes.push_back({o, o->getAABB(), 0, kNone});
+  collide_probes(probes, false, cdata, callback);
+}
+
+// The expanding search. Phase 0 takes the pairs whose AABBs touch (FCL
+// distance 0); phase k the pairs at an AABB distance in (reach_{k-1},
+// reach_k], each phase's in increasing distance, handed to the callback
+// while their distance is below `dist` (FCL's rule). The first reach is the
+// span of the objects over the cube root of their number (the spacing of
+// as many objects spread evenly); it doubles while the callback has not
+// lowered `dist` to a finite value, and is then set to `dist`, which ends
+// the search after that phase: every pair not yet met is farther than
+// `dist`. Pairs with an object kept apart are measured once, up front, and
+// merged into the phases by their distance. When the reach passes twice the
+// span every pair has been met.
+template <class S>
+void FclCollisionManager<S>::distance_probes(const std::vector<Probe>& probes, bool self,
+                                             bool probes_first, void* cdata,
+                                             ::fcl::DistanceCallBack<S> callback) const {
+  S min_dist = std::numeric_limits<S>::max();
+  const auto make = [&](const Probe& p, const Record& r, S d) {
+    return probes_first ? Candidate{d, p.order, r.order, p.object, r.object}
+                        : Candidate{d, r.order, p.order, r.object, p.object};
+  };
+  const auto wanted = [&](const Probe& p, const Record& r) {
+    return r.object != p.object && (!self || p.order < r.order);
+  };
+
+  // The span of everything boxed, and the pairs with an object apart.
+  double lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::numeric_limits<double>::infinity();
+    hi[a] = -lo[a];
+  }
+  std::size_t boxed = 0;
+  const auto grow = [&](const ::fcl::AABB<S>& b) {
+    Shape s;
+    if (!box_around(b, 0.0, s)) return false;
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], static_cast<double>(b.min_[a]));
+      hi[a] = std::max(hi[a], static_cast<double>(b.max_[a]));
+    }
+    ++boxed;
+    return true;
+  };
+  std::vector<Candidate> apart_pairs;
+  std::vector<char> probe_boxed(probes.size());
+  for (std::size_t i = 0; i < probes.size(); ++i) {
+    const Probe& p = probes[i];
+    probe_boxed[i] = grow(p.box);
+    if (!probe_boxed[i]) {
+      for (const Record& r : records_)
+        if (r.object != nullptr && wanted(p, r))
+          apart_pairs.push_back(make(p, r, r.box.distance(p.box)));
+    } else {
+      for (const std::uint32_t slot : apart_) {
+        const Record& r = records_[slot];
+        if (wanted(p, r)) apart_pairs.push_back(make(p, r, r.box.distance(p.box)));
+      }
+    }
+  }
+  for (const Record& r : records_)
+    if (r.object != nullptr && r.apart == kNone) grow(r.box);
+  std::sort(apart_pairs.begin(), apart_pairs.end());
+  double span = 0;
+  for (int a = 0; a < 3; ++a) span = std::max(span, boxed > 0 ? hi[a] - lo[a] : 0.0);
+  double first_reach = span / std::cbrt(static_cast<double>(std::max<std::size_t>(boxed, 1)));
+  if (!(first_reach > 0x1p-500)) first_reach = span;
+
+  std::size_t next_apart = 0;
+  std::vector<Candidate> phase;
+  double prev = -1, reach = 0;
+  for (;;) {
+    phase.clear();
+    const auto in_phase = [&](S d) {
+      const double dd = static_cast<double>(d);
+      return dd > prev && dd <= reach;
+    };
+    for (std::size_t i = 0; i < probes.size(); ++i) {
+      if (!probe_boxed[i]) continue;
+      const Probe& p = probes[i];
+      Shape shape;
+      box_around(p.box, reach + reach * kReachSlack, shape);
+      structure_->query(shape, [&](Handle h) {
+        const Record& r = records_[slot_of_handle_[h.index]];
+        if (!wanted(p, r)) return true;
+        const S d = r.box.distance(p.box);
+        if (in_phase(d)) phase.push_back(make(p, r, d));
+        return true;
+      });
+    }
+    while (next_apart < apart_pairs.size() &&
+           static_cast<double>(apart_pairs[next_apart].d) <= reach)
+      phase.push_back(apart_pairs[next_apart++]);
+    std::sort(phase.begin(), phase.end());
+    for (const Candidate& c : phase)
+      if (c.d < min_dist && callback(c.first, c.second, cdata, min_dist)) return;
+    if (static_cast<double>(min_dist) <= reach) return;
+    if (reach >= 2 * span) break;
+    prev = reach;
+    const double doubled = reach == 0 ? first_reach : 2 * reach;
+    reach = min_dist < std::numeric_limits<S>::max() ? std::max(static_cast<double>(min_dist), prev)
+                                                     : doubled;
+    if (reach == prev) reach = doubled;
+  }
+  // Every boxed pair has been met; what is left is apart and farther.
+  for (; next_apart < apart_pairs.size(); ++next_apart) {
+    const Candidate& c = apart_pairs[next_apart];
+    if (c.d < min_dist && callback(c.first, c.second, cdata, min_dist)) return;
+  }
+}
+
+template <class S>
+void FclCollisionManager<S>::distance(Object* obj, void* cdata,
+                                      ::fcl::DistanceCallBack<S> callback) const {
+  if (count_ == 0) return;
+  distance_probes({Probe{obj, obj->getAABB(), 0, kNone}}, false, true, cdata, callback);
+}
+
+template <class S>
+void FclCollisionManager<S>::distance(void* cdata, ::fcl::DistanceCallBack<S> callback) const {
+  if (count_ == 0) return;
+  distance_probes(own_probes(), true, true, cdata, callback);
+}
+
+template <class S>
+void FclCollisionManager<S>::distance(Manager* other, void* cdata,
+                                      ::fcl::DistanceCallBack<S> callback) const {
+  if (other == this) {
+    distance(cdata, callback);
+    return;
+  }
+  if (count_ == 0 || other->size() == 0) return;
+  if (const auto* ours = dynamic_cast<const FclCollisionManager*>(other);
+      ours != nullptr && ours->size() > size()) {
+    ours->distance_probes(own_probes(), false, true, cdata, callback);
+    return;
+  }
+  std::vector<Object*> objs;
+  other->getObjects(objs);
+  std::vector<Probe> probes;
+  probes.reserve(objs.size());
+  for (Object* o : objs) probes.push_back({o, o->getAABB(), 0, kNone});
+  if (const auto* ours = dynamic_cast<const FclCollisionManager*>(other))
+    for (Probe& p : probes) p.box = ours->records_[ours->slot_of_.at(p.object)].box;
+  distance_probes(probes, false, false, cdata, callback);
+}
+
+template <class S>
+void FclCollisionManager<S>::validate() const {
+  const auto fail = [](const std::string& what) {
+    throw std::logic_error("broadphase::FclCollisionManager: " + what);
+  };
+  std::size_t live = 0, boxed = 0;
+  for (std::uint32_t slot = 0; slot < records_.size(); ++slot) {
+    const Record& r = records_[slot];
+    if (r.object == nullptr) continue;
+    ++live;
+    const auto it = slot_of_.find(r.object);
+    if (it == slot_of_.end() || it->second != slot)
+      fail("slot " + std::to_string(slot) + " is not its object's slot");
+    Shape shape;
+    const bool can_box = box_around(r.box, 0.0, shape);
+    if (r.handle.is_null()) {
+      if (can_box) fail("slot " + std::to_string(slot) + " is kept apart but could be boxed");
+      if (r.apart >= apart_.size() || apart_[r.apart] != slot)
+        fail("slot " + std::to_string(slot) + " is missing from the objects kept apart");
+      continue;
+    }
+    ++boxed;
+    if (!can_box) fail("slot " + std::to_string(slot) + " is boxed but should be kept apart");
+    if (!structure_->contains(r.handle) || structure_->user_data(r.handle) != slot ||
+        slot_of_handle_.at(r.handle.index) != slot)
+      fail("slot " + std::to_string(slot) + " and its structure handle disagree");
+    if (!(structure_->shape(r.handle) == shape))
+      fail("slot " + std::to_string(slot) + " has a stale box in the structure");
+  }
+  if (live != count_ || live != slot_of_.size())
+    fail("object count " + std::to_string(count_) + ", records " + std::to_string(live));
+  if (boxed != structure_->size() || boxed + apart_.size() != live)
+    fail("structure holds " + std::to_string(structure_->size()) + " objects, expected " +
+         std::to_string(boxed));
+  structure_->validate();
+}
+
+template class FclCollisionManager<double>;
+template class FclCollisionManager<float>;
+
+}  // namespace broadphase
