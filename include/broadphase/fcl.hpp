@@ -172,6 +172,7 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
   std::vector<std::uint32_t> apart_;           ///< slots of the objects kept apart
   std::size_t count_ = 0;
   std::uint64_t next_order_ = 0;
+  bool replaced_ = false;  ///< an update re-inserted an object: settle()
 };
 
 extern template class FclCollisionManager<double>;

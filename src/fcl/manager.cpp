@@ -214,13 +214,20 @@ bool FclCollisionManager<S>::refresh(std::uint32_t slot, std::vector<Move>& move
   } else {
     unplace(slot);
     place(slot, true);
+    replaced_ = true;
   }
   return true;
 }
 
+// An object's first move re-inserts it (refresh). In the default structure
+// single inserts wait on a short unsorted "loose" list that every pair pass
+// and query scans (grid_verlet.hpp, "Mutations") until the structure
+// rebuilds; settle() after such a frame files them at once.
 template <class S>
 void FclCollisionManager<S>::commit(std::vector<Move>& moves) {
   if (!moves.empty()) structure_->update(moves);
+  if (replaced_) structure_->settle();
+  replaced_ = false;
 }
 
 template <class S>
