@@ -18,6 +18,8 @@
 
 #include <algorithm>
 #include <broadphase/bullet.hpp>
+#include <broadphase/detail/median.hpp>
+#include <broadphase/detail/thread_clock.hpp>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -33,16 +35,8 @@ using namespace broadphase::bullet_testing;
 // The thread's CPU time, not the wall clock: on the shared 2-core hosts
 // (load 10-17 while this was written) the wall clock charged whichever run
 // was descheduled; CPU time of one thread is what a step costs.
-struct Clock {
-  using time_point = double;
-  static double now() {
-    timespec ts;
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
-  }
-};
-
-double ms_since(Clock::time_point t) { return Clock::now() - t; }
+using Clock = broadphase::detail::ThreadClock;
+double ms_since(double t0) { return broadphase::detail::thread_ms_since(t0); }
 
 /// btDiscreteDynamicsWorld with timers around the broad phase's two calls.
 class TimedWorld final : public btDiscreteDynamicsWorld {
@@ -68,11 +62,7 @@ struct Run {
   std::vector<double> step_ms, broad_ms;
 };
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
+using broadphase::detail::median;
 double sum(const std::vector<double>& v) {
   double s = 0;
   for (double x : v) s += x;

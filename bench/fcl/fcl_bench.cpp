@@ -18,6 +18,8 @@
 #include <time.h>
 
 #include <algorithm>
+#include <broadphase/detail/median.hpp>
+#include <broadphase/detail/thread_clock.hpp>
 #include <broadphase/fcl.hpp>
 #include <broadphase/scenes/scene.hpp>
 #include <cmath>
@@ -37,23 +39,10 @@ namespace {
 // with other builds (load 20 and more) a wall-clock interval mostly measured
 // the other processes' time slices; every manager here runs on the calling
 // thread alone (grid-verlet with its default threads=1).
-struct Clock {
-  using time_point = double;
-  static double now() {
-    timespec t{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-    return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
-  }
-};
+using Clock = broadphase::detail::ThreadClock;
+double ms_since(double t0) { return broadphase::detail::thread_ms_since(t0); }
 
-double ms_since(double t) { return Clock::now() - t; }
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
+using broadphase::detail::median;
 
 // Counts the pairs whose AABBs overlap: FCL's spatial hash hands the
 // callback every pair sharing a cell without that test (docs/fcl.md), so a

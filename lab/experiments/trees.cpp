@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <broadphase/aabb_tree.hpp>
 #include <broadphase/detail/median.hpp>
+#include <broadphase/detail/thread_clock.hpp>
 #include <broadphase/registry.hpp>
 #include <broadphase/scenes/scene.hpp>
 #include <broadphase/witness_cache.hpp>
@@ -22,16 +23,8 @@ namespace {
 
 // The machine the lab runs on is often shared, so every time here is the
 // thread's CPU time: waiting for a core does not count.
-struct Clock {
-  using time_point = double;
-  static double now() {
-    timespec t{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-    return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
-  }
-};
-
-double ms_since(double t0) { return Clock::now() - t0; }
+using Clock = broadphase::detail::ThreadClock;
+double ms_since(double t0) { return broadphase::detail::thread_ms_since(t0); }
 
 using broadphase::detail::median;
 
