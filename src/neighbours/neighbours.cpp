@@ -377,6 +377,26 @@ struct Candidates {
 /// twice the candidates but rejects half of them by index after the
 /// distance test. The candidates of a home bin are gathered once into one
 /// buffer, so the inner loop over them is long and branch-light.
+/// Calls f(nb, sb) for each bin at the offsets lo to hi (per axis) from bin
+/// bc that `wraps` resolves: nb the bin's index, sb the image shift of its
+/// points. The search's one stencil walk, for a half or full list and for
+/// queries against another set.
+template <class F>
+void for_each_bin_around(const Grid& g, const Wraps& wraps, const std::int64_t (&bc)[3],
+                         const std::int64_t (&lo)[3], const std::int64_t (&hi)[3], F&& f) {
+  for (std::int64_t o0 = lo[0]; o0 <= hi[0]; ++o0)
+    for (std::int64_t o1 = lo[1]; o1 <= hi[1]; ++o1)
+      for (std::int64_t o2 = lo[2]; o2 <= hi[2]; ++o2) {
+        const std::int64_t o[3] = {o0, o1, o2};
+        std::int64_t nbin[3], sb[3];
+        bool inside = true;
+        for (int k = 0; k < 3 && inside; ++k)
+          inside = wraps.resolve(k, bc[k] + o[k], nbin[k], sb[k]);
+        if (!inside) continue;
+        f((nbin[0] * g.nb[1] + nbin[1]) * g.nb[2] + nbin[2], sb);
+      }
+}
+
 Groups find_self(const Context& c, const Grid& g, const Binned& b, bool full,
                  bool self_interaction) {
   Groups out;
@@ -388,6 +408,7 @@ Groups find_self(const Context& c, const Grid& g, const Binned& b, bool full,
   std::int64_t r[3];
   for (int k = 0; k < 3; ++k) r[k] = g.periodic[k] ? g.reach[k] : std::min(g.reach[k], g.nb[k] - 1);
   const Wraps wraps(g, {r[0], r[1], r[2]});
+  const std::int64_t neg_r[3] = {-r[0], -r[1], -r[2]};
   const bool one = c.cut->empty();
   Candidates buf;
   const double one_reach = c.cutoff + g.margin;
@@ -400,16 +421,8 @@ Groups find_self(const Context& c, const Grid& g, const Binned& b, bool full,
         if (hs == he) continue;
         const std::int64_t bc[3] = {b0, b1, b2};
         buf.size = 0;
-        for (std::int64_t o0 = -r[0]; o0 <= r[0]; ++o0)
-          for (std::int64_t o1 = -r[1]; o1 <= r[1]; ++o1)
-            for (std::int64_t o2 = -r[2]; o2 <= r[2]; ++o2) {
-              const std::int64_t o[3] = {o0, o1, o2};
-              std::int64_t nbin[3], sb[3];
-              bool inside = true;
-              for (int k = 0; k < 3 && inside; ++k)
-                inside = wraps.resolve(k, bc[k] + o[k], nbin[k], sb[k]);
-              if (!inside) continue;
-              const std::int64_t nb = (nbin[0] * g.nb[1] + nbin[1]) * g.nb[2] + nbin[2];
+        for_each_bin_around(
+            g, wraps, bc, neg_r, r, [&](std::int64_t nb, const std::int64_t(&sb)[3]) {
               const Vec3 off = rule::image_offset(*c.cell, sb[0], sb[1], sb[2]);
               const std::int64_t qs = b.start[static_cast<std::size_t>(nb)];
               const std::int64_t qe = b.start[static_cast<std::size_t>(nb) + 1];
@@ -428,7 +441,7 @@ Groups find_self(const Context& c, const Grid& g, const Binned& b, bool full,
                 buf.id[k] = b.id[static_cast<std::size_t>(q)];
                 buf.sb[k] = sb32;
               }
-            }
+            });
         const std::size_t m = buf.size;
         for (std::int64_t p = hs; p < he; ++p) {
           const auto pi = static_cast<std::size_t>(p);
@@ -511,31 +524,22 @@ Groups find_between(const Context& c, const Grid& g, const Binned& b) {
       lo[k] = g.periodic[k] ? -g.reach[k] : std::max(-g.reach[k], -bc[k]);
       hi[k] = g.periodic[k] ? g.reach[k] : std::min(g.reach[k], g.nb[k] - 1 - bc[k]);
     }
-    for (std::int64_t o0 = lo[0]; o0 <= hi[0]; ++o0)
-      for (std::int64_t o1 = lo[1]; o1 <= hi[1]; ++o1)
-        for (std::int64_t o2 = lo[2]; o2 <= hi[2]; ++o2) {
-          const std::int64_t o[3] = {o0, o1, o2};
-          std::int64_t nbin[3], sb[3];
-          bool inside = true;
-          for (int k = 0; k < 3 && inside; ++k)
-            inside = wraps.resolve(k, bc[k] + o[k], nbin[k], sb[k]);
-          if (!inside) continue;
-          const std::int64_t nb = (nbin[0] * g.nb[1] + nbin[1]) * g.nb[2] + nbin[2];
-          const std::int64_t ns = b.start[static_cast<std::size_t>(nb)];
-          const std::int64_t ne = b.start[static_cast<std::size_t>(nb) + 1];
-          if (ns == ne) continue;
-          const Vec3 off = rule::image_offset(*c.cell, sb[0], sb[1], sb[2]);
-          const double px = wq.x - off.x, py = wq.y - off.y, pz = wq.z - off.z;
-          for (std::int64_t p = ns; p < ne; ++p) {
-            const auto& wp = b.w[static_cast<std::size_t>(p)];
-            const double dx = wp[0] - px, dy = wp[1] - py, dz = wp[2] - pz;
-            if (dx * dx + dy * dy + dz * dz > r * r) continue;
-            const auto pj = static_cast<std::size_t>(p);
-            std::int64_t s[3];
-            for (int k = 0; k < 3; ++k) s[k] = sb[k] + qs.n[qi][k] - b.n[pj][k];
-            if (exact(c, qs.x[qi], b.x[pj], 0.0, 0.0, s)) push(out, b.id[pj], s);
-          }
-        }
+    for_each_bin_around(g, wraps, bc, lo, hi, [&](std::int64_t nb, const std::int64_t(&sb)[3]) {
+      const std::int64_t ns = b.start[static_cast<std::size_t>(nb)];
+      const std::int64_t ne = b.start[static_cast<std::size_t>(nb) + 1];
+      if (ns == ne) return;
+      const Vec3 off = rule::image_offset(*c.cell, sb[0], sb[1], sb[2]);
+      const double px = wq.x - off.x, py = wq.y - off.y, pz = wq.z - off.z;
+      for (std::int64_t p = ns; p < ne; ++p) {
+        const auto& wp = b.w[static_cast<std::size_t>(p)];
+        const double dx = wp[0] - px, dy = wp[1] - py, dz = wp[2] - pz;
+        if (dx * dx + dy * dy + dz * dz > r * r) continue;
+        const auto pj = static_cast<std::size_t>(p);
+        std::int64_t s[3];
+        for (int k = 0; k < 3; ++k) s[k] = sb[k] + qs.n[qi][k] - b.n[pj][k];
+        if (exact(c, qs.x[qi], b.x[pj], 0.0, 0.0, s)) push(out, b.id[pj], s);
+      }
+    });
     out.count[qi] =
         static_cast<std::uint32_t>(static_cast<std::int64_t>(out.found.size()) - out.start[qi]);
   }
