@@ -2,9 +2,12 @@
 // and the experiments that families of structures add to the report.
 #pragma once
 
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -21,6 +24,10 @@ struct LabContext {
   std::function<void(const std::string& what, double fraction)> progress;
   /// Seconds the experiment may take at most (it scales its sizes to fit).
   double budget_seconds = 60;
+  /// --max-n: the most objects any of the experiment's worlds may hold.
+  std::size_t max_n = std::numeric_limits<std::size_t>::max();
+  /// A world size of the experiment, capped by --max-n.
+  std::size_t capped(std::size_t n) const { return std::min(n, max_n); }
 };
 
 /// One experiment's contribution to REPORT.md: a Markdown section (with its

@@ -641,6 +641,7 @@ void run_experiments(Run& run) {
     ctx.out_dir = out_dir;
     ctx.quick = o.quick;
     ctx.seed = o.seed;
+    if (o.max_n_given) ctx.max_n = o.max_n;
     if (!o.algos.empty())
       for (const Selected& s : structures)
         if (!s.peer && !s.lean) ctx.algos.push_back(s.spec);

@@ -24,7 +24,9 @@ void add_paper_command(CLI::App& app) {
                       "(default: every registered structure, and `arrays`, the lean path over "
                       "the caller's arrays, in the frame time and memory)");
   auto* max_n =
-      cmd->add_option("--max-n", o->max_n, "Largest number of objects to run (at least 50)")
+      cmd->add_option(
+             "--max-n", o->max_n,
+             "Largest number of objects to run (at least 50), in the study and in every experiment")
           ->check(whole_number());
   auto* seed = cmd->add_option("--seed", o->seed, "Random seed of the scenes")
                    ->default_val(1)

@@ -116,11 +116,11 @@ std::string lab_performance(const LabContext& ctx) {
   const bool two_cores = std::thread::hardware_concurrency() >= 2;
   const std::string ours2_spec = g.at("two_threads_spec");
   const nlohmann::json& gt = g.at("threads");
-  const std::size_t n_threads = ctx.quick ? gt.at("n_quick") : gt.at("n");
+  const std::size_t n_threads = ctx.capped(ctx.quick ? gt.at("n_quick") : gt.at("n"));
   // The weights of what is still to run (the workloads, then the threads).
   std::vector<double> weights;
   for (const Workload& w : workloads)
-    weights.push_back(workload_weight(ctx.quick ? w.n_quick : w.n));
+    weights.push_back(workload_weight(ctx.capped(ctx.quick ? w.n_quick : w.n)));
   weights.push_back(workload_weight(n_threads));
   double weight_total = 0;
   for (double x : weights) weight_total += x;
@@ -175,7 +175,7 @@ std::string lab_performance(const LabContext& ctx) {
   double advise_least = kAdviseSeconds;      // the smallest budget advise had
   for (std::size_t k = 0; k < workloads.size(); ++k) {
     const Workload& w = workloads[k];
-    const std::size_t n = ctx.quick ? w.n_quick : w.n;
+    const std::size_t n = ctx.capped(ctx.quick ? w.n_quick : w.n);
     const double share = share_of(k);
     if (!ctx.quick && share < least_share(n)) {
       cuts.push_back("left out " + w.label + " " + std::to_string(n) + " (" + fmt(share, 1) +
@@ -442,7 +442,7 @@ std::string lab_performance(const LabContext& ctx) {
     const Row& row = rows[r];
     const Workload& w = workloads[r];
     const StructureTiming& a = row.arrays;
-    const double n = static_cast<double>(ctx.quick ? w.n_quick : w.n);
+    const double n = static_cast<double>(ctx.capped(ctx.quick ? w.n_quick : w.n));
     const bool agree = a.error.empty() && first_disagreement(a, row.ours) < 0;
     if (!a.error.empty()) {
       md << "| " << row.workload << " | failed: " << a.error << " | | | | | | | ✗ |\n";

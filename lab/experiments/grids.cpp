@@ -100,7 +100,7 @@ namespace {
 
 std::string lab_cell_size_sweep(const LabContext& ctx) {
   const auto t0 = std::chrono::steady_clock::now();
-  const std::size_t n = 6400;
+  const std::size_t n = ctx.capped(6400);
   const std::vector<double> cells =
       ctx.quick
           ? std::vector<double>{10, 30, 100, 300}

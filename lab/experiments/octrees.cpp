@@ -80,7 +80,7 @@ bool agree(const std::vector<Runner>& runners) {
 }
 
 std::string rebuild_policies(const LabContext& ctx, double seconds) {
-  const std::size_t n = ctx.quick ? 1600 : 6400;
+  const std::size_t n = ctx.capped(ctx.quick ? 1600 : 6400);
   const int frames = ctx.quick ? 60 : 300;
   std::ostringstream md;
   std::ofstream csv(ctx.out_dir / "octrees_kdtree_rebuild.csv");
@@ -118,7 +118,7 @@ std::string rebuild_policies(const LabContext& ctx, double seconds) {
 }
 
 std::string split_sweep(const LabContext& ctx, double seconds) {
-  const std::size_t n = ctx.quick ? 1600 : 6400;
+  const std::size_t n = ctx.capped(ctx.quick ? 1600 : 6400);
   const int frames = ctx.quick ? 20 : 100;
   const int thresholds[] = {1, 2, 4, 8, 16, 32, 64, 128};
   std::ostringstream md;
@@ -154,7 +154,7 @@ std::string split_sweep(const LabContext& ctx, double seconds) {
 }
 
 std::string memory_per_object(const LabContext& ctx) {
-  const std::size_t n = ctx.quick ? 1600 : 6400;
+  const std::size_t n = ctx.capped(ctx.quick ? 1600 : 6400);
   const char* specs[] = {"octree", "octree-loose", "octree-linear", "kdtree", "naive"};
   std::ostringstream md;
   std::ofstream csv(ctx.out_dir / "octrees_memory.csv");

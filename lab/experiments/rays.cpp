@@ -475,6 +475,8 @@ std::string lab_rays_with(const LabContext& ctx, const RaysOptions& options) {
   if (sizes.empty())
     sizes = ctx.quick ? std::vector<std::size_t>{300, 1000}
                       : std::vector<std::size_t>{1000, 10000, 100000, 1000000};
+  if (std::erase_if(sizes, [&](std::size_t n) { return n > ctx.max_n; }) && sizes.empty())
+    sizes.push_back(ctx.max_n);
   std::vector<Kind> kinds;
   for (const Kind& k : kKinds)
     if (options.kinds.empty() ||
@@ -610,7 +612,7 @@ std::string lab_rays_with(const LabContext& ctx, const RaysOptions& options) {
 
   // The layers part.
   std::vector<LayerResult> layer_rows;
-  const std::size_t n_layers = ctx.quick ? 1000 : 10000;
+  const std::size_t n_layers = ctx.capped(ctx.quick ? 1000 : 10000);
   if (options.layers) {
     const Scene scene = generate(Distribution::scaled_even, n_layers, ctx.seed);
     std::vector<std::string> specs{kDefault};

@@ -82,9 +82,12 @@ std::string lab_tunneling(const LabContext& ctx) {
     Scene scene;
     int frames;
   };
+  const std::size_t n_tunnel = ctx.capped(200), n_even = ctx.capped(6400);
   const std::vector<Case> cases = {
-      {"tunnel-200", make_tunnel_scene(200, ctx.seed), ctx.quick ? 200 : 1000},
-      {"even-6400", generate(Distribution::even, 6400, ctx.seed), ctx.quick ? 3 : 200},
+      {"tunnel-" + std::to_string(n_tunnel), make_tunnel_scene(n_tunnel, ctx.seed),
+       ctx.quick ? 200 : 1000},
+      {"even-" + std::to_string(n_even), generate(Distribution::even, n_even, ctx.seed),
+       ctx.quick ? 3 : 200},
   };
   const Ccd modes[] = {Ccd::off, Ccd::substep, Ccd::swept};
   const double share = (ctx.quick ? std::min(ctx.budget_seconds, 6.0) : ctx.budget_seconds) / 6;

@@ -167,8 +167,8 @@ std::string lab_tree_experiments(const LabContext& ctx) {
   // Sizes: the study's largest even scene and a 20 000-object explosion,
   // scaled down for --quick or a small budget.
   const bool small = ctx.quick || ctx.budget_seconds < 30;
-  const std::size_t n_study = small ? 1600 : 6400;
-  const std::size_t n_blast = small ? 4000 : 20000;
+  const std::size_t n_study = ctx.capped(small ? 1600 : 6400);
+  const std::size_t n_blast = ctx.capped(small ? 4000 : 20000);
   const int frames = small ? 8 : std::clamp(static_cast<int>(ctx.budget_seconds / 4), 10, 40);
   const Scene even = generate(Distribution::even, n_study, ctx.seed);
   const Scene blast = generate(Distribution::explosion, n_blast, ctx.seed);
