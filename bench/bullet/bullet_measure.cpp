@@ -66,6 +66,8 @@ struct Live {
 
 }  // namespace
 
+std::string bullet_default_structure() { return broadphase::BulletOptions{}.structure; }
+
 const std::vector<std::string>& bullet_scenes() {
   static const std::vector<std::string> names = [] {
     std::vector<std::string> v;

@@ -32,6 +32,9 @@ struct BulletRun {
   int pairs = 0;                 ///< overlapping pairs in Bullet's cache after the last step
 };
 
+/// BulletBroadphase's default structure (BulletOptions{}.structure).
+std::string bullet_default_structure();
+
 /// The scene names `BulletPlan::scene` takes.
 const std::vector<std::string>& bullet_scenes();
 

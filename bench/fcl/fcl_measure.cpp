@@ -1,6 +1,7 @@
 #include "fcl_measure.hpp"
 
 #include <fcl/broadphase/broadphase_SaP.h>
+#include <fcl/broadphase/broadphase_bruteforce.h>
 #include <fcl/broadphase/broadphase_dynamic_AABB_tree.h>
 #include <fcl/broadphase/broadphase_spatialhash.h>
 #include <fcl/geometry/shape/box.h>
@@ -89,6 +90,7 @@ FclSizeRun measure_fcl(const FclPlan& plan) {
         std::make_unique<fcl::SpatialHashingCollisionManager<double>>(
             cell, fcl::Vector3d(0, 0, 0), fcl::Vector3d(scene.world, scene.world, scene.world),
             static_cast<unsigned>(std::max<std::size_t>(n, 1000))));
+  if (plan.naive) add("fcl Naive", std::make_unique<fcl::NaiveCollisionManagerd>());
   for (Contender& c : cs) {
     const auto t = Clock::now();
     c.manager->registerObjects(all);

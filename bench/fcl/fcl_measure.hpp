@@ -20,6 +20,7 @@ struct FclPlan {
   std::string structure;   ///< ours: a registry spec (empty: kFclDefaultStructure)
   bool sap = true;         ///< FCL's SaPCollisionManager
   bool hash = true;        ///< FCL's SpatialHashingCollisionManager
+  bool naive = false;      ///< FCL's NaiveCollisionManager (every pair tested)
 };
 
 /// One manager's frames: the thread's CPU time of its update and collide.
