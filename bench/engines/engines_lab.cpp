@@ -17,12 +17,13 @@
 // options.
 //
 // Why a runner of its own and not a section of every `broadphase paper`:
-// the full plan takes about 10 minutes of CPU (two thirds of it the Bullet
-// worlds' steps), more than the paper's whole experiments budget gives any
-// one section, and the Bullet and FCL measuring code would put Bullet's
-// worlds and FCL's managers into the lab that CI builds twice (Release and
-// ASan); here they are compiled only with the benchmarks (BROADPHASE_BUILD_BENCH,
-// off in the sanitized build), as rays_lab is for the rays section.
+// one run of the plan took 13 minutes of wall-clock time on the 2-core
+// Intel VM at load 6 to 9 (Bullet's steps 2.5 minutes of CPU of it), more
+// than the paper's budget gives any one experiment, and the Bullet and FCL
+// measuring code would put Bullet's worlds and FCL's managers into the lab
+// that CI builds twice (Release and ASan); here they are compiled only with
+// the benchmarks (BROADPHASE_BUILD_BENCH, off in the sanitized stage), as
+// rays_lab is for the rays section.
 #include <algorithm>
 #include <broadphase/detail/median.hpp>
 #include <broadphase/scenes/output_file.hpp>
@@ -80,8 +81,8 @@ struct Options {
 // The plan. Step counts: the falling boxes come to rest after about 120 of
 // the 300 steps (docs/bullet.md), so the medians weigh the pile at rest;
 // 10 000 and 100 000 bodies take 60 and 10 steps (still falling), what fits
-// the section's ten minutes on the 2-core hosts (a step of 100 000 costs
-// about 0.3 s of CPU a broad phase; 200 steps of 10 000 took 77 s of CPU
+// a run in about ten minutes on the 2-core hosts (a step of 100 000 costs
+// 0.35 to 0.42 s of CPU a broad phase; 200 steps of 10 000 took 77 s of CPU
 // each). bt32BitAxisSweep3 is left out at 100 000: its insertions alone
 // took minutes there (docs/lab.md, rays). FCL's SaP and spatial hash stop
 // at 10^4 (77 and 129 ms a frame there, growing faster than linearly: SaP's
