@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "frame.hpp"
+
 namespace broadphase {
 namespace {
 
@@ -26,13 +28,6 @@ constexpr double kMaxBinsPerAxis = 1048576.0;  // 2^20
 
 [[noreturn]] void refuse(const std::string& what) { throw InvalidNeighbourInput(what); }
 
-std::string number(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  return s.str();
-}
-
 Vec3 cross(Vec3 a, Vec3 b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
@@ -40,14 +35,16 @@ double dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 double norm(Vec3 a) { return std::sqrt(dot(a, a)); }
 Vec3 unit(Vec3 a) { return a * (1.0 / norm(a)); }
 
-/// The frame the bins are laid in: the periodic cell vectors, completed by
-/// unit vectors orthogonal to them on the axes that are not periodic.
-/// Fractional coordinate k of x is dot(x, col_k); a displacement of length r
-/// moves it by at most r * |col_k| (`spread[k]`).
-struct Frame {
-  std::array<Vec3, 3> col{};
-  std::array<double, 3> spread{};
-};
+}  // namespace
+
+namespace neighbours_detail {
+
+std::string number(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
 
 Frame make_frame(const NeighbourCell& cell) {
   for (int r = 0; r < 3; ++r)
@@ -87,6 +84,14 @@ Frame make_frame(const NeighbourCell& cell) {
   for (int k = 0; k < 3; ++k) f.spread[k] = norm(f.col[k]);
   return f;
 }
+
+}  // namespace neighbours_detail
+
+namespace {
+
+using neighbours_detail::Frame;
+using neighbours_detail::make_frame;
+using neighbours_detail::number;
 
 /// One set of points as the engine reads it: positions as given, fractional
 /// coordinates, and on periodic axes the wrap count n = floor(s).
