@@ -38,7 +38,7 @@ import numpy as np
 from . import _broadphase
 from ._broadphase import IndexCore as _IndexCore
 from . import ase, mdanalysis
-from ._neighbours import neighbor_list, neighbor_list_between
+from ._neighbours import NeighbourList, neighbor_list, neighbor_list_between
 from ._knn import knn, within
 
 __all__ = [
@@ -54,6 +54,7 @@ __all__ = [
     "set_scratch_limit",
     "neighbor_list",
     "neighbor_list_between",
+    "NeighbourList",
     "ase",
     "mdanalysis",
     "knn",

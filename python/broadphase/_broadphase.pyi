@@ -172,3 +172,27 @@ def neighbour_list_between(
     vectors: bool,
     offsets: bool,
 ) -> Dict[str, NeighbourArray]: ...
+
+class MovingNeighbourList:
+    """A neighbour list with a skin, reused over frames (moving_neighbours.hpp)."""
+
+    def __init__(
+        self,
+        cell: Sequence[Sequence[float]],
+        pbc: Sequence[bool],
+        cutoff: float,
+        cutoffs: Optional[Any],
+        skin: float,
+        full: bool,
+        self_interaction: bool,
+        strict: bool,
+        shifts: bool,
+        distances: bool,
+        vectors: bool,
+        offsets: bool,
+    ) -> None: ...
+    def update(self, positions: Any) -> Dict[str, NeighbourArray]: ...
+    def skin(self) -> float: ...
+    def rebuilds(self) -> int: ...
+    def candidates(self) -> int: ...
+    def memory_bytes(self) -> int: ...

@@ -1,5 +1,6 @@
 /// \file neighbours.cpp
-/// Neighbour lists for Python: arrays in through the buffer protocol (read in
+/// Neighbour lists for Python (one-shot, and the moving list with a skin):
+/// arrays in through the buffer protocol (read in
 /// place, float64 or float32), the library's lists out as owned buffers that
 /// numpy wraps without a copy, the GIL released while the list is found, and
 /// InvalidNeighbourInput raised as ValueError.
@@ -8,9 +9,13 @@
 #include <pybind11/stl.h>
 
 #include <array>
+#include <atomic>
+#include <broadphase/moving_neighbours.hpp>
 #include <broadphase/neighbours.hpp>
 #include <cstdint>
 #include <exception>
+#include <memory>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -141,6 +146,60 @@ py::dict neighbour_list_between(const py::buffer& queries, const py::buffer& poi
   return to_dict(std::move(l), o);
 }
 
+/// A moving neighbour list (moving_neighbours.hpp) for Python: update
+/// releases the GIL; a call that overlaps another on the same list raises
+/// RuntimeError instead of racing (the list changes in update).
+class MovingList {
+ public:
+  MovingList(const std::vector<std::vector<double>>& cell, const std::vector<bool>& pbc,
+             double cutoff, const py::object& cutoffs, double skin, bool full,
+             bool self_interaction, bool strict, bool shifts, bool distances, bool vectors,
+             bool offsets) {
+    const bp::NeighbourCell c = cell_of(cell, pbc);
+    bp::NeighbourOptions o = options_of(strict, shifts, distances, vectors, offsets);
+    o.full = full;
+    o.self_interaction = self_interaction;
+    options_ = o;
+    if (cutoffs.is_none()) {
+      list_ = std::make_unique<bp::MovingNeighbourList>(c, cutoff, skin, o);
+    } else {
+      const RealArray cuts = real_array(cutoffs.cast<py::buffer>(), "cutoff", 0, false, SIZE_MAX);
+      list_ = std::make_unique<bp::MovingNeighbourList>(c, cuts.column(0), cuts.rows, skin, o);
+    }
+  }
+
+  py::dict update(const py::buffer& positions) {
+    const RealArray pos = real_array(positions, "positions", 3, false, SIZE_MAX);
+    Exclusive use(busy_);
+    bp::NeighbourList l;
+    {
+      py::gil_scoped_release release;
+      l = list_->update(points_of(pos));
+    }
+    return to_dict(std::move(l), options_);
+  }
+
+  double skin() const { return list_->skin(); }
+  std::size_t rebuilds() const { return list_->rebuilds(); }
+  std::size_t candidates() const { return list_->candidates(); }
+  std::size_t memory_bytes() const { return list_->memory_bytes(); }
+
+ private:
+  struct Exclusive {
+    std::atomic<bool>& flag;
+    explicit Exclusive(std::atomic<bool>& f) : flag(f) {
+      if (flag.exchange(true))
+        throw std::runtime_error("NeighbourList.update: the list is in use by another thread");
+    }
+    ~Exclusive() { flag.store(false); }
+    Exclusive(const Exclusive&) = delete;
+    Exclusive& operator=(const Exclusive&) = delete;
+  };
+  std::unique_ptr<bp::MovingNeighbourList> list_;
+  bp::NeighbourOptions options_;
+  std::atomic<bool> busy_{false};
+};
+
 }  // namespace
 
 void bind_neighbours(py::module_& m) {
@@ -165,6 +224,20 @@ void bind_neighbours(py::module_& m) {
         py::arg("cell"), py::arg("pbc"), py::arg("cutoff"), py::arg("strict"), py::arg("shifts"),
         py::arg("distances"), py::arg("vectors"), py::arg("offsets"),
         "Pairs (q, p, S): points moved by S within the cutoff of queries.");
+  py::class_<MovingList>(
+      m, "MovingNeighbourList",
+      "A neighbour list with a skin, reused over frames (moving_neighbours.hpp).")
+      .def(py::init<const std::vector<std::vector<double>>&, const std::vector<bool>&, double,
+                    const py::object&, double, bool, bool, bool, bool, bool, bool, bool>(),
+           py::arg("cell"), py::arg("pbc"), py::arg("cutoff"), py::arg("cutoffs"), py::arg("skin"),
+           py::arg("full"), py::arg("self_interaction"), py::arg("strict"), py::arg("shifts"),
+           py::arg("distances"), py::arg("vectors"), py::arg("offsets"))
+      .def("update", &MovingList::update, py::arg("positions"),
+           "The list of these positions: a dict of int64/float64 buffers, as neighbour_list.")
+      .def("skin", &MovingList::skin)
+      .def("rebuilds", &MovingList::rebuilds)
+      .def("candidates", &MovingList::candidates)
+      .def("memory_bytes", &MovingList::memory_bytes);
 }
 
 }  // namespace broadphase_python
