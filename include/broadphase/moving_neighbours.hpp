@@ -22,10 +22,11 @@
 /// the candidates (about (1 + skin/cutoff)^3 times the pairs); a rebuild is
 /// one `neighbour_list` call at cutoff + skin.
 ///
-/// Memory: 16 bytes a candidate (twice the half list's count with `full`),
-/// plus 64 bytes a point (reference and current positions, wrap counts,
-/// the CSR start of its candidates), plus 8 bytes a point for per-point
-/// cutoffs; `memory_bytes()` tells. The returned lists are the caller's.
+/// Memory: 32 bytes a candidate (16 kept, 16 of the evaluation's scratch;
+/// a full list has twice the half list's candidates), 24 more with
+/// distances or vectors; 64 bytes a point (reference and current positions,
+/// wrap counts, the start of its candidates), 16 more with per-point
+/// cutoffs. `memory_bytes()` tells. The returned lists are the caller's.
 ///
 /// Thread-safety: `update` changes the object: one thread at a time. The
 /// const members may run concurrently with each other. One thread inside.
@@ -46,9 +47,15 @@ namespace broadphase {
 class MovingNeighbourList {
  public:
   /// The skin a list takes unless told, as a fraction of the largest reach
-  /// (the cutoff, or twice the largest per-point cutoff). Measured in
-  /// docs/neighbours.md ("Moving systems").
-  static constexpr double kDefaultSkinFraction = 0.1;
+  /// (the cutoff, or twice the largest per-point cutoff). Measured on
+  /// thermal-like motion of 10^4 to 10^6 points at liquid density, 3 Å
+  /// cutoff, 0.024 Å a frame (python/bench/neighbours.py --moving): skins
+  /// of 0.1, 0.15, 0.2 and 0.3 of the cutoff took 1.3, 1.4, 1.3 and 1.0
+  /// times the 0.3 skin's time a frame at 10^5 points (rebuilds every 2.4 to
+  /// 6.7 frames: the fastest point of 10^5 moves three times the mean step),
+  /// and the 0.3 skin was the fastest at 10^4 too (docs/neighbours.md,
+  /// "Moving systems").
+  static constexpr double kDefaultSkinFraction = 0.3;
 
   /// One cutoff (finite, >= 0) and a skin (finite, >= 0; negative: the
   /// default, kDefaultSkinFraction * cutoff). Throws InvalidNeighbourInput

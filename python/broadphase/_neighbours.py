@@ -179,12 +179,13 @@ class NeighbourList:
         quantities, cutoff, cell, pbc, full, self_interaction, strict: as
             for :func:`neighbor_list`, fixed for the list's life; per-point
             cutoffs fix the number of points.
-        skin: the skin (a length >= 0); None: 0.1 of the largest reach (the
+        skin: the skin (a length >= 0); None: 0.3 of the largest reach (the
             cutoff, or twice the largest per-point cutoff), the fastest of
-            the skins measured on thermal motion (docs/neighbours.md).
+            the skins measured on thermal-like motion (docs/neighbours.md).
+            Pairs are looked for again when a point has moved half of it.
 
-    Memory: 16 bytes a candidate (twice as many for ``full``), 64 bytes a
-    point. ``update`` releases the GIL; two overlapping calls on the same
+    Memory: 32 bytes a candidate (a full list has twice as many), 64 bytes
+    a point. ``update`` releases the GIL; two overlapping calls on the same
     list raise RuntimeError.
 
     Raises:

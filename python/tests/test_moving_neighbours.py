@@ -100,7 +100,7 @@ def test_same_neighbours_as_ase_over_frames():
 def test_skin_default_and_reuse():
     x = np.random.default_rng(1).random((200, 3)) * 10
     nl = broadphase.NeighbourList("ij", 2.0, cell=10.0)
-    assert nl.skin == pytest.approx(0.2)
+    assert nl.skin == pytest.approx(0.6)
     for _ in range(5):
         i, j = nl.update(x)
         x += 0.001
