@@ -17,8 +17,24 @@ and a numpy filter keeps the pairs within c_i + c_j. Medians of --runs
 runs (fewer when a call takes long), wall and process CPU time; the pair
 counts are checked against broadphase's.
 
+With --moving: a moving system instead, 100 frames (--frames) of
+thermal-like motion of N points in the cube at the same density: each point
+has a velocity, Gaussian with 0.015 Å a frame per axis (--step; a mean
+step of 0.024 Å), that relaxes towards a new random one (v = 0.9 v + 0.44 noise,
+the velocity autocorrelation of a liquid over a few frames), and the
+positions are wrapped into the cell after each step (points cross the
+faces). broadphase.NeighbourList('ijS', 3.0, skin=...) updated on every
+frame (its total CPU time over the frames, rebuilds included, divided by
+the frames; median of --runs replays of the same trajectory), against
+rebuilding each frame: cKDTree(x, boxsize=L).query_pairs(3.0) and our own
+one-shot neighbor_list('ijS'), each timed on --peer-frames frames spread
+over the trajectory (their cost does not depend on the frame), median;
+every list checked against the one-shot one on those frames. --skins
+measures several skins (the default skin's choice).
+
 Usage: PYTHONPATH=build/python /usr/bin/python3 python/bench/neighbours.py
        [--sizes 1000 10000 100000 1000000] [--runs 5] [--ase-max 100000]
+       [--moving [--frames 100] [--peer-frames 5] [--skins 0.3 0.6]]
        [--out FILE.json]
 """
 
@@ -91,6 +107,96 @@ def cell_of(n, triclinic):
     return broadphase.mdanalysis.triclinic_vectors(box).astype(np.float64), box
 
 
+STEP = 0.015  # Å a frame per axis: the velocity's standard deviation
+MEMORY = 0.9  # the velocity's autocorrelation from one frame to the next
+
+
+def trajectory(n, frames, seed, step=STEP):
+    """The positions of each frame of the moving system (generated on the
+    fly: 10^6 points take 24 MB a frame) and the cube's side."""
+    rng = np.random.default_rng(seed)
+    side = (n / DENSITY) ** (1 / 3)
+    x = rng.uniform(0, side, (n, 3))
+    v = rng.normal(0, step, (n, 3))
+    for frame in range(frames):
+        if frame:
+            v *= MEMORY
+            v += rng.normal(0, step * np.sqrt(1 - MEMORY ** 2), (n, 3))
+            x += v
+            np.mod(x, side, out=x)
+            x[x >= side] = 0.0  # a tiny negative x rounds to side (cKDTree wants [0, side))
+        yield x, side
+
+
+def cpu_call(fn):
+    c = time.process_time()
+    out = fn()
+    return time.process_time() - c, out
+
+
+def moving(args, cpu, versions):
+    """The moving-system table (see the module's docstring)."""
+    rows = []
+    for n in args.sizes:
+        side = (n / DENSITY) ** (1 / 3)
+        peer_frames = set(np.linspace(0, args.frames - 1, args.peer_frames).astype(int).tolist())
+        # Rebuilding each frame: cKDTree and our one-shot list on a few
+        # frames; the moving lists are checked against the one-shot ones.
+        kd_cpu, one_cpu, checks = [], [], {}
+        for frame, (x, _) in enumerate(trajectory(n, args.frames, n, args.step)):
+            if frame not in peer_frames:
+                continue
+            c, one = cpu_call(lambda: broadphase.neighbor_list("ijS", x, CUTOFF, cell=side,
+                                                               strict=True))
+            one_cpu.append(c)
+            checks[frame] = one
+            if cKDTree is not None:
+                c, p = cpu_call(lambda: cKDTree(x, boxsize=side).query_pairs(
+                    CUTOFF, output_type="ndarray"))
+                kd_cpu.append(c)
+                if len(p) != len(one[0]):
+                    print(f"note: cKDTree found {len(p)} pairs, broadphase {len(one[0])} "
+                          f"(n {n}, frame {frame}): ties at the cutoff")
+        for skin in args.skins or [None]:
+            totals, rebuilds = [], 0
+            for run in range(args.runs):
+                nl = broadphase.NeighbourList("ijS", CUTOFF, skin=skin, cell=side, strict=True)
+                total = 0.0
+                for frame, (x, _) in enumerate(trajectory(n, args.frames, n, args.step)):
+                    c, out = cpu_call(lambda: nl.update(x))
+                    total += c
+                    if run == 0 and frame in checks:
+                        assert all(np.array_equal(a, b) for a, b in zip(out, checks[frame])), \
+                            f"n {n} frame {frame}: the moving list differs from the one-shot one"
+                totals.append(total)
+                rebuilds = nl.rebuilds
+                if total > args.budget:
+                    break
+            per_frame = float(np.median(totals)) / args.frames
+            row = {"n": n, "frames": args.frames, "step": args.step, "skin": nl.skin, "rebuilds": rebuilds,
+                   "pairs": len(checks[min(checks)][0]), "candidates": nl.candidates,
+                   "moving_cpu": per_frame, "runs": len(totals),
+                   "oneshot_cpu": float(np.median(one_cpu)),
+                   "oneshot_cpu_ratio": float(np.median(one_cpu)) / per_frame}
+            if kd_cpu:
+                row.update(ckdtree_cpu=float(np.median(kd_cpu)),
+                           ckdtree_cpu_ratio=float(np.median(kd_cpu)) / per_frame)
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+
+    print()
+    print("| N | pairs | skin Å | rebuilds | moving, CPU s a frame | one-shot each frame × "
+          "| cKDTree each frame × |")
+    print("|---:|---:|---:|---:|---:|---:|---:|")
+    for r in rows:
+        kd = f"{r['ckdtree_cpu_ratio']:.1f}×" if "ckdtree_cpu_ratio" in r else "—"
+        print(f"| {r['n']:,} | {r['pairs']:,} | {r['skin']:.2f} | {r['rebuilds']} / {r['frames']} | "
+              f"{r['moving_cpu']:.4f} | {r['oneshot_cpu_ratio']:.1f}× | {kd} |")
+    if args.out:
+        with open(args.out, "w") as f:
+            json.dump({"machine": cpu, "versions": versions, "rows": rows}, f, indent=1)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000, 100000, 1000000])
@@ -98,6 +204,17 @@ def main():
     ap.add_argument("--ase-max", type=int, default=100000,
                     help="largest N for ASE (its memory grows fast)")
     ap.add_argument("--out", help="write the rows as JSON here")
+    ap.add_argument("--moving", action="store_true",
+                    help="the moving system: NeighbourList over frames against rebuilding")
+    ap.add_argument("--frames", type=int, default=100)
+    ap.add_argument("--peer-frames", type=int, default=5,
+                    help="frames on which the rebuilding methods are timed")
+    ap.add_argument("--skins", type=float, nargs="+",
+                    help="skins to measure (default: the list's default)")
+    ap.add_argument("--step", type=float, default=STEP,
+                    help="the velocity's standard deviation per axis, Å a frame")
+    ap.add_argument("--budget", type=float, default=60.0,
+                    help="CPU seconds after which a moving case stops repeating")
     args = ap.parse_args()
 
     versions = {"numpy": np.__version__, "broadphase": broadphase.__version__}
@@ -114,6 +231,9 @@ def main():
     except (OSError, IndexError):
         pass
     print(f"machine: {cpu}, {platform.node()}; versions {versions}")
+    if args.moving:
+        moving(args, cpu, versions)
+        return
     if Structure is None:
         print("note: pymatgen is not installed (not in Debian 12): not measured")
 
