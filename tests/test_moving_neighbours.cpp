@@ -18,6 +18,8 @@
 #include <string>
 #include <vector>
 
+#include "testing.hpp"
+
 namespace {
 
 using namespace broadphase;
@@ -156,7 +158,9 @@ MovingNeighbourList make_list(const Case& c) {
 
 TEST(MovingNeighbours, RandomWalksMatchTheOneShotListOnEveryFrame) {
   std::size_t frames = 0, rebuilds = 0, jumps = 0, pairs = 0;
-  for (std::uint64_t seed = 1; seed <= 40; ++seed) {
+  // A third of the seeds under ASan (19 s there for all 40).
+  const auto seeds = static_cast<std::uint64_t>(broadphase::testing::repeats(40));
+  for (std::uint64_t seed = 1; seed <= seeds; ++seed) {
     std::mt19937_64 rng(seed);
     Case c = random_case(rng);
     MovingNeighbourList m = make_list(c);
@@ -175,7 +179,7 @@ TEST(MovingNeighbours, RandomWalksMatchTheOneShotListOnEveryFrame) {
   }
   // The walks must reuse lists most of the time, and rebuild too.
   EXPECT_LT(rebuilds * 3, frames) << rebuilds << " rebuilds in " << frames << " frames";
-  EXPECT_GT(rebuilds, 40u + jumps / 2);
+  EXPECT_GT(rebuilds, seeds + jumps / 2);
   EXPECT_GT(pairs, frames * 10);
 }
 
