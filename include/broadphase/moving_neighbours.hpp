@@ -53,8 +53,8 @@ class MovingNeighbourList {
   /// of 0.1, 0.15, 0.2 and 0.3 of the cutoff took 1.3, 1.4, 1.3 and 1.0
   /// times the 0.3 skin's time a frame at 10^5 points (rebuilds every 2.4 to
   /// 6.7 frames: the fastest point of 10^5 moves three times the mean step),
-  /// and the 0.3 skin was the fastest at 10^4 too (docs/neighbours.md,
-  /// "Moving systems").
+  /// and the 0.3 skin was the fastest at 10^4 and 10^6 too
+  /// (docs/neighbours.md, "Moving systems").
   static constexpr double kDefaultSkinFraction = 0.3;
 
   /// One cutoff (finite, >= 0) and a skin (finite, >= 0; negative: the
