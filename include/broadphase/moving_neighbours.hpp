@@ -89,7 +89,7 @@ class MovingNeighbourList {
 
  private:
   /// A point as the evaluation reads it: its position as given and its
-  /// wrap count m relative to the reference (32 bytes, one cache line).
+  /// wrap count m relative to the reference (32 bytes, half a cache line).
   struct Point {
     double x, y, z;
     std::int16_t m[3];
@@ -121,7 +121,7 @@ class MovingNeighbourList {
   double cell_sum_ = 0;             ///< sum over periodic k of |v_k|_1
   double reference_max_ = 0;        ///< largest |coordinate| at the rebuild
   bool built_ = false;
-  bool wrapped_ = false;  ///< some m != 0 since the rebuild
+  bool wrapped_ = false;  ///< some m != 0 in this frame
   std::size_t rebuilds_ = 0;
   std::vector<Vec3> reference_;
   std::vector<Point> points_;
