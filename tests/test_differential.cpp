@@ -12,9 +12,11 @@ namespace {
 
 class Differential : public ::testing::TestWithParam<std::string> {};
 
+// The seed loops below run fewer seeds under the sanitizers (repeats():
+// every world still runs); the Release build runs them all.
 TEST_P(Differential, MatchesNaiveOnRandomOperations) {
   for (World w : {World::mixed, World::touching, World::far, World::huge})
-    for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(repeats(4)); ++seed) {
       differential(GetParam(), w, seed * 7919 + static_cast<std::uint64_t>(w), 700);
       if (HasFailure()) return;
     }
@@ -34,14 +36,14 @@ TEST_P(Differential, MatchesNaiveWithThousandsInOneCell) {
 }
 
 TEST_P(Differential, MatchesNaiveWhereTheArithmeticOverflows) {
-  for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(repeats(3)); ++seed) {
     differential(GetParam(), World::extreme, 1000 + seed, 500);
     if (HasFailure()) return;
   }
 }
 
 TEST_P(Differential, MatchesNaiveWhereTheSquaresUnderflow) {
-  for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(repeats(3)); ++seed) {
     differential(GetParam(), World::tiny, 2000 + seed, 500);
     if (HasFailure()) return;
   }
