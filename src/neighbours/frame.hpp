@@ -1,7 +1,4 @@
 /// \file frame.hpp
-/// `v` with 17 significant digits, for messages.
-std::string number(double v);
-
 /// The frame of a neighbour cell (neighbours.cpp), shared by the one-shot
 /// lists and the moving list (moving.cpp): private to the library.
 #pragma once
@@ -27,5 +24,9 @@ std::string number(double v);
 /// The frame of `cell`; throws InvalidNeighbourInput for vectors that are
 /// not finite, zero or linearly dependent on the periodic axes.
 Frame make_frame(const NeighbourCell& cell);
+
+/// Throws InvalidNeighbourInput naming `name` unless `v` is finite and >= 0
+/// (a cutoff or a skin).
+void check_cutoff(double v, const std::string& name);
 
 }  // namespace broadphase::neighbours_detail

@@ -18,13 +18,10 @@ namespace broadphase {
 namespace {
 
 namespace rule = neighbour_rule;
+using neighbours_detail::check_cutoff;
 using neighbours_detail::number;
 
 [[noreturn]] void refuse(const std::string& what) { throw InvalidNeighbourInput(what); }
-
-void check_length(double v, const std::string& name) {
-  if (!std::isfinite(v) || v < 0) refuse(name + ": must be finite and >= 0 (" + number(v) + ")");
-}
 
 // The largest wrap count a point keeps between rebuilds (it fits the 16
 // bits of a Point's m); a point given more cells than this away from its
@@ -36,9 +33,9 @@ constexpr double kMaxWrap = 32767.0;
 MovingNeighbourList::MovingNeighbourList(const NeighbourCell& cell, double cutoff, double skin,
                                          const NeighbourOptions& options)
     : cell_(cell), options_(options), cutoff_(cutoff) {
-  check_length(cutoff, "cutoff");
+  check_cutoff(cutoff, "cutoff");
   skin_ = skin < 0 ? kDefaultSkinFraction * cutoff : skin;
-  check_length(skin_, "skin");
+  check_cutoff(skin_, "skin");
   reach_ = cutoff + skin_;
   if (!std::isfinite(reach_)) refuse("cutoff + skin: not finite (" + number(reach_) + ")");
   init_frame();
@@ -53,11 +50,11 @@ MovingNeighbourList::MovingNeighbourList(const NeighbourCell& cell, arrays::Colu
   double most = 0;
   for (std::size_t i = 0; i < count; ++i) {
     cutoffs_[i] = cutoffs.at(i);
-    check_length(cutoffs_[i], "cutoffs[" + std::to_string(i) + "]");
+    check_cutoff(cutoffs_[i], "cutoffs[" + std::to_string(i) + "]");
     most = std::max(most, cutoffs_[i]);
   }
   skin_ = skin < 0 ? kDefaultSkinFraction * (most + most) : skin;
-  check_length(skin_, "skin");
+  check_cutoff(skin_, "skin");
   // Each point's cutoff grows by half the skin, so that a pair's reach
   // c_i + c_j grows by the skin.
   const double half = 0.5 * skin_;

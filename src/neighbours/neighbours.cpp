@@ -85,10 +85,15 @@ Frame make_frame(const NeighbourCell& cell) {
   return f;
 }
 
+void check_cutoff(double v, const std::string& name) {
+  if (!std::isfinite(v) || v < 0) refuse(name + ": must be finite and >= 0 (" + number(v) + ")");
+}
+
 }  // namespace neighbours_detail
 
 namespace {
 
+using neighbours_detail::check_cutoff;
 using neighbours_detail::Frame;
 using neighbours_detail::make_frame;
 using neighbours_detail::number;
@@ -623,10 +628,6 @@ NeighbourList assemble(const Context& c, Groups& gr, const std::vector<std::uint
   }
   if (opt.offsets) out.offsets = std::move(offsets);
   return out;
-}
-
-void check_cutoff(double v, const std::string& name) {
-  if (!std::isfinite(v) || v < 0) refuse(name + ": must be finite and >= 0 (" + number(v) + ")");
 }
 
 NeighbourList self_list(const NeighbourPoints& points, const NeighbourCell& cell, double cutoff,
