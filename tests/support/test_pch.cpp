@@ -1,0 +1,1 @@
+// The owner of the tests' precompiled header (tests/CMakeLists.txt): no code.
