@@ -23,7 +23,9 @@ namespace broadphase_python {
 
 namespace {
 
-bp::Points points_of(const RealArray& a) { return {a.rows, a.column(0), a.column(1), a.column(2)}; }
+bp::Points knn_points_of(const RealArray& a) {
+  return {a.rows, a.column(0), a.column(1), a.column(2)};
+}
 
 bp::KnnConfig config_of(const py::object& box) {
   bp::KnnConfig c;
@@ -82,11 +84,11 @@ void register_knn(py::module_& m) {
           throw BadInput("knn: the output arrays must be contiguous (M, k) float64 and int64");
         py::gil_scoped_release release;
         translated([&] {
-          const bp::KnnIndex index_(points_of(p), config);
+          const bp::KnnIndex index_(knn_points_of(p), config);
           std::span<double> d(static_cast<double*>(d2.ptr), rows * k);
           std::span<std::int64_t> i(static_cast<std::int64_t*>(index.ptr), rows * k);
           if (q)
-            index_.knn(points_of(*q), k, d, i, threads);
+            index_.knn(knn_points_of(*q), k, d, i, threads);
           else
             index_.knn_self(k, exclude_self, d, i, threads);
           return 0;
@@ -109,8 +111,8 @@ void register_knn(py::module_& m) {
         {
           py::gil_scoped_release release;
           const bp::Neighbours found = translated([&] {
-            const bp::KnnIndex index_(points_of(p), config);
-            return q ? index_.within(points_of(*q), r, threads)
+            const bp::KnnIndex index_(knn_points_of(p), config);
+            return q ? index_.within(knn_points_of(*q), r, threads)
                      : index_.within_self(r, exclude_self, threads);
           });
           offsets = column_of(found.offsets);
