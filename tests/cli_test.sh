@@ -13,7 +13,7 @@ trap 'rm -rf "$tmp"' EXIT
 . "$(dirname "$0")/support/cli_checks.sh"
 
 # Every structure of `list` reproduces every reference scene exactly.
-algos=$("$cli" list | awk '{print $1}')
+algos=$(replayed_structures)
 [ -n "$algos" ] || { echo "FAIL: list printed nothing"; exit 1; }
 for a in $algos; do
   for s in "$data"/scenes/*.scene; do

@@ -34,7 +34,7 @@ is_periodic() { grep -q '^world .* periodic ' "$1"; }
 # object filters; filters: with).
 replay_all() {  # replay_all rays|filters|periodic
   local algos
-  algos=$("$cli" list | awk '{print $1}')
+  algos=$(replayed_structures)
   [ -n "$algos" ] || { echo "FAIL: list printed nothing"; fail=$((fail + 1)); return; }
   for s in "$data"/scenes/v3/*.scene; do
     if is_periodic "$s"; then
@@ -176,7 +176,7 @@ input_checks() {
 # filters and rays), against the oracle's lines.
 periodic_gen() {
   local algos
-  algos=$("$cli" list | awk '{print $1}')
+  algos=$(replayed_structures)
   "$cli" gen --dist half-boxes --n 400 --seed 6 --periodic xy --out "$tmp/slab.scene"
   "$cli" gen --dist decades --n 300 --seed 6 --periodic x --layers 4 --out "$tmp/tube.scene"
   "$cli" gen --dist box-decades --n 300 --seed 6 --periodic xyz --filters random --rays 30 \

@@ -8,6 +8,9 @@ fail=0
 pass=0
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+# For replayed_structures; this test's own check and expect_error follow.
+# shellcheck source=support/cli_checks.sh
+. "$(dirname "$0")/support/cli_checks.sh"
 
 check() {  # check NAME CONDITION...
   local name=$1; shift
@@ -50,7 +53,7 @@ check "substep misses fewer" test "$(field "$tmp/substep.json" missed)" -lt "$(f
 # hangs when a box jumps far; docs/peers.md), and swept boxes jump.
 small_moves_only=" fcl-sap "
 for mode in off swept; do
-  for a in $("$cli" list | awk '{print $1}'); do
+  for a in $(replayed_structures); do
     [ "$mode" = swept ] && [[ "$small_moves_only" == *" $a "* ]] && continue
     "$cli" sim --scene "$data/scenes/paper-uneven-400.scene" --algo "$a" --frames 40 --ccd $mode \
       --restitution 0.8 --out "$tmp/$a-$mode.scene" >/dev/null

@@ -19,3 +19,20 @@ expect_error() {
     fail=$((fail + 1)); echo "FAIL: $name (exit $rc): $(cat "$tmp/err")"
   fi
 }
+
+# replayed_structures: the structures whose replays the CLI tests compare
+# with the expected lines: every one of `list`, or under the sanitizers
+# (BROADPHASE_SANITIZED) four of them: the oracle, the default, a sweep
+# and a tree. The sanitized build still replays every structure over the
+# reference scenes in process (test_reference_scenes, test_scenes_v3;
+# trajectories: test_ccd), and the Release stage all of it through the
+# CLI. One sanitized process per structure and scene made these the
+# longest tests of CI's ASan stage after the lab's (cli 59 s,
+# cli_v3_periodic 70 s, sim 39 s).
+replayed_structures() {
+  if [ -n "${BROADPHASE_SANITIZED:-}" ]; then
+    echo naive grid-verlet sap kdtree
+  else
+    "$cli" list | awk '{print $1}'
+  fi
+}
