@@ -561,7 +561,7 @@ TEST(GenV3, EveryKindOfRayIsValidAndCovered) {
     finite_tmax += r.tmax > 0 && std::isfinite(r.tmax);
     masked += r.mask != 0xffffffffu;
     for (const Shape& o : s.objects) {
-      double t;
+      double t = 0;
       if (ray_hit(r, o, t) && t == 0) {
         ++at_zero;
         break;

@@ -349,17 +349,18 @@ QueryCost AabbTree::cast_ray(const Ray& r, V&& visitor) const {
   if (root_ == kNull || !cast.cull.enter(nodes_[root_].box, cast.tmax, t0)) return cast.cost;
   // Every node's box, and every object's tight box, lies inside the root's.
   const auto within = cast.cull.within(nodes_[root_].box);
-  detail::ray_tree_walk(
+  detail::ray_binary_walk(
       cast, within, root_, t0,
-      [&](std::uint32_t n, auto&& f) {
+      [&](std::uint32_t n, detail::RayChildren& kids) {
         const Node& node = nodes_[n];
-        if (node.is_leaf()) return;
-        f(node.child[0], nodes_[node.child[0]].box);
-        f(node.child[1], nodes_[node.child[1]].box);
+        if (node.is_leaf()) return false;
+        kids = {{node.child[0], node.child[1]},
+                {&nodes_[node.child[0]].box, &nodes_[node.child[1]].box}};
+        return true;
       },
       [&](std::uint32_t n) {
         const Node& node = nodes_[n];
-        return !node.is_leaf() || cast.test(node.object, tight_[node.object], within);
+        return cast.test(node.object, tight_[node.object], within);
       });
   return cast.cost;
 }

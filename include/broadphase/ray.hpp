@@ -18,6 +18,9 @@
 #include <stdexcept>
 #include <string>
 #include <type_traits>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace broadphase {
 
@@ -278,6 +281,39 @@ class RayCull {
       return true;
     }
     bool enter(const Aabb& b, double tmax, double& t) const { return cull_->enter(b, tmax, t); }
+    /// `enter` of two boxes at once: bit 0 of the result for `a` (with
+    /// `ta`), bit 1 for `b` (with `tb`); each bit and parameter is the one
+    /// `enter` gives. With SSE2 the two boxes share each instruction (two
+    /// doubles a register), in the same operations and order as `enter`:
+    /// the parameters are bit for bit `enter`'s. Measured on a k-d tree's
+    /// walk, where a node's two children and a leaf's items are tested in
+    /// pairs: see docs/rays.md.
+    unsigned enter2(const AabbF& a, const AabbF& b, double tmax, double& ta, double& tb) const {
+#if defined(__SSE2__)
+      if (fast_) {
+        __m128d tn = _mm_setzero_pd();
+        __m128d tf = _mm_set1_pd(tmax);
+        for (int k = 0; k < 3; ++k) {
+          const __m128d inv = _mm_set1_pd(inv_[k]);
+          const __m128d lo = _mm_set_pd(b.lo[k], a.lo[k]);
+          const __m128d hi = _mm_set_pd(b.hi[k], a.hi[k]);
+          const __m128d p = _mm_mul_pd(_mm_add_pd(lo, _mm_set1_pd(lo_[k])), inv);
+          const __m128d q = _mm_mul_pd(_mm_add_pd(hi, _mm_set1_pd(hi_[k])), inv);
+          // min(x, y) is x < y ? x : y, max(x, y) x > y ? x : y. With no
+          // NaN (the faces are finite or infinite, inv finite and not 0,
+          // every rounding monotone) the smaller of the lo and hi faces'
+          // parameters is `enter`'s near one, and these are its max and min.
+          tn = _mm_max_pd(_mm_min_pd(p, q), tn);
+          tf = _mm_min_pd(_mm_max_pd(p, q), tf);
+        }
+        ta = _mm_cvtsd_f64(tn);
+        tb = _mm_cvtsd_f64(_mm_unpackhi_pd(tn, tn));
+        return static_cast<unsigned>(_mm_movemask_pd(_mm_cmple_pd(tn, tf)));
+      }
+#endif
+      const unsigned hit_a = enter(a, tmax, ta) ? 1u : 0u;
+      return hit_a | (enter(b, tmax, tb) ? 2u : 0u);
+    }
 
    private:
     friend class RayCull;
@@ -285,6 +321,7 @@ class RayCull {
     bool fast_ = false;
     bool lo_near_[3] = {};
     double near_[3] = {}, far_[3] = {}, inv_[3] = {};
+    double lo_[3] = {}, hi_[3] = {};  // the grown faces relative to the origin
   };
 
   /// A culling for boxes inside `outer` only, as conservative as `enter`
@@ -312,6 +349,8 @@ class RayCull {
       const double grown_hi = m - o_[a];
       w.near_[a] = w.lo_near_[a] ? grown_lo : grown_hi;
       w.far_[a] = w.lo_near_[a] ? grown_hi : grown_lo;
+      w.lo_[a] = grown_lo;
+      w.hi_[a] = grown_hi;
     }
     return w;
   }

@@ -237,6 +237,60 @@ void ray_tree_walk(Cast& cast, std::uint32_t root, double root_t, Box&& box,
       std::forward<Items>(items));
 }
 
+/// The two children of a binary tree's inner node and their float boxes,
+/// as ray_binary_walk asks for them.
+struct RayChildren {
+  std::uint32_t node[2];
+  const AabbF* box[2];
+};
+
+/// ray_tree_walk for a binary tree (the k-d tree, the AABB tree) whose
+/// boxes all lie in the box `cull` was made for: `children(n, kids)` fills
+/// `kids` and returns true for an inner node, false for a leaf, whose
+/// objects `items(n)` tests (false when the visitor stopped). Both
+/// children's boxes are culled at once (RayCull::Within::enter2), and
+/// walked in ray_tree_walk's order: the nearer first, the second child
+/// first on a tie.
+template <class Cast, class Children, class Items>
+void ray_binary_walk(Cast& cast, const RayCull::Within& cull, std::uint32_t root, double root_t,
+                     Children&& children, Items&& items) {
+  struct Entry {
+    std::uint32_t node;
+    double t;
+  };
+  InlineStack<Entry, 64> stack;
+  stack.push({root, root_t});
+  RayChildren kids;
+  while (!stack.empty()) {
+    const Entry e = stack.pop();
+    if (e.t > cast.tmax) continue;
+    if (!children(e.node, kids)) {
+      if (!items(e.node)) return;
+      continue;
+    }
+    double t0 = 0, t1 = 0;
+    switch (cull.enter2(*kids.box[0], *kids.box[1], cast.tmax, t0, t1)) {
+      case 1:
+        stack.push({kids.node[0], t0});
+        break;
+      case 2:
+        stack.push({kids.node[1], t1});
+        break;
+      case 3:
+        if (t0 < t1) {
+          stack.push({kids.node[1], t1});
+          stack.push({kids.node[0], t0});
+        } else {
+          stack.push({kids.node[0], t0});
+          stack.push({kids.node[1], t1});
+        }
+        break;
+      default:
+        break;
+    }
+  }
+}
+
 /// A box holding every object a grid has placed since it was last
 /// cleared: grown on each placement, never shrunk (so always conservative,
 /// O(1) to keep), cleared when the grid re-enters all its objects. It ends
