@@ -18,8 +18,10 @@ build_side() {  # side, tree
   local side=$1 tree=$2 obj="$work/obj$1"
   mkdir -p "$obj"
   # src/mpi/ (src/distributed/ in older commits) is broadphase::mpi (needs
-  # mpi.h), not the library under test.
-  find "$tree/src" -name '*.cpp' -not -path '*/distributed/*' -not -path '*/mpi/*' |
+  # mpi.h), src/bullet/ and src/fcl/ the engines' adapters (their headers):
+  # not the library under test.
+  find "$tree/src" -name '*.cpp' -not -path '*/distributed/*' -not -path '*/mpi/*' \
+    -not -path '*/bullet/*' -not -path '*/fcl/*' |
     xargs -P "$(nproc)" -I{} sh -c \
       'g++ '"$flags"' -Dbroadphase=bp'"$side"' -I'"$tree"'/include -c "$1" -o '"$obj"'/$(echo "$1" | md5sum | cut -c1-12).o' _ {}
   g++ $flags -Dbroadphase=bp"$side" -DSIDE="$side" -I"$tree/include" -I"$root/tools/ab" \
