@@ -9,6 +9,7 @@ std::span<const std::uint32_t> LevelGrid::build(std::span<const GridEntry> items
   const std::size_t n = items.size();
   levels.clear();
   cell_start.clear();
+  bounded = true;
   // Exact capacities when a grid grows (reserve, unlike resize, does not
   // double): grids are most of the memory held per object.
   // assign, not resize: GCC 12's resize under -fsanitize=undefined reports
@@ -58,6 +59,7 @@ std::span<const std::uint32_t> LevelGrid::build(std::span<const GridEntry> items
       st.count[k] = 0;
       std::fill(st.span_lo[k], st.span_lo[k] + 3, std::numeric_limits<float>::infinity());
       std::fill(st.span_hi[k], st.span_hi[k] + 3, -std::numeric_limits<float>::infinity());
+      std::fill(st.top[k], st.top[k] + 3, -std::numeric_limits<float>::infinity());
     }
     for (auto [i, end] = slice(n, share, parts); i < end; ++i) {
       const GridEntry& it = items[i];
@@ -73,20 +75,23 @@ std::span<const std::uint32_t> LevelGrid::build(std::span<const GridEntry> items
       for (int a = 0; a < 3; ++a) {
         st.span_lo[k][a] = std::min(st.span_lo[k][a], it.lo[a]);
         st.span_hi[k][a] = std::max(st.span_hi[k][a], it.lo[a]);
+        st.top[k][a] = std::max(st.top[k][a], it.hi[a]);
       }
     }
   });
   std::uint32_t count[kLevelSlots] = {};
-  float span_lo[kLevelSlots][3], span_hi[kLevelSlots][3];
+  float span_lo[kLevelSlots][3], span_hi[kLevelSlots][3], upper[kLevelSlots][3];
   for (int k = 0; k < kLevelSlots; ++k) {
     std::fill(span_lo[k], span_lo[k] + 3, std::numeric_limits<float>::infinity());
     std::fill(span_hi[k], span_hi[k] + 3, -std::numeric_limits<float>::infinity());
+    std::fill(upper[k], upper[k] + 3, -std::numeric_limits<float>::infinity());
     for (unsigned s = 0; s < parts; ++s) {
       const ShareTotals& st = totals[s];
       count[k] += st.count[k];
       for (int a = 0; a < 3; ++a) {
         span_lo[k][a] = std::min(span_lo[k][a], st.span_lo[k][a]);
         span_hi[k][a] = std::max(span_hi[k][a], st.span_hi[k][a]);
+        upper[k][a] = std::max(upper[k][a], st.top[k][a]);
       }
     }
   }
@@ -101,6 +106,7 @@ std::span<const std::uint32_t> LevelGrid::build(std::span<const GridEntry> items
     for (int a = 0; a < 3; ++a) {
       span_lo[k + 1][a] = std::min(span_lo[k + 1][a], span_lo[k][a]);
       span_hi[k + 1][a] = std::max(span_hi[k + 1][a], span_hi[k][a]);
+      upper[k + 1][a] = std::max(upper[k + 1][a], upper[k][a]);
     }
     target[k] = k + 1;
   }
@@ -113,6 +119,10 @@ std::span<const std::uint32_t> LevelGrid::build(std::span<const GridEntry> items
     GridLevel lv;
     lv.reach = reach[k];
     lv.first_cell = cells;
+    for (int a = 0; a < 3; ++a) {
+      lv.bound.lo[a] = span_lo[k][a];
+      lv.bound.hi[a] = upper[k][a];
+    }
     if (std::isfinite(reach[k])) {
       // Cells cover the lower corners of the level's objects inside the
       // world hint; objects beyond it fall into the border cells (the cell

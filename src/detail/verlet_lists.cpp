@@ -56,6 +56,7 @@ VerletLists::Totals VerletLists::refresh_boxes(LevelGrid& moving, std::span<Grid
   // own index.
   const std::size_t m = moving.entries.size();
   const bool copy = !items.empty();
+  moving.bounded = false;  // fat boxes are written in place below
   const unsigned parts = shares.chunks_for(m);
   share_totals_.resize(parts);
   shares.run(parts, [&](unsigned share) {

@@ -68,6 +68,9 @@ struct GridLevel {
   double origin[3] = {0, 0, 0};
   std::uint32_t n[3] = {1, 1, 1};
   std::uint32_t first_cell = 0;
+  /// The union of the level's entries' boxes when built (min of the lower
+  /// corners, max of the upper).
+  AabbF bound{{0, 0, 0}, {0, 0, 0}};
 
   std::uint32_t cell(double v, int a) const {
     const double t = (v - origin[a]) * inv_cell;
@@ -128,7 +131,8 @@ struct LevelGrid {
     double max_e = 0;
     std::uint32_t count[kLevelSlots] = {};
     float span_lo[kLevelSlots][3] = {}, span_hi[kLevelSlots][3] = {};
-    std::uint32_t first_cell = 0;  // of the cells the share fills in the scatter
+    float top[kLevelSlots][3] = {};  // upper corners' maxima
+    std::uint32_t first_cell = 0;    // of the cells the share fills in the scatter
   };
   /// A build's scratch, kept by the caller between builds (one for grids
   /// rebuilt every frame, temporaries for grids rebuilt rarely).
@@ -142,6 +146,15 @@ struct LevelGrid {
   };
 
   std::vector<GridLevel> levels;
+  /// True while every entry's box lies in its level's `bound` (build sets
+  /// it): a scan then skips a level whose bound its query misses. A caller
+  /// that writes an entry's box in place, not through a build, clears it.
+  /// (A level's cells cover its lower corners, and the cell function clamps
+  /// coordinates beyond them to the border cells: a query beyond a flat
+  /// level, a flyer above a city's buildings, scanned that level's border
+  /// row for every entry of its x-z window: grid-verlet's renewals on the
+  /// city spent 18 µs each there.)
+  bool bounded = false;
   std::vector<std::uint32_t> cell_start{0};  // per cell, into entries; one extra at the end
   std::vector<GridEntry> entries;
   // Per entry, a copy of its object's shape: the exact tests of a scan
@@ -181,6 +194,7 @@ struct LevelGrid {
 template <class F>
 bool LevelGrid::scan_level(const AabbF& q, std::size_t l, double min_x, F&& f) const {
   const GridLevel& lv = levels[l];
+  if (bounded && !lv.bound.overlaps(q)) return true;
   const double lo_x = std::max(static_cast<double>(q.lo[0]) - lv.reach, min_x);
   const std::uint32_t x0 = lv.cell(lo_x, 0);
   const std::uint32_t x1 = lv.cell(q.hi[0], 0);
