@@ -429,8 +429,13 @@ QueryCost GridVerlet::cast_ray(const Ray& r, V&& visitor) const {
               if (!entry(k)) return false;
             return true;
           });
+      // Only the part of the ray inside the level's entries' union is
+      // marched: a ray above a city's buildings otherwise marched the
+      // flat levels' clamped border rows (LevelGrid::bounded).
+      const Aabb bound{{lv.bound.lo[0], lv.bound.lo[1], lv.bound.lo[2]},
+                       {lv.bound.hi[0], lv.bound.hi[1], lv.bound.hi[2]}};
       using Outcome = typename decltype(march)::Outcome;
-      switch (march.march(cast, 2.0 * (end - begin) + 64)) {
+      switch (march.march_within(cast, 2.0 * (end - begin) + 64, g->bounded ? &bound : nullptr)) {
         case Outcome::finished:
           continue;
         case Outcome::stopped:
