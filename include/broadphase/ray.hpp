@@ -270,11 +270,12 @@ class RayCull {
       double tn = 0;
       double tf = tmax;
       for (int a = 0; a < 3; ++a) {
-        const double n =
-            (static_cast<double>(lo_near_[a] ? b.lo[a] : b.hi[a]) + near_[a]) * inv_[a];
-        const double f = (static_cast<double>(lo_near_[a] ? b.hi[a] : b.lo[a]) + far_[a]) * inv_[a];
-        tn = std::max(tn, n);
-        tf = std::min(tf, f);
+        // The lo and hi faces' parameters; the smaller is the near one
+        // (see enter2).
+        const double p = (static_cast<double>(b.lo[a]) + lo_[a]) * inv_[a];
+        const double q = (static_cast<double>(b.hi[a]) + hi_[a]) * inv_[a];
+        tn = std::max(tn, q < p ? q : p);
+        tf = std::min(tf, q < p ? p : q);
       }
       if (!(tn <= tf)) return false;
       t = tn;
@@ -319,8 +320,7 @@ class RayCull {
     friend class RayCull;
     const RayCull* cull_ = nullptr;
     bool fast_ = false;
-    bool lo_near_[3] = {};
-    double near_[3] = {}, far_[3] = {}, inv_[3] = {};
+    double inv_[3] = {};
     double lo_[3] = {}, hi_[3] = {};  // the grown faces relative to the origin
   };
 
@@ -344,13 +344,8 @@ class RayCull {
     const double m = margin_of(mag);
     for (int a = 0; a < 3; ++a) {
       w.inv_[a] = inv_[a];
-      w.lo_near_[a] = inv_[a] > 0;
-      const double grown_lo = -m - o_[a];
-      const double grown_hi = m - o_[a];
-      w.near_[a] = w.lo_near_[a] ? grown_lo : grown_hi;
-      w.far_[a] = w.lo_near_[a] ? grown_hi : grown_lo;
-      w.lo_[a] = grown_lo;
-      w.hi_[a] = grown_hi;
+      w.lo_[a] = -m - o_[a];
+      w.hi_[a] = m - o_[a];
     }
     return w;
   }

@@ -180,6 +180,28 @@ class RaySlots {
   std::size_t size_ = 0;
 };
 
+/// A node of a tree walk's stack and the parameter where the ray enters it.
+struct RayStackEntry {
+  std::uint32_t node;
+  double t;
+};
+
+/// The stack both tree walks run on: pops the nearest-pushed node, drops it
+/// when its entry lies beyond the live tmax, and hands it to
+/// `open(node, stack)`, which pushes its children (far first) and returns
+/// false when the visitor stopped. An InlineStack, which spills to the
+/// heap: no depth drops a node.
+template <class Cast, class Open>
+void ray_stack_walk(Cast& cast, std::uint32_t root, double root_t, Open&& open) {
+  InlineStack<RayStackEntry, 64> stack;
+  stack.push({root, root_t});
+  while (!stack.empty()) {
+    const RayStackEntry e = stack.pop();
+    if (e.t > cast.tmax) continue;
+    if (!open(e.node, stack)) return;
+  }
+}
+
 /// Walks a tree front to back. `root` is entered at parameter `root_t`
 /// (0 for a root that is not culled: the octrees' roots also hold the
 /// objects outside their cube). `for_each_child(n, f)` calls f(child, box)
@@ -191,27 +213,19 @@ class RaySlots {
 /// far to near, so the nearer is walked first, and a node whose entry lies
 /// beyond the live tmax is dropped unopened (RayCull's entry is never
 /// beyond the t of a hit inside it, so no hit is lost: hits at exactly the
-/// clipped tmax are still reported). The stack is an InlineStack, which
-/// spills to the heap: no depth drops a node. Child boxes are culled with
+/// clipped tmax are still reported), on ray_stack_walk's stack. Child
+/// boxes are culled with
 /// `cull`: the cast's RayCull, or a RayCull::Within of a box holding them.
 template <class Cast, class Cull, class Children, class Items>
 void ray_tree_walk(Cast& cast, const Cull& cull, std::uint32_t root, double root_t,
                    Children&& for_each_child, Items&& items) {
-  struct Entry {
-    std::uint32_t node;
-    double t;
-  };
-  InlineStack<Entry, 64> stack;
-  stack.push({root, root_t});
-  while (!stack.empty()) {
-    const Entry e = stack.pop();
-    if (e.t > cast.tmax) continue;
-    if (!items(e.node)) return;
+  ray_stack_walk(cast, root, root_t, [&](std::uint32_t node, auto& stack) {
+    if (!items(node)) return false;
     // At most eight children (an octree's); any beyond go straight on the
     // stack unordered, still walked.
-    Entry kids[8];
+    RayStackEntry kids[8];
     int count = 0;
-    for_each_child(e.node, [&](std::uint32_t c, const auto& b) {
+    for_each_child(node, [&](std::uint32_t c, const auto& b) {
       double t;
       if (!cull.enter(b, cast.tmax, t)) return;
       if (count < 8)
@@ -223,7 +237,8 @@ void ray_tree_walk(Cast& cast, const Cull& cull, std::uint32_t root, double root
     for (int i = 1; i < count; ++i)
       for (int j = i; j > 0 && kids[j - 1].t < kids[j].t; --j) std::swap(kids[j - 1], kids[j]);
     for (int i = 0; i < count; ++i) stack.push(kids[i]);
-  }
+    return true;
+  });
 }
 /// ray_tree_walk culling every box with the cast's RayCull, for a tree
 /// whose `for_each_child(n, f)` calls f(child) and `box(child)` gives the
@@ -254,20 +269,9 @@ struct RayChildren {
 template <class Cast, class Children, class Items>
 void ray_binary_walk(Cast& cast, const RayCull::Within& cull, std::uint32_t root, double root_t,
                      Children&& children, Items&& items) {
-  struct Entry {
-    std::uint32_t node;
-    double t;
-  };
-  InlineStack<Entry, 64> stack;
-  stack.push({root, root_t});
   RayChildren kids;
-  while (!stack.empty()) {
-    const Entry e = stack.pop();
-    if (e.t > cast.tmax) continue;
-    if (!children(e.node, kids)) {
-      if (!items(e.node)) return;
-      continue;
-    }
+  ray_stack_walk(cast, root, root_t, [&](std::uint32_t node, auto& stack) {
+    if (!children(node, kids)) return items(node);
     double t0 = 0, t1 = 0;
     switch (cull.enter2(*kids.box[0], *kids.box[1], cast.tmax, t0, t1)) {
       case 1:
@@ -288,7 +292,8 @@ void ray_binary_walk(Cast& cast, const RayCull::Within& cull, std::uint32_t root
       default:
         break;
     }
-  }
+    return true;
+  });
 }
 
 /// A box holding every object a grid has placed since it was last
