@@ -40,14 +40,11 @@ inline constexpr bool kAddressSanitizer = true;
 inline constexpr bool kAddressSanitizer = false;
 #endif
 
-/// `n` repeats, or a tenth of them (at least one) under ThreadSanitizer, a
-/// fifth under AddressSanitizer: the seeds there run the paths the
-/// sanitizers watch; the Release build runs them all. (A third under ASan
-/// took 1 340 s of CPU for the stage's tests, the lean path's and the
-/// differential tests 560 s of it, with CI at its 45-minute limit.)
-constexpr int repeats(int n) {
-  return kThreadSanitizer ? (n + 9) / 10 : kAddressSanitizer ? (n + 4) / 5 : n;
-}
+/// `n` repeats, or a tenth of them (at least one) under ThreadSanitizer or
+/// AddressSanitizer: the seeds there run the paths the sanitizers watch;
+/// the Release build runs them all. (A third under ASan took 1 340 s of CPU
+/// for the stage's tests; a fifth 1 056 s, with CI over its 45 minutes.)
+constexpr int repeats(int n) { return kThreadSanitizer || kAddressSanitizer ? (n + 9) / 10 : n; }
 
 /// A reference scene and its expected per-frame results.
 struct ReferenceScene {
