@@ -97,6 +97,8 @@ class SlotMap {
   bool alive(std::uint32_t i) const { return i < generation_.size() && (generation_[i] & 1u) != 0; }
   /// The live handle of slot `i` (which must be alive).
   Handle handle(std::uint32_t i) const { return {i, generation_[i]}; }
+  /// Starts loading slot i's generation (a hint, see ObjectStore::prefetch).
+  void prefetch(std::uint32_t i) const { __builtin_prefetch(generation_.data() + i); }
 
   /// One past the largest slot index ever handed out.
   std::uint32_t slot_count() const { return static_cast<std::uint32_t>(generation_.size()); }
@@ -191,6 +193,14 @@ class ObjectStore {
   const Shape& shape_of(Handle h) const { return shapes_[slots_.index_of(h)]; }
   const SlotMap& slots() const { return slots_; }
   Handle handle(std::uint32_t i) const { return slots_.handle(i); }
+  /// Starts loading what an exact test of object i reads (its shape, handle
+  /// and filter): a hint, for walks that test objects a step after finding
+  /// them (KdTree::closest_hits).
+  void prefetch(std::uint32_t i) const {
+    __builtin_prefetch(shapes_.data() + i);
+    slots_.prefetch(i);
+    if (i < filters_.size()) __builtin_prefetch(filters_.data() + i);
+  }
   std::uint32_t index_of(Handle h) const { return slots_.index_of(h); }
   bool contains(Handle h) const { return slots_.contains(h); }
   std::size_t size() const { return slots_.size(); }

@@ -13,8 +13,10 @@
 #include <broadphase/geometry.hpp>
 #include <broadphase/handle.hpp>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -77,6 +79,26 @@ inline void require_valid(const Ray& r) {
   const std::string why = ray_problem(r);
   if (!why.empty()) throw InvalidRay("broadphase: invalid ray: " + why);
 }
+
+namespace detail {
+
+/// Throws InvalidRay naming the first invalid ray of `rays`.
+inline void require_valid_rays(std::span<const Ray> rays) {
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    const std::string why = ray_problem(rays[i]);
+    if (!why.empty()) throw InvalidRay("broadphase: invalid ray " + std::to_string(i) + ": " + why);
+  }
+}
+
+/// A batch of casts' checks: std::invalid_argument unless there is one
+/// result per ray (`what` names the call), then require_valid_rays.
+inline void require_valid_batch(std::span<const Ray> rays, std::size_t results, const char* what) {
+  if (results != rays.size())
+    throw std::invalid_argument(std::string("broadphase: ") + what + ": one result per ray");
+  require_valid_rays(rays);
+}
+
+}  // namespace detail
 
 /// The contract's ray–sphere test: true, with `t`, when the ray (o, d,
 /// tmax) hits the sphere (c, r). Exactly as docs/scene-format.md writes it.

@@ -32,14 +32,6 @@ struct RayHitRows {
 
 namespace detail {
 
-/// Throws InvalidRay naming the first invalid ray of `rays`.
-inline void require_valid_rays(std::span<const Ray> rays) {
-  for (std::size_t i = 0; i < rays.size(); ++i) {
-    const std::string why = ray_problem(rays[i]);
-    if (!why.empty()) throw InvalidRay("broadphase: invalid ray " + std::to_string(i) + ": " + why);
-  }
-}
-
 /// Runs job(begin, end, share) over `threads` contiguous shares of [0, n)
 /// (the calling thread takes the first); at most one share per 64 items,
 /// since starting a thread costs about as much as casting a few dozen rays.
@@ -93,11 +85,15 @@ void gather_hit_rows(std::size_t n, unsigned threads, Cast&& cast, Less less, Ro
 template <HasRayCast S>
 void cast_rays(const S& s, std::span<const Ray> rays, std::span<RayHit> closest,
                unsigned threads = 1) {
-  if (closest.size() != rays.size())
-    throw std::invalid_argument("broadphase: cast_rays: one result per ray");
-  detail::require_valid_rays(rays);
+  detail::require_valid_batch(rays, closest.size(), "cast_rays");
   detail::run_shares(rays.size(), threads, [&](std::size_t begin, std::size_t end, std::size_t) {
-    for (std::size_t i = begin; i < end; ++i) closest[i] = closest_hit(s, rays[i]);
+    const std::span<const Ray> part = rays.subspan(begin, end - begin);
+    const std::span<RayHit> hits = closest.subspan(begin, end - begin);
+    // A structure's own batch walk when it has one (several rays at once).
+    if constexpr (requires { s.closest_hits(part, hits); })
+      s.closest_hits(part, hits);
+    else
+      for (std::size_t i = 0; i < part.size(); ++i) hits[i] = closest_hit(s, part[i]);
   });
 }
 

@@ -286,6 +286,15 @@ class AnyBroadPhase {
     });
     return best;
   }
+  /// The closest hit of each ray into `out`, which must be as long as
+  /// `rays` (std::invalid_argument): closest_hit(rays[i]) bit for bit, on
+  /// the calling thread (cast_rays shares a batch among threads). A
+  /// structure may walk several rays at once (KdTree::closest_hits). Throws
+  /// InvalidRay, naming the first invalid ray, before casting any.
+  virtual void closest_hits(std::span<const Ray> rays, std::span<RayHit> out) const {
+    detail::require_valid_batch(rays, out.size(), "closest_hits");
+    for (std::size_t i = 0; i < rays.size(); ++i) out[i] = closest_hit(rays[i]);
+  }
   /// True when the ray hits anything; stops at the first hit found.
   bool any_hit(const Ray& r) const {
     bool hit = false;
@@ -354,6 +363,12 @@ class Erased final : public AnyBroadPhase {
   }
   QueryCost cast_ray(const Ray& r, FunctionRef<double(Handle, double)> v) const override {
     return s_.cast_ray(r, v);
+  }
+  void closest_hits(std::span<const Ray> rays, std::span<RayHit> out) const override {
+    if constexpr (requires { s_.closest_hits(rays, out); })
+      s_.closest_hits(rays, out);
+    else
+      AnyBroadPhase::closest_hits(rays, out);
   }
   QueryCost for_each_pair(FunctionRef<bool(Handle, Handle)> v) const override {
     return s_.for_each_pair(v);

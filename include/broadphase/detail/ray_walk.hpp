@@ -29,6 +29,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <optional>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -259,6 +261,34 @@ struct RayChildren {
   const AabbF* box[2];
 };
 
+/// One step of ray_binary_walk at an inner node: culls both children at
+/// once (RayCull::Within::enter2) against the live `tmax` and pushes those
+/// the ray enters, the nearer on top (the second child on a tie).
+template <class Stack>
+void ray_push_children(double tmax, const RayCull::Within& cull, const RayChildren& kids,
+                       Stack& stack) {
+  double t0 = 0, t1 = 0;
+  switch (cull.enter2(*kids.box[0], *kids.box[1], tmax, t0, t1)) {
+    case 1:
+      stack.push({kids.node[0], t0});
+      break;
+    case 2:
+      stack.push({kids.node[1], t1});
+      break;
+    case 3:
+      if (t0 < t1) {
+        stack.push({kids.node[1], t1});
+        stack.push({kids.node[0], t0});
+      } else {
+        stack.push({kids.node[0], t0});
+        stack.push({kids.node[1], t1});
+      }
+      break;
+    default:
+      break;
+  }
+}
+
 /// ray_tree_walk for a binary tree (the k-d tree, the AABB tree) whose
 /// boxes all lie in the box `cull` was made for: `children(n, kids)` fills
 /// `kids` and returns true for an inner node, false for a leaf, whose
@@ -272,28 +302,130 @@ void ray_binary_walk(Cast& cast, const RayCull::Within& cull, std::uint32_t root
   RayChildren kids;
   ray_stack_walk(cast, root, root_t, [&](std::uint32_t node, auto& stack) {
     if (!children(node, kids)) return items(node);
-    double t0 = 0, t1 = 0;
-    switch (cull.enter2(*kids.box[0], *kids.box[1], cast.tmax, t0, t1)) {
-      case 1:
-        stack.push({kids.node[0], t0});
-        break;
-      case 2:
-        stack.push({kids.node[1], t1});
-        break;
-      case 3:
-        if (t0 < t1) {
-          stack.push({kids.node[1], t1});
-          stack.push({kids.node[0], t0});
-        } else {
-          stack.push({kids.node[0], t0});
-          stack.push({kids.node[1], t1});
-        }
-        break;
-      default:
-        break;
-    }
+    ray_push_children(cast.tmax, cull, kids, stack);
     return true;
   });
+}
+
+/// An object a batch walk found in a leaf (its box entered by the ray):
+/// its slot, and a box holding it, to cull it again after a clip.
+struct RayFound {
+  std::uint32_t slot;
+  const AabbF* box;
+};
+
+/// Rays a batch walk keeps in flight. Measured on the k-d tree (10^5
+/// uniform spheres, 10^5 random rays, closest hits, one thread, Intel Xeon,
+/// quiet): 4, 8 and 16 cast 1.20-1.24, 1.26-1.29 and 1.28-1.29 times as
+/// many rays a second as one ray at a time; 8 keeps the rays' state (about
+/// 1.2 KiB each) inside L1.
+inline constexpr std::size_t kRayFlights = 8;
+/// The objects from which a tree's batch walks several rays at once. Below,
+/// its nodes and objects stay in the caches, and one ray at a time is
+/// faster (the k-d tree, as above: 0.84-0.87 times at 10^3 objects, 0.94 at
+/// 10^4, 1.06 at 3·10^4, 1.12-1.15 at 5·10^4).
+inline constexpr std::size_t kRayFlightsFrom = std::size_t{1} << 15;
+
+/// The closest hits of many rays through a binary tree: for each ray,
+/// closest_hit's result bit for bit, by ray_binary_walk's nodes, order and
+/// tests, but kRayFlights rays in flight, each taking one step in turn, so
+/// that one ray's loads arrive while the others work. A step opens a node
+/// (`children(n, kids)` as ray_binary_walk's, which starts the loads of the
+/// children's records), or culls a popped leaf's objects
+/// (`stage_leaf(n)` started their loads a step before; `cull_leaf(n,
+/// within, tmax, found)` pushes a RayFound for each object whose box the
+/// ray enters before tmax, in the leaf's order), or tests the objects found
+/// (their shapes loaded since), culling one again if a hit clipped the ray
+/// since. `rays` are valid, `out` as long; the tree's root `root`, its box
+/// `root_box` holding every box below it.
+template <class Children, class StageLeaf, class CullLeaf>
+void ray_binary_closest_hits(const ObjectStore& store, std::uint32_t root, const AabbF& root_box,
+                             std::span<const Ray> rays, std::span<RayHit> out, Children&& children,
+                             StageLeaf&& stage_leaf, CullLeaf&& cull_leaf) {
+  // closest_hit's visitor, kept with its cast.
+  struct Closest {
+    RayHit best{Handle{}, std::numeric_limits<double>::infinity()};
+    double operator()(Handle h, double t) {
+      if (best.handle.is_null() || closer({h, t}, best)) best = {h, t};
+      return best.t;
+    }
+  };
+  constexpr std::uint32_t kNoLeaf = 0xffffffffu;
+  struct Flight {
+    Closest closest;
+    std::optional<RayCast<Closest>> cast;
+    RayCull::Within within;
+    InlineStack<RayStackEntry, 64> stack;
+    std::uint32_t leaf = kNoLeaf;     // popped, its objects on their way
+    InlineStack<RayFound, 16> found;  // culled in, their shapes on their way
+    double found_tmax = 0;            // the tmax they were culled with
+    std::size_t ray = 0;
+  };
+  // Starts ray i in f; false when it is done at once (it misses the root).
+  const auto start = [&](Flight& f, std::size_t i) {
+    f.ray = i;
+    f.closest = Closest{};
+    f.cast.emplace(store, rays[i], f.closest);
+    f.stack.clear();
+    f.leaf = kNoLeaf;
+    double t0;
+    if (!f.cast->cull.enter(root_box, f.cast->tmax, t0)) return false;
+    f.within = f.cast->cull.within(root_box);
+    f.stack.push({root, t0});
+    return true;
+  };
+  // One step; false when the ray is done.
+  const auto step = [&](Flight& f) {
+    RayCast<Closest>& cast = *f.cast;
+    if (!f.found.empty()) {
+      for (std::size_t j = 0; j < f.found.size(); ++j) {
+        const RayFound& o = f.found[j];
+        if (!(cast.tmax == f.found_tmax ? cast.test(o.slot) : cast.test(o.slot, *o.box, f.within)))
+          return false;
+      }
+      f.found.clear();
+      return !f.stack.empty();
+    }
+    if (f.leaf != kNoLeaf) {
+      f.found_tmax = cast.tmax;
+      cull_leaf(std::exchange(f.leaf, kNoLeaf), f.within, f.found_tmax, f.found);
+      for (std::size_t j = 0; j < f.found.size(); ++j) store.prefetch(f.found[j].slot);
+      return !f.found.empty() || !f.stack.empty();
+    }
+    while (!f.stack.empty()) {
+      const RayStackEntry e = f.stack.pop();
+      if (e.t > cast.tmax) continue;
+      RayChildren kids;
+      if (!children(e.node, kids)) {
+        stage_leaf(e.node);
+        f.leaf = e.node;
+        return true;
+      }
+      ray_push_children(cast.tmax, f.within, kids, f.stack);
+      return !f.stack.empty();
+    }
+    return false;
+  };
+  std::array<Flight, kRayFlights> flights;
+  std::array<bool, kRayFlights> live{};
+  std::size_t next = 0;
+  // Starts the next ray that is not done at once in slot k.
+  const auto refill = [&](std::size_t k) {
+    while (next < rays.size()) {
+      const std::size_t i = next++;
+      if (start(flights[k], i)) return true;
+      out[i] = flights[k].closest.best;
+    }
+    return false;
+  };
+  std::size_t flying = 0;
+  for (std::size_t k = 0; k < kRayFlights; ++k) flying += (live[k] = refill(k));
+  while (flying > 0)
+    for (std::size_t k = 0; k < kRayFlights; ++k) {
+      if (!live[k] || step(flights[k])) continue;
+      out[flights[k].ray] = flights[k].closest.best;
+      if (!(live[k] = refill(k))) --flying;
+    }
 }
 
 /// A box holding every object a grid has placed since it was last
