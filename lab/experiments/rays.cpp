@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <broadphase/ray.hpp>
+#include <broadphase/rays.hpp>
 #include <broadphase/scenes/scene.hpp>
 #include <chrono>
 #include <cmath>
@@ -15,6 +16,7 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <span>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -129,6 +131,11 @@ class Caster {
  public:
   virtual ~Caster() = default;
   virtual PeerHit cast(const Ray& r) = 0;
+  /// Casts rays[k] into out[k] for every k: a ray at a time, or through the
+  /// contender's own call for many rays when it has one.
+  virtual void cast_batch(std::span<const Ray> rays, std::span<PeerHit> out) {
+    for (std::size_t k = 0; k < rays.size(); ++k) out[k] = cast(rays[k]);
+  }
   /// Moves objects `ids` to `shapes`, leaving the world ready to cast.
   virtual void move(const std::vector<std::uint32_t>& ids, const std::vector<Shape>& shapes) = 0;
 };
@@ -147,10 +154,13 @@ class StructureCaster final : public Caster {
           s_->insert(scene.objects[i], i, scene.is_moving(i) ? Motion::dynamic : Motion::fixed));
     s_->settle();
   }
-  PeerHit cast(const Ray& r) override {
-    const RayHit h = s_->closest_hit(r);
-    if (h.handle.is_null()) return {};
-    return {static_cast<std::int64_t>(s_->user_data(h.handle)), h.t};
+  PeerHit cast(const Ray& r) override { return peer_hit(s_->closest_hit(r)); }
+  /// Our call for a batch of closest hits (cast_rays, one thread), which a
+  /// structure may serve walking several rays at once.
+  void cast_batch(std::span<const Ray> rays, std::span<PeerHit> out) override {
+    hits_.resize(rays.size());
+    broadphase::cast_rays(*s_, rays, hits_, 1);
+    for (std::size_t k = 0; k < rays.size(); ++k) out[k] = peer_hit(hits_[k]);
   }
   void move(const std::vector<std::uint32_t>& ids, const std::vector<Shape>& shapes) override {
     if (bulk_) {
@@ -164,9 +174,15 @@ class StructureCaster final : public Caster {
   }
 
  private:
+  PeerHit peer_hit(const RayHit& h) const {
+    if (h.handle.is_null()) return {};
+    return {static_cast<std::int64_t>(s_->user_data(h.handle)), h.t};
+  }
+
   std::unique_ptr<AnyBroadPhase> s_;
   std::vector<Handle> handles_;
   std::vector<Move> moves_;
+  std::vector<RayHit> hits_;
   bool bulk_;
 };
 
@@ -241,18 +257,23 @@ struct CellResult {
 const char* const kSetNames[2] = {"random", "lidar"};
 
 /// Checks the first rays of a set against the oracle's hits: the object and
-/// t bit for bit, or only the object for a contender whose t is float.
+/// t bit for bit, or only the object for a contender whose t is float; the
+/// sample cast one ray at a time and as a batch.
 void check_sample(Caster& c, const std::vector<Ray>& rays, const std::vector<PeerHit>& want,
                   bool exact, SetResult& r) {
-  for (std::size_t k = 0; k < want.size(); ++k) {
-    const PeerHit got = c.cast(rays[k]);
+  std::vector<PeerHit> batch(want.size());
+  c.cast_batch(std::span(rays).first(want.size()), batch);
+  for (std::size_t j = 0; j < 2 * want.size(); ++j) {
+    const std::size_t k = j % want.size();
+    const bool one = j < want.size();
+    const PeerHit got = one ? c.cast(rays[k]) : batch[k];
     ++r.checked;
     if (got.id == want[k].id && (got.id < 0 || !exact || got.t == want[k].t)) continue;
     if (r.mismatches++ == 0) {
-      char buf[200];
-      std::snprintf(buf, sizeof buf, "ray %zu: %lld at t=%.17g, oracle %lld at t=%.17g", k,
-                    static_cast<long long>(got.id), got.t, static_cast<long long>(want[k].id),
-                    want[k].t);
+      char buf[240];
+      std::snprintf(buf, sizeof buf, "ray %zu (%s): %lld at t=%.17g, oracle %lld at t=%.17g", k,
+                    one ? "cast alone" : "in a batch", static_cast<long long>(got.id), got.t,
+                    static_cast<long long>(want[k].id), want[k].t);
       r.example = buf;
     }
   }
@@ -264,21 +285,37 @@ void check_sample(Caster& c, const std::vector<Ray>& rays, const std::vector<Pee
 /// gives thousands.
 double floor_seconds(bool quick) { return quick ? 0.002 : 0.05; }
 
-/// Casts rays [from, from + count) of a set, stopping early once `seconds`
-/// have gone (16 rays at least); returns the rays cast.
+/// Casts rays [from, from + count) of a set in batches (Caster::cast_batch),
+/// stopping early once `seconds` have gone (16 rays at least); returns the
+/// rays cast.
 std::size_t cast_rays(Caster& c, const std::vector<Ray>& rays, std::size_t from, std::size_t count,
                       double seconds, SetResult& r) {
+  std::vector<Ray> part;
+  std::vector<PeerHit> hits;
   const auto t0 = Clock::now();
   std::size_t k = 0;
   double spent = 0;
   // A sink the compiler cannot drop.
   volatile std::int64_t sink = 0;
+  // The clock is read after each batch: 16 rays first (one read costs
+  // about a ray of Embree; a slow contender's 16 rays may take the whole
+  // share), then up to twice as many each time, at most 1 024 (so that a
+  // batch walk has rays to overlap) and at most what the time left holds
+  // at the rate so far (16 at least).
+  std::size_t batch = 16;
   while (k < count) {
-    // The clock is read every 16 rays: one read costs about a ray of Embree.
-    const std::size_t end = std::min(count, k + 16);
-    for (; k < end; ++k) sink = sink + c.cast(rays[(from + k) % rays.size()]).id;
+    const std::size_t end = std::min(count, k + batch);
+    part.clear();
+    for (std::size_t i = k; i < end; ++i) part.push_back(rays[(from + i) % rays.size()]);
+    hits.resize(part.size());
+    c.cast_batch(part, hits);
+    for (const PeerHit& h : hits) sink = sink + h.id;
+    k = end;
     spent = std::chrono::duration<double>(Clock::now() - t0).count();
     if (spent > seconds) break;
+    const double fits = (seconds - spent) / spent * static_cast<double>(k);
+    batch = std::clamp<std::size_t>(
+        static_cast<std::size_t>(std::min(fits, static_cast<double>(2 * batch))), 16, 1024);
   }
   r.cast += k;
   r.cast_seconds += spent;
