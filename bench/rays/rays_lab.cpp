@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -68,6 +69,14 @@ int main(int argc, char** argv) {
     }
   }
   if (!budget_given) ctx.budget_seconds = ctx.quick ? 10 : 300;
+  // The CSVs are written before the section: the directory first.
+  std::error_code made;
+  std::filesystem::create_directories(ctx.out_dir, made);
+  if (made) {
+    std::fprintf(stderr, "rays_lab: cannot create %s: %s\n", ctx.out_dir.string().c_str(),
+                 made.message().c_str());
+    return 2;
+  }
   const auto start = std::chrono::steady_clock::now();
   ctx.progress = [start](const std::string& what, double fraction) {
     const double s =
