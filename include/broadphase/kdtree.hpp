@@ -164,6 +164,12 @@ class KdTree : public detail::StoreBase<KdTree> {
   // A cast's step at node n: an inner node's children (prefetched), false
   // at a leaf.
   bool ray_children(std::uint32_t n, detail::RayChildren& kids) const;
+  // Culls leaf n's items two boxes at a time (RayCull::Within::enter2)
+  // against tmax(), read before each pair, and calls take(item, that tmax)
+  // for each the ray enters, in the leaf's order; false when take did.
+  template <class Tmax, class Take>
+  bool ray_items(std::uint32_t n, const detail::RayCull::Within& within, Tmax&& tmax,
+                 Take&& take) const;
   // Tests leaf n's items; false when the visitor stopped.
   template <class Cast>
   bool ray_leaf(Cast& cast, const detail::RayCull::Within& within, std::uint32_t n) const;
@@ -300,24 +306,34 @@ inline bool KdTree::ray_children(std::uint32_t n, detail::RayChildren& kids) con
   return true;
 }
 
-template <class Cast>
-bool KdTree::ray_leaf(Cast& cast, const detail::RayCull::Within& within, std::uint32_t n) const {
+template <class Tmax, class Take>
+bool KdTree::ray_items(std::uint32_t n, const detail::RayCull::Within& within, Tmax&& tmax,
+                       Take&& take) const {
   const RayKids& k = ray_kids_[n];
   const detail::OctItem* items = k.leaf.items;
   const std::uint32_t count = k.leaf.count;
-  // Two items' boxes culled at once, then tested in their order; the
-  // second culled again if the first's hit clipped the ray.
   std::uint32_t i = 0;
   for (; i + 1 < count; i += 2) {
     double ta, tb;
-    const double tmax = cast.tmax;
-    const unsigned in = within.enter2(items[i].box, items[i + 1].box, tmax, ta, tb);
-    if ((in & 1) && !cast.test(items[i].slot)) return false;
-    if ((in & 2) && !(cast.tmax == tmax ? cast.test(items[i + 1].slot)
-                                        : cast.test(items[i + 1].slot, items[i + 1].box, within)))
-      return false;
+    const double t = tmax();
+    const unsigned in = within.enter2(items[i].box, items[i + 1].box, t, ta, tb);
+    if ((in & 1) && !take(items[i], t)) return false;
+    if ((in & 2) && !take(items[i + 1], t)) return false;
   }
-  return i == count || cast.test(items[i].slot, items[i].box, within);
+  double t0;
+  const double t = tmax();
+  return i == count || !within.enter(items[i].box, t, t0) || take(items[i], t);
+}
+
+template <class Cast>
+bool KdTree::ray_leaf(Cast& cast, const detail::RayCull::Within& within, std::uint32_t n) const {
+  // Each item tested as culled; the second of a pair culled again if the
+  // first's hit clipped the ray.
+  return ray_items(
+      n, within, [&] { return cast.tmax; },
+      [&](const detail::OctItem& it, double culled) {
+        return cast.tmax == culled ? cast.test(it.slot) : cast.test(it.slot, it.box, within);
+      });
 }
 
 inline void KdTree::closest_hits(std::span<const Ray> rays, std::span<RayHit> out,
@@ -337,20 +353,12 @@ inline void KdTree::closest_hits(std::span<const Ray> rays, std::span<RayHit> ou
         for (; p < end; p += 64) detail::prefetch(p);
       },
       [&](std::uint32_t n, const detail::RayCull::Within& within, double tmax, auto& found) {
-        // Two items' boxes culled at once, as ray_leaf does.
-        const RayKids& k = ray_kids_[n];
-        const detail::OctItem* items = k.leaf.items;
-        const std::uint32_t count = k.leaf.count;
-        std::uint32_t i = 0;
-        for (; i + 1 < count; i += 2) {
-          double ta, tb;
-          const unsigned in = within.enter2(items[i].box, items[i + 1].box, tmax, ta, tb);
-          if (in & 1) found.push({items[i].slot, &items[i].box});
-          if (in & 2) found.push({items[i + 1].slot, &items[i + 1].box});
-        }
-        double t;
-        if (i < count && within.enter(items[i].box, tmax, t))
-          found.push({items[i].slot, &items[i].box});
+        ray_items(
+            n, within, [&] { return tmax; },
+            [&](const detail::OctItem& it, double) {
+              found.push({it.slot, &it.box});
+              return true;
+            });
       });
 }
 
