@@ -189,6 +189,16 @@ constexpr bool closer(const RayHit& a, const RayHit& b) {
   return a.t < b.t || (a.t == b.t && a.handle.index < b.handle.index);
 }
 
+/// The visitor of a closest-hit cast: keeps the closer of each hit and the
+/// best so far (`closer`), and clips the ray to the best t.
+struct ClosestHit {
+  RayHit best{Handle{}, std::numeric_limits<double>::infinity()};
+  double operator()(Handle h, double t) {
+    if (best.handle.is_null() || closer({h, t}, best)) best = {h, t};
+    return best.t;
+  }
+};
+
 /// Ray visitors take `(Handle h, double t)` for each hit and return the
 /// ray's new tmax (a visitor returning void goes on):
 ///   - kRayGoOn (+infinity, or any value not below the current tmax) to go on;

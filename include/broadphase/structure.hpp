@@ -178,12 +178,9 @@ concept HasRayCast = requires(const S& cs, const Ray& r, double (*v)(Handle, dou
 /// a null handle when there is none. Throws InvalidRay.
 template <HasRayCast S>
 RayHit closest_hit(const S& s, const Ray& r) {
-  RayHit best{Handle{}, std::numeric_limits<double>::infinity()};
-  s.cast_ray(r, [&](Handle h, double t) {
-    if (best.handle.is_null() || closer({h, t}, best)) best = {h, t};
-    return best.t;
-  });
-  return best;
+  ClosestHit v;
+  s.cast_ray(r, v);
+  return v.best;
 }
 
 /// True when `r` hits anything in `s`; stops at the first hit found.
@@ -279,12 +276,9 @@ class AnyBroadPhase {
   /// The closest hit (smallest t, then smallest slot index); a null handle
   /// when the ray hits nothing. Throws InvalidRay.
   RayHit closest_hit(const Ray& r) const {
-    RayHit best{Handle{}, std::numeric_limits<double>::infinity()};
-    cast_ray(r, [&](Handle h, double t) {
-      if (best.handle.is_null() || closer({h, t}, best)) best = {h, t};
-      return best.t;
-    });
-    return best;
+    ClosestHit v;
+    cast_ray(r, v);
+    return v.best;
   }
   /// The closest hit of each ray into `out`, which must be as long as
   /// `rays` (std::invalid_argument): closest_hit(rays[i]) bit for bit, on

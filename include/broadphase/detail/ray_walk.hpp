@@ -342,18 +342,10 @@ template <class Children, class StageLeaf, class CullLeaf>
 void ray_binary_closest_hits(const ObjectStore& store, std::uint32_t root, const AabbF& root_box,
                              std::span<const Ray> rays, std::span<RayHit> out, Children&& children,
                              StageLeaf&& stage_leaf, CullLeaf&& cull_leaf) {
-  // closest_hit's visitor, kept with its cast.
-  struct Closest {
-    RayHit best{Handle{}, std::numeric_limits<double>::infinity()};
-    double operator()(Handle h, double t) {
-      if (best.handle.is_null() || closer({h, t}, best)) best = {h, t};
-      return best.t;
-    }
-  };
   constexpr std::uint32_t kNoLeaf = 0xffffffffu;
   struct Flight {
-    Closest closest;
-    std::optional<RayCast<Closest>> cast;
+    ClosestHit closest;  // closest_hit's visitor, kept with its cast
+    std::optional<RayCast<ClosestHit>> cast;
     RayCull::Within within;
     InlineStack<RayStackEntry, 64> stack;
     std::uint32_t leaf = kNoLeaf;     // popped, its objects on their way
@@ -364,7 +356,7 @@ void ray_binary_closest_hits(const ObjectStore& store, std::uint32_t root, const
   // Starts ray i in f; false when it is done at once (it misses the root).
   const auto start = [&](Flight& f, std::size_t i) {
     f.ray = i;
-    f.closest = Closest{};
+    f.closest = ClosestHit{};
     f.cast.emplace(store, rays[i], f.closest);
     f.stack.clear();
     f.leaf = kNoLeaf;
@@ -376,7 +368,7 @@ void ray_binary_closest_hits(const ObjectStore& store, std::uint32_t root, const
   };
   // One step; false when the ray is done.
   const auto step = [&](Flight& f) {
-    RayCast<Closest>& cast = *f.cast;
+    RayCast<ClosestHit>& cast = *f.cast;
     if (!f.found.empty()) {
       for (std::size_t j = 0; j < f.found.size(); ++j) {
         const RayFound& o = f.found[j];
