@@ -15,10 +15,19 @@ std::span<const std::uint32_t> LevelGrid::build(std::span<const GridEntry> items
   // assign, not resize: GCC 12's resize under -fsanitize=undefined reports
   // its own unreachable-point check here (the vectors are sound: ASan is
   // quiet and the release build exact), and assign costs the same fill.
-  entries.reserve(n);
-  shapes.reserve(n);
-  entries.assign(n, GridEntry{});
-  shapes.assign(n, LineShape{});
+  // Every entry is written by the scatter below and every shape by the
+  // caller, so the arrays are filled only when their size changes: a
+  // frame's rebuild of the moving grid keeps it, and its fill of 96 bytes
+  // an entry ran on one thread (at scaled-even 102 400 it was a tenth of
+  // the build on two threads).
+  if (entries.size() != n) {
+    entries.reserve(n);
+    entries.assign(n, GridEntry{});
+  }
+  if (shapes.size() != n) {
+    shapes.reserve(n);
+    shapes.assign(n, LineShape{});
+  }
   std::vector<std::uint32_t>& tag = scratch.tag;
   std::vector<std::uint32_t>& at = scratch.at;
   tag.resize(n);
