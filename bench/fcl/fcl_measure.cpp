@@ -37,6 +37,13 @@ bool count_pair(fcl::CollisionObjectd* a, fcl::CollisionObjectd* b, void* data) 
   return false;
 }
 
+// Collects the pairs in the order a manager hands them out.
+using ObjectPairs = std::vector<std::pair<fcl::CollisionObjectd*, fcl::CollisionObjectd*>>;
+bool collect_pair(fcl::CollisionObjectd* a, fcl::CollisionObjectd* b, void* data) {
+  static_cast<ObjectPairs*>(data)->emplace_back(a, b);
+  return false;
+}
+
 struct Contender {
   FclManagerRun run;
   std::unique_ptr<fcl::BroadPhaseCollisionManagerd> manager;
@@ -124,6 +131,19 @@ FclSizeRun measure_fcl(const FclPlan& plan) {
         c.run.update_ms.push_back(u);
         c.run.collide_ms.push_back(col);
         c.run.total_ms.push_back(u + col);
+        // The callback alone on the same pairs in the same order.
+        ObjectPairs got;
+        got.reserve(pairs[at] * 2 + 16);
+        c.manager->collide(&got, collect_pair);
+        std::size_t counted = 0;
+        const auto t2 = Clock::now();
+        for (const auto& [a, b] : got) count_pair(a, b, &counted);
+        c.run.callback_ms.push_back(ms_since(t2));
+        if (counted != pairs[at])
+          throw std::runtime_error("n = " + std::to_string(n) + ", frame " + std::to_string(f) +
+                                   ": " + c.run.name + " counted " + std::to_string(counted) +
+                                   " pairs on its second pass, " + std::to_string(pairs[at]) +
+                                   " on its first");
       }
     }
     for (std::size_t k = 1; k < cs.size(); ++k)

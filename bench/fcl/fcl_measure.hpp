@@ -28,6 +28,11 @@ struct FclManagerRun {
   std::string name;        ///< "broadphase (SPEC)", "fcl DynamicAABBTree", "fcl SaP", ...
   double register_ms = 0;  ///< registerObjects + setup
   std::vector<double> update_ms, collide_ms, total_ms;  ///< per timed frame
+  /// Per timed frame: the callback alone, called on the frame's pairs as
+  /// this manager handed them out (collected by a second, untimed collide):
+  /// the part of `collide_ms` that no broad phase behind FCL's callback
+  /// contract can save, the callback's reads of the two FCL objects.
+  std::vector<double> callback_ms;
 };
 
 /// One size's result: ours first, then FCL's managers in the order above.
@@ -45,7 +50,8 @@ struct FclSizeRun {
 /// then each manager's update(moved objects) and collide(callback) timed in
 /// turn (the order rotating each frame, so that a busy neighbour on a
 /// shared host does not always hit the same one), as the calling thread's
-/// CPU time. The callback counts the pairs whose AABBs overlap; the counts
+/// CPU time, and the callback alone on each manager's pairs in its order
+/// (FclManagerRun::callback_ms). The callback counts the pairs whose AABBs overlap; the counts
 /// must agree every frame, else std::runtime_error names the frame and the
 /// managers. Throws std::invalid_argument for n or frames below 1.
 FclSizeRun measure_fcl(const FclPlan& plan);
