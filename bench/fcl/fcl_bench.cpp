@@ -48,18 +48,19 @@ void print(const broadphase::engines::FclSizeRun& r) {
   std::printf("%-34s %11s %10s %11s %12s %12s %12s\n", "manager", "register ms", "update ms",
               "collide ms", "callback ms", "upd+col ms", "vs ours");
   for (const auto& c : r.managers)
-    std::printf("%-34s %11.2f %10.3f %11.3f %12.3f %12.3f %11.2fx\n", c.name.c_str(),
-                c.register_ms, median(c.update_ms), median(c.collide_ms), median(c.callback_ms),
+    std::printf("%-34s %11.2f %10.3f %11.3f %12.3f %12.3f %11.2fx\n", c.name.c_str(), c.register_ms,
+                median(c.update_ms), median(c.collide_ms), median(c.callback_ms),
                 median(c.total_ms), median(c.total_ms) / ours);
   // What no broad phase behind FCL's callback saves: the callback's own
   // time on the pairs, in the fastest order any manager handed them out.
   double floor = median(r.managers.front().callback_ms);
   for (const auto& c : r.managers) floor = std::min(floor, median(c.callback_ms));
   const auto& tree = r.managers.size() > 1 ? r.managers[1] : r.managers.front();
-  std::printf("the callback alone: %.3f ms at the least; %s's update + collide over it: %.2fx, "
-              "the most any manager could be faster (one whose update and pair pass took no "
-              "time)\n",
-              floor, tree.name.c_str(), median(tree.total_ms) / floor);
+  std::printf(
+      "the callback alone: %.3f ms at the least; %s's update + collide over it: %.2fx, "
+      "the most any manager could be faster (one whose update and pair pass took no "
+      "time)\n",
+      floor, tree.name.c_str(), median(tree.total_ms) / floor);
   std::printf("\n");
 }
 
