@@ -141,10 +141,11 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
  private:
   static constexpr std::uint32_t kNone = 0xffffffffu;
   struct Record {
+    // What collide reads of each pair first, in the record's first 64 bytes.
     Object* object = nullptr;     ///< null: a free slot
     ::fcl::AABB<S> box;           ///< the AABB at registration or the last update
-    Handle handle;                ///< in the structure; null while kept apart
     std::uint64_t order = 0;      ///< registration order
+    Handle handle;                ///< in the structure; null while kept apart
     std::uint32_t apart = kNone;  ///< index in apart_, or kNone
     bool moving = false;          ///< has moved since registration
   };

@@ -374,14 +374,24 @@ void FclCollisionManager<S>::collide(void* cdata, ::fcl::CollisionCallBack<S> ca
   const std::size_t count = pairs.size();
   for (std::size_t i = 0; i < count; ++i) {
     if (i + kRecordsAhead < count) {
+      // A record's first 64 bytes (its object, box and order) start
+      // anywhere in a line: both lines they may touch.
       const HandlePair& ahead = pairs[i + kRecordsAhead];
-      detail::prefetch(&records_[slot_of_handle_[ahead.a.index]]);
-      detail::prefetch(&records_[slot_of_handle_[ahead.b.index]]);
+      const auto* ra = reinterpret_cast<const char*>(&records_[slot_of_handle_[ahead.a.index]]);
+      const auto* rb = reinterpret_cast<const char*>(&records_[slot_of_handle_[ahead.b.index]]);
+      detail::prefetch(ra);
+      detail::prefetch(ra + 63);
+      detail::prefetch(rb);
+      detail::prefetch(rb + 63);
     }
     if (i + kObjectsAhead < count) {
       const HandlePair& ahead = pairs[i + kObjectsAhead];
-      detail::prefetch(&records_[slot_of_handle_[ahead.a.index]].object->getAABB());
-      detail::prefetch(&records_[slot_of_handle_[ahead.b.index]].object->getAABB());
+      const ::fcl::AABB<S>& aa = records_[slot_of_handle_[ahead.a.index]].object->getAABB();
+      const ::fcl::AABB<S>& ab = records_[slot_of_handle_[ahead.b.index]].object->getAABB();
+      detail::prefetch(&aa);
+      detail::prefetch(&aa.max_);
+      detail::prefetch(&ab);
+      detail::prefetch(&ab.max_);
     }
     const HandlePair& hp = pairs[i];
     const Record* a = &records_[slot_of_handle_[hp.a.index]];
