@@ -17,8 +17,8 @@ namespace {
 /// FCL's `AABB::overlap` (fcl/math/bv/AABB-inl.h), written out so that it
 /// is inlined in the pair loops: closed boxes, no overlap as soon as one
 /// bound lies beyond the other's on an axis (a NaN bound never does). The
-/// library's call, out of line in libfcl, was a third of our collide's
-/// samples with the misses it waited on.
+/// library's is out of line in libfcl, a call per candidate; measured
+/// together with the fetching ahead in collide (docs/fcl.md).
 template <class S>
 bool fcl_overlap(const ::fcl::AABB<S>& a, const ::fcl::AABB<S>& b) {
   for (int k = 0; k < 3; ++k)
