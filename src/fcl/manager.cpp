@@ -371,31 +371,30 @@ void FclCollisionManager<S>::collide(void* cdata, ::fcl::CollisionCallBack<S> ca
   // allocation), and the pair loop and the callback's reads of the objects
   // waited on them one after another.
   constexpr std::size_t kRecordsAhead = 16, kObjectsAhead = 8;
+  const auto record = [this](Handle h) -> const Record& {
+    return records_[slot_of_handle_[h.index]];
+  };
+  // Both cache lines a 64-byte piece starting at p may touch.
+  const auto fetch = [](const void* p) {
+    detail::prefetch(p);
+    detail::prefetch(static_cast<const char*>(p) + 63);
+  };
   const std::size_t count = pairs.size();
   for (std::size_t i = 0; i < count; ++i) {
     if (i + kRecordsAhead < count) {
-      // A record's first 64 bytes (its object, box and order) start
-      // anywhere in a line: both lines they may touch.
+      // A record's object, box and order are its first 64 bytes.
       const HandlePair& ahead = pairs[i + kRecordsAhead];
-      const auto* ra = reinterpret_cast<const char*>(&records_[slot_of_handle_[ahead.a.index]]);
-      const auto* rb = reinterpret_cast<const char*>(&records_[slot_of_handle_[ahead.b.index]]);
-      detail::prefetch(ra);
-      detail::prefetch(ra + 63);
-      detail::prefetch(rb);
-      detail::prefetch(rb + 63);
+      fetch(&record(ahead.a));
+      fetch(&record(ahead.b));
     }
     if (i + kObjectsAhead < count) {
       const HandlePair& ahead = pairs[i + kObjectsAhead];
-      const ::fcl::AABB<S>& aa = records_[slot_of_handle_[ahead.a.index]].object->getAABB();
-      const ::fcl::AABB<S>& ab = records_[slot_of_handle_[ahead.b.index]].object->getAABB();
-      detail::prefetch(&aa);
-      detail::prefetch(&aa.max_);
-      detail::prefetch(&ab);
-      detail::prefetch(&ab.max_);
+      fetch(&record(ahead.a).object->getAABB());
+      fetch(&record(ahead.b).object->getAABB());
     }
     const HandlePair& hp = pairs[i];
-    const Record* a = &records_[slot_of_handle_[hp.a.index]];
-    const Record* b = &records_[slot_of_handle_[hp.b.index]];
+    const Record* a = &record(hp.a);
+    const Record* b = &record(hp.b);
     if (!fcl_overlap(a->box, b->box)) continue;
     if (b->order < a->order) std::swap(a, b);
     if (callback(a->object, b->object, cdata)) return;
