@@ -65,10 +65,25 @@ VerletLists::Totals VerletLists::refresh_boxes(LevelGrid& moving, std::span<Grid
       GridEntry& e = moving.entries[k];
       if (e.dead()) continue;
       Mover& mv = movers_[k];
+      if (direct_) {
+        // No lists: the entry is the bounds, probed by every other mover.
+        mv.fat = mv.cur;
+        mv.fast = true;
+        mv.guessed = false;
+        mv.epoch = epoch_;
+        mv.list_begin = mv.list_count = mv.near_begin = mv.near_count = 0;
+        std::copy(mv.cur.lo, mv.cur.lo + 3, e.lo);
+        std::copy(mv.cur.hi, mv.cur.hi + 3, e.hi);
+        if (copy) {
+          items[k] = e;
+          src[k] = static_cast<std::uint32_t>(k);
+        }
+        continue;
+      }
       // A box made before the speed was known is renewed as soon as it is
       // known (in the first bulk update after the inserts, rather than in
       // a wave over the next frames).
-      if ((mv.guessed && mv.speed > 0) || !mv.fat.contains(mv.cur)) {
+      if (refit_ || (mv.guessed && mv.speed > 0) || !mv.fat.contains(mv.cur)) {
         mv.fat = fat_box(mv.cur, mv.speed, mv.fast);
         mv.guessed = !(mv.speed > 0);
         mv.epoch = 0;
@@ -85,6 +100,7 @@ VerletLists::Totals VerletLists::refresh_boxes(LevelGrid& moving, std::span<Grid
     }
     share_totals_[share].lists = sum;
   });
+  refit_ = false;
   Totals totals;
   for (unsigned k = 0; k < parts; ++k) {
     const Totals& sum = share_totals_[k].lists;
@@ -94,6 +110,38 @@ VerletLists::Totals VerletLists::refresh_boxes(LevelGrid& moving, std::span<Grid
     totals.near_renewing += sum.near_renewing;
   }
   return totals;
+}
+
+void VerletLists::set_direct(bool on) {
+  if (on == direct_) return;
+  direct_ = on;
+  if (!on) {
+    refit_ = true;
+    ++epoch_;  // every mover renews its lists at the next rebuild
+  }
+}
+
+double VerletLists::renewal_share(const LevelGrid& moving) const {
+  // fat_box's margin rule, without the box: a mover moving d a frame with
+  // margin M leaves its box after about M / d frames.
+  double sum = 0;
+  std::size_t live = 0;
+  for (std::size_t k = 0; k < movers_.size(); ++k) {
+    if (moving.entries[k].dead()) continue;
+    ++live;
+    const Mover& mv = movers_[k];
+    const double travel = mv.speed;
+    if (!(travel > 0)) continue;
+    const double extent = extent_of(mv.cur.lo, mv.cur.hi);
+    const double cap = kMaxMargin * std::max(extent, finest_cell_);
+    if (cap < kMinFrames * travel) {
+      sum += 1;
+      continue;
+    }
+    const double margin = std::max(std::min(kMarginFrames * travel, cap), kMinMargin * extent);
+    sum += std::min(1.0, travel / margin);
+  }
+  return live == 0 ? 0 : sum / static_cast<double>(live);
 }
 
 void VerletLists::count_slow(const LevelGrid& moving, const WorkShares& shares) {
@@ -189,6 +237,12 @@ void VerletLists::make_room(const LevelGrid& moving, const Totals& totals) {
 void VerletLists::renew(const LevelGrid& fixed, const LevelGrid& moving, const Totals& totals,
                         const WorkShares& shares, std::span<const Filter> filters) {
   count_slow(moving, shares);
+  if (direct_) {
+    // No lists: refresh_boxes emptied every live mover's.
+    list_pool_.clear();
+    near_pool_.clear();
+    return;
+  }
   const std::size_t m = moving.entries.size();
   const unsigned chunks = shares.chunks_for(m);
   // Each chunk renews the lists of a contiguous range of the moving entries

@@ -164,6 +164,8 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
             overflow_.capacity()) *
                sizeof(std::uint32_t);
   }
+  /// The float bounds of the live object in slot `i` (its handle's index).
+  const AabbF& bounds_at(std::uint32_t i) const { return box_[i]; }
   /// The cell edge in use.
   double cell_size() const { return map_.cell(); }
   /// Objects that span more than two cells on some axis.

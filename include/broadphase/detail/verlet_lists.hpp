@@ -121,9 +121,23 @@ class VerletLists {
   }
   /// Movers that are not fast on level `l` of the moving grid.
   std::uint32_t slow_on_level(std::size_t l) const { return slow_per_level_[l]; }
+  /// True while the movers keep no lists (set_direct).
+  bool direct() const { return direct_; }
+  /// The share of the live movers whose lists a frame would renew, as
+  /// their last displacements predict: a fast mover every frame, one whose
+  /// margin holds F frames of its displacement once in F frames. The same
+  /// with or without lists (it reads bounds and displacements only), and
+  /// the same for every thread count. O(movers).
+  double renewal_share(const LevelGrid& moving) const;
 
   // --- Changes --------------------------------------------------------------
 
+  /// Mover k's bounds are `b` and its last displacement `speed`, as kept
+  /// elsewhere while the movers had no lists.
+  void place(std::size_t k, const AabbF& b, float speed) {
+    movers_[k].cur = b;
+    movers_[k].speed = speed;
+  }
   /// Mover k's bounds are now `b` (its last displacement is remembered);
   /// its box and lists stay until the next rebuild renews them if needed.
   void move(std::size_t k, const AabbF& b);
@@ -131,6 +145,11 @@ class VerletLists {
   /// covers several frames of `speed` (its last displacement), within
   /// limits; `fast` tells whether the mover is too fast for a useful one.
   AabbF fat_box(const AabbF& cur, float speed, bool& fast) const;
+  /// Without lists (`on`): from the next rebuild every mover's box is its
+  /// bounds, every mover is fast, and no list is kept (the owner finds the
+  /// movers' pairs without them). Back with lists: the next rebuild gives
+  /// every mover a new fat box and new lists.
+  void set_direct(bool on);
   /// The fixed grid was rebuilt: every list is renewed at the next renew(),
   /// and margins follow the new grid's finest cell.
   void fixed_grid_rebuilt(const LevelGrid& fixed);
@@ -151,14 +170,16 @@ class VerletLists {
   /// Entry k's record is the one of entry `old` before the rebuild.
   void keep(std::uint32_t k, std::uint32_t old) { movers_[k] = old_movers_[old]; }
   /// Entry k is a new mover with bounds `cur`, last displacement `speed`
-  /// (0: unknown) and fat box `fat`.
+  /// (0: unknown) and fat box `fat` (without lists: `cur`, and no list due).
   void start(std::uint32_t k, const AabbF& cur, float speed, const AabbF& fat) {
     Mover& mv = movers_[k];
     mv = Mover{};
     mv.cur = cur;
     mv.speed = speed;
-    mv.guessed = !(speed > 0);
-    mv.fat = fat;
+    mv.guessed = !direct_ && !(speed > 0);
+    mv.fat = direct_ ? cur : fat;
+    mv.fast = direct_;
+    if (direct_) mv.epoch = epoch_;
   }
   /// After the moving grid is rebuilt: counts the slow movers per level,
   /// and renews the lists of the movers whose boxes are new (all of them
@@ -218,6 +239,8 @@ class VerletLists {
   std::uint32_t epoch_ = 1;                    // bumped at every fixed-grid rebuild
   std::uint32_t stamp_ = 0;                    // bumped at every rebuild
   double finest_cell_ = 0;                     // the fixed grid's finest cell side (0: none)
+  bool direct_ = false;                        // no lists, boxes are bounds (set_direct)
+  bool refit_ = false;                         // every mover gets a new fat box at the next refresh
 };
 
 }  // namespace broadphase::detail
