@@ -240,6 +240,149 @@ TEST(GridVerlet, NearListsStayExactWhileMoversComeAndGo) {
   EXPECT_GT(seen, 100u) << "the scene should have pairs to find";
 }
 
+/// The ids of every object `ray` hits in `s` (all hits, in no order).
+template <class S>
+std::set<std::uint64_t> ray_hits(const S& s, const Ray& ray) {
+  std::set<std::uint64_t> out;
+  s.cast_ray(ray, [&](Handle h, double) { out.insert(s.user_data(h)); });
+  return out;
+}
+
+/// The ids of every object overlapping `q` in `s`.
+template <class S>
+std::set<std::uint64_t> query_ids(const S& s, const Shape& q) {
+  std::set<std::uint64_t> out;
+  s.query(q, [&](Handle h) { out.insert(s.user_data(h)); });
+  return out;
+}
+
+TEST(GridVerlet, MoversSwitchBetweenListsAndTheDenseGridAndStayExact) {
+  // Phases of fast and slow motion: with movers=auto the structure must take
+  // the dense grid while most movers would renew their lists each frame and
+  // go back to lists when they slow down, and every frame, query and ray in
+  // between must match the naive oracle, through inserts, removes, single
+  // moves, filter changes and fixed objects.
+  for (const std::uint64_t seed : {3u, 17u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    Scene scene = generate(Distribution::all_moving, 700, seed);
+    scene.world *= 0.3;  // crowded: pairs among movers and with fixed objects
+    for (std::size_t i = 0; i < scene.size(); ++i)
+      scene.objects[i].center = scene.objects[i].center * 0.3;
+    Config c;
+    c.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}};
+    GridVerlet g(c, GridVerletOptions{});
+    Naive n;
+    std::vector<Handle> h(scene.size()), hn(scene.size());
+    std::vector<bool> alive(scene.size(), true);
+    for (std::size_t i = 0; i < scene.size(); ++i) {
+      const Motion m = i % 7 == 0 ? Motion::fixed : Motion::dynamic;  // a seventh stays
+      h[i] = g.insert(scene.objects[i], i, m);
+      hn[i] = n.insert(scene.objects[i], i);
+    }
+    Rng rng(seed);
+    std::vector<Move> moves;
+    for (int f = 0; f < 72; ++f) {
+      SCOPED_TRACE("frame " + std::to_string(f));
+      // Fast in frames 0-23 and 48-71 (beyond half the fixed grid's cells,
+      // which bound the margins here), slow between.
+      const double speed = f < 24 || f >= 48 ? 40.0 : 0.02;
+      for (std::size_t i = 0; i < scene.size(); ++i) {
+        if (i % 7 == 0) continue;
+        const Vec3 v = scene.velocity[i];
+        const double len = std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
+        if (len > 0) scene.velocity[i] = v * (speed / len);
+      }
+      step(scene);
+      // Objects come and go on odd frames, filters change every fourth and
+      // some objects move one at a time every sixth: the other frames run
+      // in dense mode without a rebuild. Each change is checked at once.
+      auto check_rays = [&] {
+        for (int k = 0; k < 8; ++k) {
+          const Vec3 o = scene.objects[rng.below(scene.size())].center;
+          const Vec3 d{rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)};
+          const Ray ray{o, d, k % 2 == 0 ? 1e9 : 40, k % 4 < 2 ? 0x5u : 0xffffffffu};
+          ASSERT_EQ(ray_hits(g, ray), ray_hits(n, ray)) << "ray " << k;
+        }
+      };
+      for (int k = 0; f % 2 == 1 && k < 5; ++k) {
+        const std::size_t i = rng.below(scene.size());
+        if (i % 7 == 0) continue;
+        if (alive[i]) {
+          g.remove(h[i]);
+          n.remove(hn[i]);
+        } else {
+          h[i] = g.insert(scene.objects[i], i);
+          hn[i] = n.insert(scene.objects[i], i);
+        }
+        alive[i] = !alive[i];
+      }
+      if (f % 2 == 1) {
+        g.validate();
+        ASSERT_EQ(pairs_of(g), pairs_of(n)) << "after inserts and removes";
+      }
+      for (int k = 0; f % 4 == 0 && k < 20; ++k) {  // filter changes on live movers
+        const std::size_t i = 1 + 7 * rng.below(scene.size() / 7 - 1);
+        if (alive[i]) {
+          const Filter fl{1u << rng.below(3), 0x3u};
+          g.set_filter(h[i], fl);
+          n.set_filter(hn[i], fl);
+        }
+      }
+      if (f % 4 == 0) {
+        g.validate();
+        check_rays();
+        ASSERT_EQ(pairs_of(g), pairs_of(n)) << "after filter changes";
+      }
+      moves.clear();
+      for (std::size_t i = 0; i < scene.size(); ++i) {
+        if (!alive[i] || i % 7 == 0) continue;
+        if (f % 6 == 5 && i % 50 == 1) {  // some move one at a time, by the loose list
+          g.update(h[i], scene.objects[i]);
+        } else {
+          moves.push_back({h[i], scene.objects[i]});
+        }
+        n.update(hn[i], scene.objects[i]);
+      }
+      g.update(moves);
+      g.validate();
+      // The mode is looked at every eighth bulk update from the second
+      // (frames 1, 9, 17, ...): by then each phase has shown its speeds.
+      if ((f >= 10 && f < 24) || f >= 58) {
+        EXPECT_TRUE(g.dense_movers()) << "fast movers";
+      }
+      if (f >= 34 && f < 48) {
+        EXPECT_FALSE(g.dense_movers()) << "slow movers";
+      }
+      ASSERT_EQ(pairs_of(g), pairs_of(n));
+      const Shape q = Shape::sphere(scene.objects[rng.below(scene.size())].center, 4);
+      ASSERT_EQ(query_ids(g, q), query_ids(n, q));
+      check_rays();
+    }
+  }
+}
+
+TEST(GridVerlet, TheMoverModeCanBeForced) {
+  Scene scene = generate(Distribution::explosion, 600, 9);
+  for (const char* mode : {"lists", "dense"}) {
+    SCOPED_TRACE(mode);
+    GridVerlet g(with_option("movers", mode));
+    const std::vector<Handle> h = insert_scene(g, scene);
+    std::vector<Move> moves;
+    Scene s = scene;
+    for (int f = 0; f < 20; ++f) {
+      step(s);
+      moves.clear();
+      for (std::size_t i = 0; i < s.size(); ++i)
+        if (s.is_moving(i)) moves.push_back({h[i], s.objects[i]});
+      g.update(moves);
+      g.validate();
+      EXPECT_EQ(g.dense_movers(), std::string(mode) == "dense");
+      ASSERT_EQ(pairs_of(g), naive_pairs(s.objects));
+    }
+  }
+  EXPECT_THROW(GridVerlet(with_option("movers", "sometimes")), InvalidConfig);
+}
+
 TEST(GridVerlet, ListPoolsAreReusedInPlace) {
   // Over many frames every mover renews its lists again and again; renewed
   // lists are appended to the pools, and the lists that stay are moved to

@@ -46,6 +46,18 @@
 /// for a useful margin keeps no moving list and probes the moving grid
 /// every frame instead.
 ///
+/// Dense mode. When most movers would renew their lists every frame or two
+/// (everything moves fast) and fixed objects are no more than the movers,
+/// the lists cost more than they save: the movers then keep none, and are
+/// kept as well in a grid-dense grid (grid_dense.hpp) updated in place,
+/// which finds their pairs and answers queries and rays for them; each
+/// mover probes the fixed grid for its fixed pairs, and the moving grid is
+/// rebuilt only when objects join or leave it. The choice is made every
+/// eighth bulk update from the movers' last displacements (option
+/// `movers=auto|lists|dense`, `dense_movers()` tells which is in use), so
+/// it never depends on the thread count; in dense mode the bulk update's
+/// moves and the pair pass run on one thread.
+///
 /// Threads. `find_pairs` and the bulk update split the moving objects over
 /// `threads` threads (option `threads=N`, default 1, 0 = hardware
 /// concurrency) of a pool kept by the structure, in chunks taken by
@@ -65,6 +77,7 @@
 #include <broadphase/detail/structure_base.hpp>
 #include <broadphase/detail/verlet_lists.hpp>
 #include <broadphase/detail/work_shares.hpp>
+#include <broadphase/grid_dense.hpp>
 #include <broadphase/structure.hpp>
 #include <cmath>
 #include <cstddef>
@@ -79,7 +92,19 @@
 
 namespace broadphase {
 
-/// The options of GridVerlet (`grid-verlet:threads=N,cell=F,grain=N`).
+/// How GridVerlet finds its movers' pairs (option `movers=`).
+enum class GridVerletMovers {
+  /// Lists while they pay, the dense grid while most movers would renew
+  /// theirs every frame or two, switching as the motion changes (default).
+  automatic,
+  /// Always the movers' lists.
+  lists,
+  /// Always the dense grid.
+  dense,
+};
+
+/// The options of GridVerlet
+/// (`grid-verlet:threads=N,cell=F,grain=N,movers=auto|lists|dense`).
 struct GridVerletOptions {
   /// The most threads: a chunk's mark holds its chunk in 10 bits, which
   /// more than 128 threads would overflow.
@@ -95,6 +120,9 @@ struct GridVerletOptions {
   /// in [1, 2^24]. Default 2048 (1: every thread takes part from two movers
   /// on, which tests use to run the threaded paths on small scenes).
   std::size_t grain = 2048;
+  /// Lists, the dense grid, or the choice made from the movers' motion
+  /// (GridVerletMovers). Default: automatic.
+  GridVerletMovers movers = GridVerletMovers::automatic;
   /// Throws InvalidConfig for a value out of range (detail/structure_base.hpp).
   void check() const;
   /// Reads options given as text (detail/structure_base.hpp). Throws InvalidConfig.
@@ -184,6 +212,10 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   QueryCost cast_ray(const Ray& r, V&& visitor) const;
   /// The number of threads find_pairs and the bulk update use.
   unsigned threads() const { return shares_.threads(); }
+  /// True while the movers' pairs come from the dense grid rather than
+  /// from their lists (option `movers=`; with `auto`, decided at every
+  /// eighth bulk update from the movers' displacements). O(1).
+  bool dense_movers() const { return dense_mode_; }
   /// Checks slots, lists, grid order and the pair cache; throws std::logic_error.
   void validate() const;
   /// Reports the occupied cells of the two grids as built: the fixed
@@ -195,8 +227,9 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   /// border cell, outside its box. Objects on the loose list (inserted or
   /// moved one at a time since the last rebuild; settle() empties it) come
   /// last, each as its own box on one more level after the moving grid's,
-  /// holding 1. Unbounded objects are in no cell. O(cells + entries), for
-  /// pictures.
+  /// holding 1; in dense mode (dense_movers()) the movers, instead of the
+  /// moving grid's levels, are reported the same way. Unbounded objects are
+  /// in no cell. O(cells + entries), for pictures.
   void visit_cells(CellVisitor visitor) const;
 
  private:
@@ -226,6 +259,7 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
       case Home::fixed_grid:
         return fixed_.shapes[slots_[s].pos];
       case Home::moving_grid:
+        if (dense_mode_) return dense_->shape(dense_handle_[slots_[s].pos]);
         return moving_.shapes[slots_[s].pos];
       default:
         return loose_shapes_[slots_[s].pos];
@@ -243,6 +277,22 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   void move_via_loose(std::uint32_t i, const Shape& shape);
   void maybe_rebuild();
   void rebuild(bool fixed_too);
+  /// After a bulk update: switches between the movers' lists and the dense
+  /// grid when the movers' expected renewals cross kDenseFrom or kDenseUntil
+  /// (the switch takes effect in the rebuild that follows).
+  void choose_mover_mode();
+  /// Dense mode: refills the dense grid with every live mover, after a rebuild.
+  void refill_dense();
+  /// Dense mode: copies each mover's shape, bounds and last displacement
+  /// from the dense grid back to the moving grid and the lists' records
+  /// (before a rebuild, or to look at the movers' speeds).
+  void sync_from_dense();
+  /// Our handle of a dense-grid object (its user data).
+  Handle from_dense(Handle d) const { return unpack(dense_->user_data(d)); }
+  static std::uint64_t pack(Handle h) { return std::uint64_t{h.index} << 32 | h.generation; }
+  static Handle unpack(std::uint64_t u) {
+    return {static_cast<std::uint32_t>(u >> 32), static_cast<std::uint32_t>(u)};
+  }
   /// The shape an item of a rebuild came from: `src` is an index into
   /// `old_shapes` (the grid's shapes before the build), or kFromLoose | an
   /// index into loose_shapes_.
@@ -275,12 +325,16 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   bool loose_pairs(E& emit, std::uint64_t& tests) const;
   template <class E>
   bool all_pairs(E& emit, std::uint64_t& tests) const;
-  /// The movers' pairs without their lists, which a filter change left
-  /// incomplete until the next rebuild renews them (lists_stale_): each
-  /// mover probes the fixed grid, and the moving grid's pairs as the fixed
-  /// grid's are found.
+  /// The movers' pairs without their lists, in dense mode or when a filter
+  /// change left them incomplete until the next rebuild renews them
+  /// (lists_stale_): each mover probes the fixed grid, and the movers'
+  /// own pairs come from the dense grid, or else from the moving grid as
+  /// the fixed grid's are found.
   template <class E>
   bool pairs_without_lists(E& emit, std::uint64_t& tests) const;
+  /// The pairs among movers in dense mode, from the dense grid.
+  template <class E>
+  bool dense_pairs(E& emit, std::uint64_t& tests) const;
 
   /// The threads (option threads=N) and the split of every pass (option
   /// grain=N: moving objects per share at least).
@@ -379,6 +433,23 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   // The movers' fat boxes and candidate lists, in the moving grid's order.
   detail::VerletLists lists_;
 
+  // Dense mode: when most movers would renew their lists every frame or
+  // two (everything moves fast), lists cost more than they save. The
+  // movers then keep no lists (lists_.direct()), stay where the last
+  // rebuild put them in the moving grid (whose boxes go stale and are not
+  // read), and are kept as well in a grid-dense grid, updated in place each
+  // frame, which finds their pairs and answers queries and rays for them.
+  // The switch follows the movers' expected renewals (choose_mover_mode),
+  // which depend on their motion alone, so pairs and their order never
+  // depend on the thread count or the timing.
+  GridVerletMovers movers_option_ = GridVerletMovers::automatic;
+  bool dense_mode_ = false;
+  bool mode_changed_ = false;  // a rebuild is due to enter or leave dense mode
+  std::uint32_t bulk_updates_ = 0;
+  std::unique_ptr<GridDense> dense_;  // dense mode: the movers (user data: our handle)
+  std::vector<Handle> dense_handle_;  // dense mode: per moving entry, its dense handle
+  std::vector<float> dense_speed_;    // dense mode: per dense slot, its last displacement
+
   /// Per-share pair buffers of find_pairs, reused between frames.
   mutable std::mutex buffers_mutex_;
   mutable std::vector<std::vector<HandlePair>> buffers_;
@@ -394,13 +465,28 @@ QueryCost GridVerlet::cast_ray(const Ray& r, V&& visitor) const {
     double t;
     return !cast.cull.enter(box, cast.tmax, t) || cast.test_object(h, s, filter_of(h.index).group);
   };
+  if (dense_mode_) {
+    // The movers, from the dense grid (the moving grid's boxes are stale).
+    Ray within = r;
+    within.tmax = cast.tmax;
+    const QueryCost c = dense_->cast_ray(within, [&](Handle d, double t) {
+      cast.tmax = visit_hit(visitor, from_dense(d), t, cast.tmax);
+      return cast.tmax;
+    });
+    cast.cost.tests += c.tests;
+    if (cast.tmax < 0) {
+      cast.cost.stopped = true;
+      return cast.cost;
+    }
+  }
   for (std::size_t i = 0; i < loose_.size(); ++i)
     if (!test(handle_of(loose_[i]), loose_shapes_[i], loose_bounds_[i])) return cast.cost;
   // Each level of both grids: a march through its cells (an entry sits in
   // the cell of its box's lower corner and reaches at most the level's
   // reach above it), each entry tested once.
   detail::RaySlots tested;
-  for (const Grid* g : {&fixed_, &moving_})
+  for (const Grid* g : {&fixed_, &moving_}) {
+    if (g == &moving_ && dense_mode_) break;
     for (const Level& lv : g->levels) {
       const std::uint32_t begin = g->cell_start[lv.first_cell];
       const std::uint32_t end = g->cell_start[lv.first_cell + lv.cells()];
@@ -446,6 +532,7 @@ QueryCost GridVerlet::cast_ray(const Ray& r, V&& visitor) const {
       for (std::uint32_t k = begin; k < end; ++k)
         if (!entry(k)) return cast.cost;
     }
+  }
   return cast.cost;
 }
 
@@ -462,10 +549,21 @@ QueryCost GridVerlet::query(const Shape& q, V&& visitor) const {
     }
     return true;
   };
-  for (const Grid* g : {&fixed_, &moving_})
+  for (const Grid* g : {&fixed_, &moving_}) {
+    if (g == &moving_ && dense_mode_) {
+      const QueryCost c = dense_->query(q, [&](Handle d) {
+        if (visit(visitor, from_dense(d))) return true;
+        cost.stopped = true;
+        return false;
+      });
+      cost.tests += c.tests;
+      if (cost.stopped) return cost;
+      continue;
+    }
     if (!g->scan(b, 0, kNoMinX,
                  [&](std::uint32_t k) { return test(g->entries[k].handle(), g->shapes[k]); }))
       return cost;
+  }
   for (std::size_t i = 0; i < loose_.size(); ++i)
     if (loose_bounds_[i].overlaps(b) && !test(handle_of(loose_[i]), loose_shapes_[i])) return cost;
   return cost;
@@ -659,6 +757,17 @@ bool GridVerlet::loose_pairs(E& emit, std::uint64_t& tests) const {
     const std::uint32_t s = loose_[i];
     const Shape& sh = loose_shapes_[i];
     for (const Grid* g : {&fixed_, &moving_}) {
+      if (g == &moving_ && dense_mode_) {
+        bool go = true;
+        const QueryCost c = dense_->query(sh, [&](Handle d) {
+          const Handle o = from_dense(d);
+          go = !detail::admits(emit, s, o.index) || emit(handle_of(s), o);
+          return go;
+        });
+        tests += c.tests;
+        if (!go) return false;
+        continue;
+      }
       if (!g->scan(loose_bounds_[i], 0, kNoMinX, [&](std::uint32_t k) {
             if (!detail::admits(emit, s, g->entries[k].slot)) return true;
             ++tests;
@@ -697,8 +806,11 @@ bool GridVerlet::pairs_without_lists(E& emit, std::uint64_t& tests) const {
   for (std::size_t i = 0; i < moving_.entries.size(); ++i) {
     const Entry& me = moving_.entries[i];
     if (me.dead()) continue;
-    const Shape& sm = moving_.shapes[i];
-    const bool go = fixed_.scan(movers[i].cur, 0, kNoMinX, [&](std::uint32_t k) {
+    // In dense mode the mover is where the dense grid holds it.
+    const Handle d = dense_mode_ ? dense_handle_[i] : Handle{};
+    const Shape& sm = dense_mode_ ? dense_->shape(d) : moving_.shapes[i];
+    const AabbF& box = dense_mode_ ? dense_->bounds_at(d.index) : movers[i].cur;
+    const bool go = fixed_.scan(box, 0, kNoMinX, [&](std::uint32_t k) {
       const Entry& o = fixed_.entries[k];
       if (!detail::admits(emit, me.slot, o.slot)) return true;
       ++tests;
@@ -706,13 +818,26 @@ bool GridVerlet::pairs_without_lists(E& emit, std::uint64_t& tests) const {
     });
     if (!go) return false;
   }
+  if (dense_mode_) return dense_pairs(emit, tests);
   return grid_pairs(moving_, 0, moving_.entries.size(), emit, tests);
+}
+
+template <class E>
+bool GridVerlet::dense_pairs(E& emit, std::uint64_t& tests) const {
+  bool go = true;
+  auto pass = [&](Handle a, Handle b) {
+    const Handle ha = from_dense(a), hb = from_dense(b);
+    go = !detail::admits(emit, ha.index, hb.index) || emit(ha, hb);
+    return go;
+  };
+  tests += dense_->walk_pairs(pass).tests;
+  return go;
 }
 
 template <class E>
 bool GridVerlet::all_pairs(E& emit, std::uint64_t& tests) const {
   const std::size_t m = moving_.entries.size();
-  if (lists_stale_)
+  if (lists_stale_ || dense_mode_)
     return fixed_pairs(emit, tests) && pairs_without_lists(emit, tests) && loose_pairs(emit, tests);
   return fixed_pairs(emit, tests) && mover_pairs(0, m, emit, tests) && loose_pairs(emit, tests);
 }

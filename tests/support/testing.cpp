@@ -49,6 +49,10 @@ std::vector<std::string> library_structures() {
 std::vector<std::string> structure_specs() {
   std::vector<std::string> specs = library_structures();
   specs.push_back("grid-verlet:threads=3,grain=1");
+  // The default chooses how to find its movers' pairs from their motion:
+  // each way on its own, whatever the scene.
+  specs.push_back("grid-verlet:movers=lists");
+  specs.push_back("grid-verlet:movers=dense,threads=2,grain=1");
   return specs;
 }
 
