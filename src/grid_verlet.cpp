@@ -231,6 +231,15 @@ void GridVerlet::move_mover(std::uint32_t k, const Shape& shape) {
   moving_.shapes[k] = shape;
 }
 
+bool GridVerlet::stage_dense(std::uint32_t k, const Shape& shape, AabbF& b,
+                             detail::OccupiedBox& grown) {
+  const Handle d = dense_handle_[k];
+  const AabbF before = dense_->bounds_at(d.index);
+  const bool done = dense_->stage_update(d, shape, b, grown);
+  dense_speed_[d.index] = detail::displacement(before, b);
+  return done;
+}
+
 void GridVerlet::move_via_loose(std::uint32_t i, const Shape& shape) {
   slots_[i].motion = Motion::dynamic;  // a fixed object that moves is moving from now on
   if (slots_[i].home != Home::loose) {
@@ -339,10 +348,32 @@ void GridVerlet::update(std::span<const Move> moves) {
       if (p >= lo && p < hi) move_mover(p, moves[j].shape);
     }
   };
-  if (dense_mode_) {
+  if (dense_mode_ && (t <= 1 || twice)) {
     // The dense grid's lists are changed in place, by one thread.
     for (std::size_t j = 0; j < n; ++j)
       if (target[j] != kOther) move_mover(target[j], moves[j].shape);
+  } else if (dense_mode_) {
+    // Every move's shape and bounds on the threads, with the whole move for
+    // those that keep their cells; the others relink the dense grid's
+    // lists, on this thread, after them, in the moves' order, which leaves
+    // the lists as the moves one after another would. (Explosion 20 000:
+    // the relinks are most moves, and a third of the update.)
+    if (dense_later_.size() < chunks) dense_later_.resize(chunks);
+    dense_grown_.assign(chunks, detail::OccupiedBox{});
+    shares_.run(chunks, [&](unsigned c) {
+      auto& later = dense_later_[c];
+      detail::OccupiedBox grown;  // on this thread's stack: the chunks' records lie side by side
+      later.clear();
+      for (auto [j, end] = slice(n, c, chunks); j < end; ++j) {
+        AabbF b;
+        if (target[j] != kOther && !stage_dense(target[j], moves[j].shape, b, grown))
+          later.push_back({static_cast<std::uint32_t>(j), b});
+      }
+      dense_grown_[c] = grown;
+    });
+    for (unsigned c = 0; c < chunks; ++c) dense_->cover(dense_grown_[c]);
+    for (unsigned c = 0; c < chunks; ++c)
+      for (const auto& [j, b] : dense_later_[c]) dense_->relink(dense_handle_[target[j]], b);
   } else if (twice)
     shares_.run(t, [&](unsigned k) { move_range({0, n}, slice(m, k, t)); });
   else
@@ -600,11 +631,48 @@ QueryCost GridVerlet::find_pairs_as(std::vector<HandlePair>& out) const {
 
   const std::size_t m = moving_.entries.size();
   const unsigned t = shares_.shares_for(m);
-  if (lists_stale_ || dense_mode_) {
-    // Dense mode, or rare (a filter changed since the last rebuild): on the
-    // calling thread.
+  if (lists_stale_ || (dense_mode_ && t <= 1)) {
+    // Rare (a filter changed since the last rebuild), or dense mode on one
+    // thread.
     emit_fixed();
     pairs_without_lists(emit_out, cost.tests);
+  } else if (dense_mode_) {
+    // As below, with the movers' probes of the fixed grid by chunks of the
+    // moving grid, then the dense grid's pairs by chunks of its cells: the
+    // pieces in order are the one-thread order.
+    const unsigned chunks = t * kChunksPerShare;
+    std::unique_lock lock(buffers_mutex_, std::try_to_lock);
+    std::vector<std::vector<HandlePair>> local;
+    std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
+    if (buffers.size() < 2 * chunks) buffers.resize(2 * chunks);
+    std::vector<std::uint64_t> tests(2 * chunks, 0);
+    detail::InOrder joined(2 * chunks + 1);
+    shares_.run(2 * chunks + 1, [&](unsigned job) {
+      if (job == 0) {
+        emit_fixed();
+      } else {
+        const unsigned c = job - 1;
+        std::vector<HandlePair> buf = std::move(buffers[c]);
+        buf.clear();
+        auto into = gated<kFiltered>([&buf](Handle a, Handle b) {
+          buf.push_back({a, b});
+          return true;
+        });
+        std::uint64_t n_tests = 0;
+        if (c < chunks) {
+          const auto [begin, end] = slice(m, c, chunks);
+          fixed_probes(begin, end, into, n_tests);
+        } else {
+          dense_pairs(into, n_tests, c - chunks, chunks);
+        }
+        tests[c] = n_tests;
+        buffers[c] = std::move(buf);
+      }
+      joined.finish(job, [&](unsigned piece) {
+        if (piece > 0) out.insert(out.end(), buffers[piece - 1].begin(), buffers[piece - 1].end());
+      });
+    });
+    for (unsigned c = 0; c < 2 * chunks; ++c) cost.tests += tests[c];
   } else if (t <= 1) {
     emit_fixed();
     mover_pairs(0, m, emit_out, cost.tests);
@@ -664,6 +732,8 @@ std::size_t GridVerlet::memory_bytes() const {
       moving_scratch_.memory_bytes() + move_target_.capacity() * 4 + lists_.memory_bytes() +
       mark_.capacity() * 4 + (dense_ ? dense_->memory_bytes() : 0) +
       dense_handle_.capacity() * sizeof(Handle) + dense_speed_.capacity() * 4;
+  for (const auto& l : dense_later_) bytes += l.capacity() * sizeof(l[0]);
+  bytes += dense_grown_.capacity() * sizeof(detail::OccupiedBox);
   std::lock_guard lock(buffers_mutex_);
   for (const auto& b : buffers_) bytes += b.capacity() * sizeof(HandlePair);
   return bytes;

@@ -332,9 +332,19 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   /// the fixed grid's are found.
   template <class E>
   bool pairs_without_lists(E& emit, std::uint64_t& tests) const;
-  /// The pairs among movers in dense mode, from the dense grid.
+  /// Each mover of moving-grid entries [begin, end) against the fixed grid,
+  /// where it is now (in dense mode, as the dense grid holds it).
   template <class E>
-  bool dense_pairs(E& emit, std::uint64_t& tests) const;
+  bool fixed_probes(std::size_t begin, std::size_t end, E& emit, std::uint64_t& tests) const;
+  /// The pairs among movers in dense mode, from the dense grid (part `part`
+  /// of `parts` of its cells: the parts in turn give the whole, in order).
+  template <class E>
+  bool dense_pairs(E& emit, std::uint64_t& tests, std::size_t part = 0,
+                   std::size_t parts = 1) const;
+  /// Dense mode, many moves on threads: stages mover k's move in the dense
+  /// grid (LinkedGrid::stage_update), `b` its new bounds; false when it
+  /// still has to be relinked. Distinct movers may be staged at once.
+  bool stage_dense(std::uint32_t k, const Shape& shape, AabbF& b, detail::OccupiedBox& grown);
 
   /// The threads (option threads=N) and the split of every pass (option
   /// grain=N: moving objects per share at least).
@@ -449,6 +459,10 @@ class GridVerlet : public detail::StructureBase<GridVerlet> {
   std::unique_ptr<GridDense> dense_;  // dense mode: the movers (user data: our handle)
   std::vector<Handle> dense_handle_;  // dense mode: per moving entry, its dense handle
   std::vector<float> dense_speed_;    // dense mode: per dense slot, its last displacement
+  // Per chunk of a bulk update in dense mode: the moves that relink, with
+  // their new bounds.
+  std::vector<std::vector<std::pair<std::uint32_t, AabbF>>> dense_later_;
+  std::vector<detail::OccupiedBox> dense_grown_;  // per chunk: bounds moved within cells
 
   /// Per-share pair buffers of find_pairs, reused between frames.
   mutable std::mutex buffers_mutex_;
@@ -802,8 +816,16 @@ bool GridVerlet::loose_pairs(E& emit, std::uint64_t& tests) const {
 
 template <class E>
 bool GridVerlet::pairs_without_lists(E& emit, std::uint64_t& tests) const {
+  if (!fixed_probes(0, moving_.entries.size(), emit, tests)) return false;
+  if (dense_mode_) return dense_pairs(emit, tests);
+  return grid_pairs(moving_, 0, moving_.entries.size(), emit, tests);
+}
+
+template <class E>
+bool GridVerlet::fixed_probes(std::size_t begin, std::size_t end, E& emit,
+                              std::uint64_t& tests) const {
   const std::vector<Mover>& movers = lists_.movers();
-  for (std::size_t i = 0; i < moving_.entries.size(); ++i) {
+  for (std::size_t i = begin; i < end; ++i) {
     const Entry& me = moving_.entries[i];
     if (me.dead()) continue;
     // In dense mode the mover is where the dense grid holds it.
@@ -818,19 +840,19 @@ bool GridVerlet::pairs_without_lists(E& emit, std::uint64_t& tests) const {
     });
     if (!go) return false;
   }
-  if (dense_mode_) return dense_pairs(emit, tests);
-  return grid_pairs(moving_, 0, moving_.entries.size(), emit, tests);
+  return true;
 }
 
 template <class E>
-bool GridVerlet::dense_pairs(E& emit, std::uint64_t& tests) const {
+bool GridVerlet::dense_pairs(E& emit, std::uint64_t& tests, std::size_t part,
+                             std::size_t parts) const {
   bool go = true;
   auto pass = [&](Handle a, Handle b) {
     const Handle ha = from_dense(a), hb = from_dense(b);
     go = !detail::admits(emit, ha.index, hb.index) || emit(ha, hb);
     return go;
   };
-  tests += dense_->walk_pairs(pass).tests;
+  tests += dense_->walk_pairs_part(pass, part, parts).tests;
   return go;
 }
 

@@ -59,13 +59,16 @@ VerletLists::Totals VerletLists::refresh_boxes(LevelGrid& moving, std::span<Grid
   moving.bounded = false;  // fat boxes are written in place below
   const unsigned parts = shares.chunks_for(m);
   share_totals_.resize(parts);
+  // Read once: the loop writes records that the compiler cannot tell
+  // apart from these members.
+  const bool direct = direct_, refit = refit_;
   shares.run(parts, [&](unsigned share) {
     Totals sum;
     for (auto [k, end] = slice(m, share, parts); k < end; ++k) {
       GridEntry& e = moving.entries[k];
       if (e.dead()) continue;
       Mover& mv = movers_[k];
-      if (direct_) {
+      if (direct) {
         // No lists: the entry is the bounds, probed by every other mover.
         mv.fat = mv.cur;
         mv.fast = true;
@@ -83,7 +86,7 @@ VerletLists::Totals VerletLists::refresh_boxes(LevelGrid& moving, std::span<Grid
       // A box made before the speed was known is renewed as soon as it is
       // known (in the first bulk update after the inserts, rather than in
       // a wave over the next frames).
-      if (refit_ || (mv.guessed && mv.speed > 0) || !mv.fat.contains(mv.cur)) {
+      if (refit || (mv.guessed && mv.speed > 0) || !mv.fat.contains(mv.cur)) {
         mv.fat = fat_box(mv.cur, mv.speed, mv.fast);
         mv.guessed = !(mv.speed > 0);
         mv.epoch = 0;

@@ -95,6 +95,36 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
     place(i);
   }
 
+  /// update(h, s) in two halves, for many moves on several threads (not
+  /// for the sorted grid). stage_update stores the shape and its bounds
+  /// `b`; when the object stays in the same cells it also takes the
+  /// bounds (adding them to `grown`, which the caller hands to cover()
+  /// before any other call) and returns true: the move is made. Otherwise
+  /// it returns false, and relink(h, b) makes the move, on one thread.
+  /// Distinct objects may be staged at once, each thread with its own
+  /// `grown` (no list or shared state is written). The handle must be live
+  /// (unchecked). Relinks in the order of the moves leave the lists as
+  /// update() would.
+  bool stage_update(Handle h, const Shape& s, AabbF& b, OccupiedBox& grown) requires(!kSorted) {
+    const std::uint32_t i = h.index;
+    b = bounds_f(s);
+    store_.set_shape(h, s);
+    if (kmask_[i] == 0 || !(map_.range(b) == range_[i])) return false;
+    box_[i] = b;
+    grown.add(b);
+    return true;
+  }
+  /// Takes in the bounds stage_update gathered in `grown`.
+  void cover(const OccupiedBox& grown) {
+    if (!grown.empty()) occupied_.add(grown.box);
+  }
+  /// Makes a staged move that changes cells.
+  void relink(Handle h, const AabbF& b) requires(!kSorted) {
+    lift(h.index);
+    box_[h.index] = b;
+    place(h.index);
+  }
+
   /// Visits every object overlapping `q`. O(cells of q + candidates).
   template <class V>
   QueryCost query(const Shape& q, V&& visitor) const {
@@ -149,10 +179,20 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
   /// walked in place.
   template <class V>
   QueryCost walk_pairs(V& visitor) const {
+    return walk_pairs_part(visitor, 0, 1);
+  }
+  /// Part `part` of `parts` of walk_pairs: the pairs of a contiguous range
+  /// of the cells (the overflowing objects' with the last), in the same
+  /// order. The parts, one after another, report what walk_pairs does;
+  /// they may run at once.
+  template <class V>
+  QueryCost walk_pairs_part(V& visitor, std::size_t part, std::size_t parts) const {
+    const std::size_t begin = heads_.size() * part / parts;
+    const std::size_t end = heads_.size() * (part + 1) / parts;
     if constexpr (kSorted) {
-      return sweep_pairs(visitor);
+      return sweep_pairs(visitor, begin, end, part + 1 == parts);
     } else {
-      return gather_pairs(visitor);
+      return gather_pairs(visitor, begin, end, part + 1 == parts);
     }
   }
 
@@ -238,11 +278,12 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
   // The all-pairs pass of the unsorted grids: gather each list, then test
   // every pair of the buffer.
   template <class V>
-  QueryCost gather_pairs(V& visitor) const {
+  QueryCost gather_pairs(V& visitor, std::size_t first, std::size_t last, bool overflow) const {
     QueryCost cost;
     const AabbF* box = box_.data();
     Gathered buf[kGather];
-    for (std::uint32_t head : heads_) {
+    for (std::size_t c = first; c < last; ++c) {
+      const std::uint32_t head = heads_[c];
       if (head == kNone || next_[head] == kNone) continue;
       std::size_t n = 0;
       std::uint32_t m = head;
@@ -273,17 +314,18 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
         }
       }
     }
-    overflow_pairs(cost, visitor);
+    if (overflow) overflow_pairs(cost, visitor);
     return cost;
   }
 
   // The all-pairs pass of the sorted grid: sweep each list along x, each
   // link meeting only the links that start before it ends.
   template <class V>
-  QueryCost sweep_pairs(V& visitor) const {
+  QueryCost sweep_pairs(V& visitor, std::size_t first, std::size_t last, bool overflow) const {
     QueryCost cost;
     const AabbF* box = box_.data();
-    for (std::uint32_t head : heads_) {
+    for (std::size_t c = first; c < last; ++c) {
+      const std::uint32_t head = heads_[c];
       for (std::uint32_t l = head; l != kNone; l = next_[l]) {
         const std::uint32_t a = l >> 3;
         const unsigned k = l & 7u;
@@ -298,7 +340,7 @@ class LinkedGrid : public StoreBase<LinkedGrid<kHashed, kSorted>> {
         }
       }
     }
-    overflow_pairs(cost, visitor);
+    if (overflow) overflow_pairs(cost, visitor);
     return cost;
   }
 
