@@ -544,6 +544,55 @@ TEST(GridVerlet, PairOrderDoesNotDependOnThreads) {
   EXPECT_EQ(orders[0], orders[2]);
 }
 
+TEST(GridVerlet, DenseModePairOrderDoesNotDependOnThreads) {
+  // Everything moves fast: the movers take the dense grid, whose moves are
+  // staged on the threads and relinked after them, and whose pairs are
+  // found by chunks of its cells. Pairs and their order must be those of
+  // one thread, frame after frame, with objects coming and going.
+  const Scene start = generate(Distribution::explosion, 12000, 8);
+  std::vector<IdList> orders;
+  for (const char* t : {"1", "2", "3"}) {
+    SCOPED_TRACE(std::string("threads=") + t);
+    Scene scene = start;
+    Config c = with_option("threads", t);
+    c.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}};
+    GridVerlet g(c);
+    std::vector<Handle> h = insert_scene(g, scene);
+    std::vector<bool> alive(scene.size(), true);
+    Rng rng(3);
+    IdList ids;
+    std::vector<Move> moves;
+    for (int f = 0; f < 14; ++f) {
+      step(scene);
+      for (int k = 0; f % 3 == 2 && k < 40; ++k) {
+        const std::size_t i = rng.below(scene.size());
+        if (alive[i])
+          g.remove(h[i]);
+        else
+          h[i] = g.insert(scene.objects[i], i);
+        alive[i] = !alive[i];
+      }
+      moves.clear();
+      for (std::size_t i = 0; i < scene.size(); ++i)
+        if (alive[i] && scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
+      g.update(moves);
+      g.validate();
+      const IdList frame = found_in_order(g);
+      IdList visited;
+      g.for_each_pair([&](Handle a, Handle b) {
+        visited.push_back({g.user_data(a), g.user_data(b)});
+      });
+      ASSERT_EQ(frame, visited) << "find_pairs and for_each_pair disagree, frame " << f;
+      ids.insert(ids.end(), frame.begin(), frame.end());
+    }
+    EXPECT_TRUE(g.dense_movers()) << "an explosion should take the dense grid";
+    orders.push_back(std::move(ids));
+  }
+  EXPECT_GT(orders[0].size(), 1000u);
+  EXPECT_EQ(orders[0], orders[1]);
+  EXPECT_EQ(orders[0], orders[2]);
+}
+
 TEST(GridVerlet, ParallelBulkUpdateKeepsOrderAndChecks) {
   // A bulk update split over two threads: a handle named twice (the later
   // move wins), fixed objects that start moving, and moves that must be
