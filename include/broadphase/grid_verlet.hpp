@@ -55,8 +55,10 @@
 /// rebuilt only when objects join or leave it. The choice is made every
 /// eighth bulk update from the movers' last displacements (option
 /// `movers=auto|lists|dense`, `dense_movers()` tells which is in use), so
-/// it never depends on the thread count; in dense mode the bulk update's
-/// moves and the pair pass run on one thread.
+/// it never depends on the thread count. On threads the moves are staged
+/// by chunks and the objects that change cells relinked after them, in
+/// the moves' order; the pair pass splits the probes of the fixed grid
+/// and the dense grid's cells into chunks joined in order.
 ///
 /// Threads. `find_pairs` and the bulk update split the moving objects over
 /// `threads` threads (option `threads=N`, default 1, 0 = hardware
