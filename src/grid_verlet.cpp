@@ -629,73 +629,26 @@ QueryCost GridVerlet::find_pairs_as(std::vector<HandlePair>& out) const {
     fixed_pairs(emit_out, cost.tests);
   };
 
-  const std::size_t m = moving_.entries.size();
-  const unsigned t = shares_.shares_for(m);
-  if (lists_stale_ || (dense_mode_ && t <= 1)) {
-    // Rare (a filter changed since the last rebuild), or dense mode on one
-    // thread.
-    emit_fixed();
-    pairs_without_lists(emit_out, cost.tests);
-  } else if (dense_mode_) {
-    // As below, with the movers' probes of the fixed grid by chunks of the
-    // moving grid, then the dense grid's pairs by chunks of its cells: the
-    // pieces in order are the one-thread order.
-    const unsigned chunks = t * kChunksPerShare;
+  // On threads: job 0 emits the fixed pairs straight into `out`; the
+  // movers' pairs are found by the other jobs, `pieces` of them, each by
+  // find(piece, emit, tests) into the piece's own buffer. The pieces, fixed
+  // pairs first, then the others in order (the order of one thread), are
+  // appended while later pieces are still being found (appended by the
+  // caller after the run, they took 0.09 ms of a 3 ms two-thread frame at
+  // scaled-even 102 400).
+  auto in_pieces = [&](unsigned pieces, auto find) {
     std::unique_lock lock(buffers_mutex_, std::try_to_lock);
     std::vector<std::vector<HandlePair>> local;
     std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
-    if (buffers.size() < 2 * chunks) buffers.resize(2 * chunks);
-    std::vector<std::uint64_t> tests(2 * chunks, 0);
-    detail::InOrder joined(2 * chunks + 1);
-    shares_.run(2 * chunks + 1, [&](unsigned job) {
+    if (buffers.size() < pieces) buffers.resize(pieces);
+    std::vector<std::uint64_t> tests(pieces, 0);
+    detail::InOrder joined(pieces + 1);  // the fixed pairs, then every piece
+    shares_.run(pieces + 1, [&](unsigned job) {
       if (job == 0) {
         emit_fixed();
       } else {
-        const unsigned c = job - 1;
-        std::vector<HandlePair> buf = std::move(buffers[c]);
-        buf.clear();
-        auto into = gated<kFiltered>([&buf](Handle a, Handle b) {
-          buf.push_back({a, b});
-          return true;
-        });
-        std::uint64_t n_tests = 0;
-        if (c < chunks) {
-          const auto [begin, end] = slice(m, c, chunks);
-          fixed_probes(begin, end, into, n_tests);
-        } else {
-          dense_pairs(into, n_tests, c - chunks, chunks);
-        }
-        tests[c] = n_tests;
-        buffers[c] = std::move(buf);
-      }
-      joined.finish(job, [&](unsigned piece) {
-        if (piece > 0) out.insert(out.end(), buffers[piece - 1].begin(), buffers[piece - 1].end());
-      });
-    });
-    for (unsigned c = 0; c < 2 * chunks; ++c) cost.tests += tests[c];
-  } else if (t <= 1) {
-    emit_fixed();
-    mover_pairs(0, m, emit_out, cost.tests);
-  } else {
-    // Job 0 emits the fixed pairs straight into `out`; the movers' pairs
-    // are found by the other jobs, one chunk of the moving grid each, into
-    // the chunk's own buffer. The pieces, fixed pairs first, then the
-    // chunks in order (the order of one thread), are appended while later
-    // chunks are still being found (appended by the caller after the run,
-    // they took 0.09 ms of a 3 ms two-thread frame at scaled-even 102 400).
-    const unsigned chunks = t * kChunksPerShare;
-    std::unique_lock lock(buffers_mutex_, std::try_to_lock);
-    std::vector<std::vector<HandlePair>> local;
-    std::vector<std::vector<HandlePair>>& buffers = lock.owns_lock() ? buffers_ : local;
-    if (buffers.size() < chunks) buffers.resize(chunks);
-    std::vector<std::uint64_t> tests(chunks, 0);
-    detail::InOrder joined(chunks + 1);  // the fixed pairs, then every chunk
-    shares_.run(chunks + 1, [&](unsigned job) {
-      if (job == 0) {
-        emit_fixed();
-      } else {
-        // A chunk works on a vector and a count on its own stack, moved in
-        // and out: the chunks' vector records and counts lie side by side,
+        // A piece works on a vector and a count on its own stack, moved in
+        // and out: the pieces' vector records and counts lie side by side,
         // and writing them on every pair would bounce their cache lines
         // between the cores.
         const unsigned c = job - 1;
@@ -706,8 +659,7 @@ QueryCost GridVerlet::find_pairs_as(std::vector<HandlePair>& out) const {
           return true;
         });
         std::uint64_t n_tests = 0;
-        const auto [begin, end] = slice(m, c, chunks);
-        mover_pairs(begin, end, into, n_tests);
+        find(c, into, n_tests);
         tests[c] = n_tests;
         buffers[c] = std::move(buf);
       }
@@ -715,7 +667,37 @@ QueryCost GridVerlet::find_pairs_as(std::vector<HandlePair>& out) const {
         if (piece > 0) out.insert(out.end(), buffers[piece - 1].begin(), buffers[piece - 1].end());
       });
     });
-    for (unsigned c = 0; c < chunks; ++c) cost.tests += tests[c];
+    for (unsigned c = 0; c < pieces; ++c) cost.tests += tests[c];
+  };
+
+  const std::size_t m = moving_.entries.size();
+  const unsigned t = shares_.shares_for(m);
+  if (lists_stale_ || (dense_mode_ && t <= 1)) {
+    // Rare (a filter changed since the last rebuild), or dense mode on one
+    // thread.
+    emit_fixed();
+    pairs_without_lists(emit_out, cost.tests);
+  } else if (t <= 1) {
+    emit_fixed();
+    mover_pairs(0, m, emit_out, cost.tests);
+  } else if (dense_mode_) {
+    // The movers' probes of the fixed grid by chunks of the moving grid,
+    // then the dense grid's pairs by chunks of its cells.
+    const unsigned chunks = t * kChunksPerShare;
+    in_pieces(2 * chunks, [&](unsigned c, auto& into, std::uint64_t& tests) {
+      if (c < chunks) {
+        const auto [begin, end] = slice(m, c, chunks);
+        fixed_probes(begin, end, into, tests);
+      } else {
+        dense_pairs(into, tests, c - chunks, chunks);
+      }
+    });
+  } else {
+    const unsigned chunks = t * kChunksPerShare;
+    in_pieces(chunks, [&](unsigned c, auto& into, std::uint64_t& tests) {
+      const auto [begin, end] = slice(m, c, chunks);
+      mover_pairs(begin, end, into, tests);
+    });
   }
   loose_pairs(emit_out, cost.tests);
   return cost;

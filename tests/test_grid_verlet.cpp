@@ -59,6 +59,29 @@ std::vector<Handle> insert_scene(GridVerlet& g, const Scene& scene) {
   return h;
 }
 
+/// Removes, or inserts again, `count` objects of `scene` drawn by `rng`
+/// (user data: the index), keeping `h` and `alive` up to date.
+void toggle_some(GridVerlet& g, const Scene& scene, std::vector<Handle>& h,
+                 std::vector<bool>& alive, Rng& rng, int count) {
+  for (int k = 0; k < count; ++k) {
+    const std::size_t i = rng.below(scene.size());
+    if (alive[i])
+      g.remove(h[i]);
+    else
+      h[i] = g.insert(scene.objects[i], i);
+    alive[i] = !alive[i];
+  }
+}
+
+/// Moves every live moving object of `scene` to where the scene has it.
+void move_live(GridVerlet& g, const Scene& scene, const std::vector<Handle>& h,
+               const std::vector<bool>& alive) {
+  std::vector<Move> moves;
+  for (std::size_t i = 0; i < scene.size(); ++i)
+    if (alive[i] && scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
+  g.update(moves);
+}
+
 Config with_option(const char* key, const char* value) {
   Config c;
   c.options[key] = value;
@@ -208,27 +231,16 @@ TEST(GridVerlet, NearListsStayExactWhileMoversComeAndGo) {
     scene.objects[i].center = scene.objects[i].center * 0.3;
     scene.velocity[i] = scene.velocity[i] * (i % 5 == 0 ? 20.0 : 0.5);
   }
-  GridVerlet g;
+  GridVerlet g(with_option("movers", "lists"));  // the lists under test, whatever the motion
   std::vector<Handle> h(scene.size());
   std::vector<bool> alive(scene.size(), true);
   for (std::size_t i = 0; i < scene.size(); ++i) h[i] = g.insert(scene.objects[i], i);
   Rng rng(5);
-  std::vector<Move> moves;
   std::size_t seen = 0;
   for (int f = 0; f < 40; ++f) {
     step(scene);
-    for (int k = 0; k < 6; ++k) {
-      const std::size_t i = rng.below(scene.size());
-      if (alive[i])
-        g.remove(h[i]);
-      else
-        h[i] = g.insert(scene.objects[i], i);
-      alive[i] = !alive[i];
-    }
-    moves.clear();
-    for (std::size_t i = 0; i < scene.size(); ++i)
-      if (alive[i]) moves.push_back({h[i], scene.objects[i]});
-    g.update(moves);
+    toggle_some(g, scene, h, alive, rng, 6);
+    move_live(g, scene, h, alive);
     g.validate();
     Naive n;
     for (std::size_t i = 0; i < scene.size(); ++i)
@@ -561,21 +573,10 @@ TEST(GridVerlet, DenseModePairOrderDoesNotDependOnThreads) {
     std::vector<bool> alive(scene.size(), true);
     Rng rng(3);
     IdList ids;
-    std::vector<Move> moves;
     for (int f = 0; f < 14; ++f) {
       step(scene);
-      for (int k = 0; f % 3 == 2 && k < 40; ++k) {
-        const std::size_t i = rng.below(scene.size());
-        if (alive[i])
-          g.remove(h[i]);
-        else
-          h[i] = g.insert(scene.objects[i], i);
-        alive[i] = !alive[i];
-      }
-      moves.clear();
-      for (std::size_t i = 0; i < scene.size(); ++i)
-        if (alive[i] && scene.is_moving(i)) moves.push_back({h[i], scene.objects[i]});
-      g.update(moves);
+      if (f % 3 == 2) toggle_some(g, scene, h, alive, rng, 40);
+      move_live(g, scene, h, alive);
       g.validate();
       const IdList frame = found_in_order(g);
       IdList visited;
