@@ -49,6 +49,13 @@ IdList found_in_order(const GridVerlet& g) {
   return ids;
 }
 
+/// for_each_pair's pairs as user data, in the order visited.
+IdList visited_in_order(const GridVerlet& g) {
+  IdList ids;
+  g.for_each_pair([&](Handle a, Handle b) { ids.push_back({g.user_data(a), g.user_data(b)}); });
+  return ids;
+}
+
 /// Inserts every object of `scene` (user data: its index), fixed or moving
 /// as the scene says.
 std::vector<Handle> insert_scene(GridVerlet& g, const Scene& scene) {
@@ -379,14 +386,11 @@ TEST(GridVerlet, TheMoverModeCanBeForced) {
     SCOPED_TRACE(mode);
     GridVerlet g(with_option("movers", mode));
     const std::vector<Handle> h = insert_scene(g, scene);
-    std::vector<Move> moves;
+    const std::vector<bool> alive(scene.size(), true);
     Scene s = scene;
     for (int f = 0; f < 20; ++f) {
       step(s);
-      moves.clear();
-      for (std::size_t i = 0; i < s.size(); ++i)
-        if (s.is_moving(i)) moves.push_back({h[i], s.objects[i]});
-      g.update(moves);
+      move_live(g, s, h, alive);
       g.validate();
       EXPECT_EQ(g.dense_movers(), std::string(mode) == "dense");
       ASSERT_EQ(pairs_of(g), naive_pairs(s.objects));
@@ -542,10 +546,7 @@ TEST(GridVerlet, PairOrderDoesNotDependOnThreads) {
       g.update(moves);
       g.validate();
       const IdList frame = found_in_order(g);
-      IdList visited;
-      g.for_each_pair([&](Handle a, Handle b) {
-        visited.push_back({g.user_data(a), g.user_data(b)});
-      });
+      const IdList visited = visited_in_order(g);
       EXPECT_EQ(frame, visited) << "find_pairs and for_each_pair disagree with threads=" << t;
       ids.insert(ids.end(), frame.begin(), frame.end());
     }
@@ -579,10 +580,7 @@ TEST(GridVerlet, DenseModePairOrderDoesNotDependOnThreads) {
       move_live(g, scene, h, alive);
       g.validate();
       const IdList frame = found_in_order(g);
-      IdList visited;
-      g.for_each_pair([&](Handle a, Handle b) {
-        visited.push_back({g.user_data(a), g.user_data(b)});
-      });
+      const IdList visited = visited_in_order(g);
       ASSERT_EQ(frame, visited) << "find_pairs and for_each_pair disagree, frame " << f;
       ids.insert(ids.end(), frame.begin(), frame.end());
     }
