@@ -397,8 +397,19 @@ void GridVerlet::choose_mover_mode() {
   if (movers_option_ != GridVerletMovers::automatic) return;
   ++bulk_updates_;
   if (bulk_updates_ % kModeEvery != 2 % kModeEvery) return;
-  if (dense_mode_) sync_from_dense();  // the speeds, for renewal_share
-  const double share = lists_.renewal_share(moving_);
+  // In dense mode the movers' bounds and speeds are the dense grid's, read
+  // where they are (copying them back every look cost 0.3 ms at 20 000).
+  double share = 0;
+  if (dense_mode_) {
+    for (std::size_t k = 0; k < moving_.entries.size(); ++k) {
+      if (moving_.entries[k].dead()) continue;
+      const Handle d = dense_handle_[k];
+      share += lists_.renewal_rate(dense_->bounds_at(d.index), dense_speed_[d.index]);
+    }
+    share = moving_count_ == 0 ? 0 : share / static_cast<double>(moving_count_);
+  } else {
+    share = lists_.renewal_share(moving_);
+  }
   const bool dense = dense_mode_ ? share >= kDenseUntil && fixed_count_ <= 2 * moving_count_
                                  : share > kDenseFrom && fixed_count_ <= moving_count_;
   if (dense == dense_mode_) return;
@@ -406,6 +417,7 @@ void GridVerlet::choose_mover_mode() {
   mode_changed_ = true;
   lists_.set_direct(dense);
   if (!dense) {
+    sync_from_dense();  // the movers as they are now, for the rebuild with lists
     dense_.reset();
     dense_handle_ = {};
     dense_speed_ = {};

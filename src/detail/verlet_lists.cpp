@@ -124,25 +124,25 @@ void VerletLists::set_direct(bool on) {
   }
 }
 
-double VerletLists::renewal_share(const LevelGrid& moving) const {
+double VerletLists::renewal_rate(const AabbF& cur, float speed) const {
   // fat_box's margin rule, without the box: a mover moving d a frame with
   // margin M leaves its box after about M / d frames.
+  const double travel = speed;
+  if (!(travel > 0)) return 0;
+  const double extent = extent_of(cur.lo, cur.hi);
+  const double cap = kMaxMargin * std::max(extent, finest_cell_);
+  if (cap < kMinFrames * travel) return 1;
+  const double margin = std::max(std::min(kMarginFrames * travel, cap), kMinMargin * extent);
+  return std::min(1.0, travel / margin);
+}
+
+double VerletLists::renewal_share(const LevelGrid& moving) const {
   double sum = 0;
   std::size_t live = 0;
   for (std::size_t k = 0; k < movers_.size(); ++k) {
     if (moving.entries[k].dead()) continue;
     ++live;
-    const Mover& mv = movers_[k];
-    const double travel = mv.speed;
-    if (!(travel > 0)) continue;
-    const double extent = extent_of(mv.cur.lo, mv.cur.hi);
-    const double cap = kMaxMargin * std::max(extent, finest_cell_);
-    if (cap < kMinFrames * travel) {
-      sum += 1;
-      continue;
-    }
-    const double margin = std::max(std::min(kMarginFrames * travel, cap), kMinMargin * extent);
-    sum += std::min(1.0, travel / margin);
+    sum += renewal_rate(movers_[k].cur, movers_[k].speed);
   }
   return live == 0 ? 0 : sum / static_cast<double>(live);
 }

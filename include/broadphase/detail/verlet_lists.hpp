@@ -129,6 +129,10 @@ class VerletLists {
   /// with or without lists (it reads bounds and displacements only), and
   /// the same for every thread count. O(movers).
   double renewal_share(const LevelGrid& moving) const;
+  /// How often a mover with bounds `cur` and last displacement `speed`
+  /// would renew its lists, a share of frames in [0, 1] (renewal_share's
+  /// term).
+  double renewal_rate(const AabbF& cur, float speed) const;
 
   // --- Changes --------------------------------------------------------------
 
