@@ -32,7 +32,7 @@ double dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 // whose fractional coordinates differ by at most `spread` with a reach
 // `reach` (3 for points in [-1, 2)).
 std::array<std::int64_t, 3> shift_range(const NeighbourCell& cell, double reach,
-                                        std::int64_t spread = 3) {
+                                        std::array<std::int64_t, 3> spread = {3, 3, 3}) {
   std::array<std::int64_t, 3> r{0, 0, 0};
   const auto& v = cell.vectors;
   const double det = dot(v[0], cross(v[1], v[2]));
@@ -40,7 +40,8 @@ std::array<std::int64_t, 3> shift_range(const NeighbourCell& cell, double reach,
     if (!cell.periodic[k]) continue;
     const Vec3 n = cross(v[(k + 1) % 3], v[(k + 2) % 3]);
     const double height = std::fabs(det) / std::sqrt(dot(n, n));
-    r[k] = static_cast<std::int64_t>(std::ceil(reach / height)) + spread;
+    r[k] =
+        static_cast<std::int64_t>(std::ceil(reach / height)) + spread[static_cast<std::size_t>(k)];
   }
   return r;
 }
@@ -51,7 +52,7 @@ struct Brute {
 
 Brute brute_force(const std::vector<Vec3>& x, const NeighbourCell& cell, double cutoff,
                   const std::vector<double>* cut, CutoffRule r, bool self_interaction,
-                  std::int64_t spread = 3) {
+                  std::array<std::int64_t, 3> spread = {3, 3, 3}) {
   double most = cutoff;
   if (cut) {
     most = 0;
@@ -307,7 +308,49 @@ TEST(Neighbours, ManyBinsTriclinic) {
     x.push_back(cell.vectors[0] * u(rng) + cell.vectors[1] * u(rng) + cell.vectors[2] * u(rng));
   const auto l = neighbour_list(NeighbourPoints::rows(&x[0].x, x.size()), cell, 1.5);
   // Points inside the cell: their fractional coordinates differ by < 1.
-  EXPECT_EQ(keys(l), brute_force(x, cell, 1.5, nullptr, CutoffRule::inclusive, false, 1).half);
+  EXPECT_EQ(keys(l),
+            brute_force(x, cell, 1.5, nullptr, CutoffRule::inclusive, false, {1, 1, 1}).half);
+}
+
+// Points up to 200 cells away on one axis: shifts beyond the 8-bit ones of
+// the engine's packed records (the wide records' path), and within them
+// for the points near the cell. Coordinates are multiples of 1/64 and the
+// cell's sides integers, so every image is computed exactly.
+TEST(Neighbours, PointsManyCellsAwayKeepTheirShifts) {
+  for (std::uint64_t seed = 1; seed <= 6; ++seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_int_distribution<int> frac(0, 63), far(-200, 200);
+    NeighbourCell cell = NeighbourCell::orthorhombic({4, 5, 6});
+    if (seed % 2 == 0) cell.vectors[1].x = 2;  // triclinic
+    const int reach = seed <= 3 ? 200 : 60;    // 60: every shift fits 8 bits
+    std::vector<Vec3> x;
+    for (int i = 0; i < 24; ++i) {
+      Vec3 p{};
+      for (int k = 0; k < 3; ++k) p = p + cell.vectors[k] * (frac(rng) / 64.0);
+      if (i % 3 == 0) p = p + cell.vectors[0] * static_cast<double>(far(rng) * reach / 200);
+      x.push_back(p);
+    }
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    NeighbourOptions opt;
+    opt.rule = seed % 2 ? CutoffRule::strict : CutoffRule::inclusive;
+    const auto points = NeighbourPoints::rows(&x[0].x, x.size());
+    const auto expect =
+        brute_force(x, cell, 2.5, nullptr, opt.rule, false, {2 * reach + 1, 1, 1}).half;
+    ASSERT_EQ(keys(neighbour_list(points, cell, 2.5, opt)), expect);
+    opt.full = true;
+    ASSERT_EQ(keys(neighbour_list(points, cell, 2.5, opt)), mirrored(expect));
+    // The two-set query: the first points against the others.
+    opt.full = false;
+    const std::size_t split = 8;
+    std::vector<Key> between;
+    for (const auto& [i, j, a, b, c] : mirrored(expect))
+      if (i < static_cast<std::int64_t>(split) && j >= static_cast<std::int64_t>(split))
+        between.emplace_back(i, j - static_cast<std::int64_t>(split), a, b, c);
+    ASSERT_EQ(keys(neighbour_list_between(NeighbourPoints::rows(&x[0].x, split),
+                                          NeighbourPoints::rows(&x[split].x, x.size() - split),
+                                          cell, 2.5, opt)),
+              between);
+  }
 }
 
 TEST(Neighbours, BadInput) {
