@@ -353,6 +353,61 @@ TEST(Neighbours, PointsManyCellsAwayKeepTheirShifts) {
   }
 }
 
+// The list on 2, 3 and every thread is the list on one, array for array:
+// 40 000 points (parts of at least 16 384), one cutoff and per-point ones,
+// half and full, all quantities, free space, orthorhombic, triclinic and
+// mixed cells, and the two-set query.
+TEST(Neighbours, ThreadsGiveTheSameList) {
+  const auto same = [](const NeighbourList& a, const NeighbourList& b) {
+    EXPECT_EQ(a.first, b.first);
+    EXPECT_EQ(a.second, b.second);
+    EXPECT_EQ(a.shifts, b.shifts);
+    EXPECT_EQ(a.distances, b.distances);
+    EXPECT_EQ(a.vectors, b.vectors);
+    EXPECT_EQ(a.offsets, b.offsets);
+  };
+  for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    // 0 free space, 1 orthorhombic, 2 triclinic, 3 periodic on z alone;
+    // side 74: 0.1 points a unit volume.
+    const int kind = static_cast<int>(seed - 1);
+    NeighbourCell cell = NeighbourCell::orthorhombic({74, 74, 74});
+    if (kind == 0) cell.periodic = {false, false, false};
+    if (kind == 2) cell.vectors[1].x = cell.vectors[2].y = 20;
+    if (kind == 3) cell.periodic = {false, false, true};
+    const std::size_t n = 40000;
+    std::vector<Vec3> x(n);
+    for (Vec3& p : x)  // some outside the cell
+      p = cell.vectors[0] * (1.1 * u(rng) - 0.05) + cell.vectors[1] * u(rng) +
+          cell.vectors[2] * u(rng);
+    std::vector<double> cut(n);
+    for (double& c : cut) c = 0.8 + 0.6 * u(rng);
+    NeighbourOptions opt;
+    opt.full = seed % 2 == 0;
+    opt.distances = opt.vectors = opt.offsets = true;
+    SCOPED_TRACE("seed " + std::to_string(seed) + " kind " + std::to_string(kind));
+    const auto points = NeighbourPoints::rows(&x[0].x, n);
+    const auto split = NeighbourPoints::rows(&x[n / 2].x, n - n / 2);
+    const auto half = NeighbourPoints::rows(&x[0].x, n / 2);
+    const auto lists = [&](unsigned threads) {
+      opt.threads = threads;
+      return std::array<NeighbourList, 3>{
+          neighbour_list(points, cell, 2.5, opt),
+          neighbour_list(points, cell, arrays::Column::of(cut.data()), opt),
+          neighbour_list_between(half, split, cell, 2.5, opt)};
+    };
+    const auto one = lists(1);
+    EXPECT_GT(one[0].size(), n);
+    for (unsigned threads : {2u, 3u, 0u}) {
+      SCOPED_TRACE("threads " + std::to_string(threads));
+      const auto many = lists(threads);
+      for (int k = 0; k < 3; ++k)
+        same(many[static_cast<std::size_t>(k)], one[static_cast<std::size_t>(k)]);
+    }
+  }
+}
+
 TEST(Neighbours, BadInput) {
   const double good[6] = {0, 0, 0, 1, 1, 1};
   const double nan[6] = {0, 0, 0, 1, std::nan(""), 1};

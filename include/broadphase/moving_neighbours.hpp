@@ -125,7 +125,7 @@ class MovingNeighbourList {
   std::size_t rebuilds_ = 0;
   std::vector<Vec3> reference_;
   std::vector<Point> points_;
-  std::vector<std::int64_t> start_;  ///< n + 1: point i's candidates
+  NeighbourVector<std::int64_t> start_;  ///< n + 1: point i's candidates
   std::vector<Candidate> second_;
   // Scratch of `evaluate`, kept between frames: every candidate is written
   // to it and the pairs kept by advancing past them (no branch on the

@@ -159,6 +159,7 @@ def neighbour_list(
     distances: bool,
     vectors: bool,
     offsets: bool,
+    threads: int,
 ) -> Dict[str, NeighbourArray]: ...
 def neighbour_list_between(
     queries: Any,
@@ -171,6 +172,7 @@ def neighbour_list_between(
     distances: bool,
     vectors: bool,
     offsets: bool,
+    threads: int,
 ) -> Dict[str, NeighbourArray]: ...
 
 class MovingNeighbourList:
@@ -190,6 +192,7 @@ class MovingNeighbourList:
         distances: bool,
         vectors: bool,
         offsets: bool,
+        threads: int,
     ) -> None: ...
     def update(self, positions: Any) -> Dict[str, NeighbourArray]: ...
     def skin(self) -> float: ...

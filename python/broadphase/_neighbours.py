@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as _np
 
 from . import _broadphase
+from ._knn import _count
 
 _QUANTITIES = {"i": "i", "j": "j", "S": "S", "d": "d", "D": "D", "o": "offsets"}
 
@@ -96,7 +97,8 @@ def _flags(quantities: str) -> dict:
 
 
 def neighbor_list(quantities: str, positions, cutoff, *, cell=None, pbc=None,
-                  full: bool = False, self_interaction: bool = False, strict: bool = False):
+                  full: bool = False, self_interaction: bool = False, strict: bool = False,
+                  threads: int = 1):
     """The pairs of points within a cutoff, with their periodic shifts.
 
     Args:
@@ -121,6 +123,8 @@ def neighbor_list(quantities: str, positions, cutoff, *, cell=None, pbc=None,
             whose first non-zero component is positive).
         self_interaction: include (i, i, 0).
         strict: ``<`` instead of ``<=`` at the cutoff (ASE's boundary).
+        threads: threads to find the list on (0: every core); the list does
+            not depend on it.
 
     Every image within the cutoff is reported (cells smaller than the
     cutoff). Sorted by i, then j, then S. The GIL is released while the
@@ -128,9 +132,11 @@ def neighbor_list(quantities: str, positions, cutoff, *, cell=None, pbc=None,
 
     Raises:
         ValueError: unknown quantities, a position, cell or cutoff that is
-            not finite, a negative cutoff, degenerate periodic cell vectors.
+            not finite, a negative cutoff, degenerate periodic cell vectors,
+            a negative or non-integer ``threads``.
     """
     quantities = _quantities(quantities)
+    threads = _count(threads, "threads", 0)
     if hasattr(positions, "get_positions") and hasattr(positions, "cell"):
         atoms = positions
         positions = atoms.get_positions()
@@ -142,24 +148,26 @@ def neighbor_list(quantities: str, positions, cutoff, *, cell=None, pbc=None,
     c, b = _cell(cell, pbc)
     one, per = _cutoff(cutoff, p.shape[0])
     out = _broadphase.neighbour_list(p, c, b, one, per, bool(full), bool(self_interaction),
-                                     bool(strict), **_flags(quantities))
+                                     bool(strict), **_flags(quantities), threads=threads)
     return _result(out, quantities)
 
 
 def neighbor_list_between(quantities: str, queries, points, cutoff, *, cell=None, pbc=None,
-                          strict: bool = False):
+                          strict: bool = False, threads: int = 1):
     """The pairs (i, j, S) of a query i and a point j whose image
     ``points[j] + S @ cell`` lies within ``cutoff`` of ``queries[i]``; every
-    image. ``quantities``, ``cell``, ``pbc`` and ``strict`` as for
-    :func:`neighbor_list` (``o``: offsets by query). Sorted by i, j, S."""
+    image. ``quantities``, ``cell``, ``pbc``, ``strict`` and ``threads`` as
+    for :func:`neighbor_list` (``o``: offsets by query). Sorted by i, j, S."""
     quantities = _quantities(quantities)
+    threads = _count(threads, "threads", 0)
     q = _points(queries, "queries")
     p = _points(points, "points")
     c, b = _cell(cell, pbc)
     one, per = _cutoff(cutoff, 0)
     if per is not None:
         raise ValueError("cutoff: one number between two sets")
-    out = _broadphase.neighbour_list_between(q, p, c, b, one, bool(strict), **_flags(quantities))
+    out = _broadphase.neighbour_list_between(q, p, c, b, one, bool(strict), **_flags(quantities),
+                                             threads=threads)
     return _result(out, quantities)
 
 
@@ -176,9 +184,10 @@ class NeighbourList:
     the cell between frames (or not): the shifts follow.
 
     Args:
-        quantities, cutoff, cell, pbc, full, self_interaction, strict: as
-            for :func:`neighbor_list`, fixed for the list's life; per-point
-            cutoffs fix the number of points.
+        quantities, cutoff, cell, pbc, full, self_interaction, strict,
+            threads: as for :func:`neighbor_list`, fixed for the list's
+            life (``threads`` is used where the candidates are found);
+            per-point cutoffs fix the number of points.
         skin: the skin (a length >= 0); None: 0.3 of the largest reach (the
             cutoff, or twice the largest per-point cutoff), the fastest of
             the skins measured on thermal-like motion (docs/neighbours.md).
@@ -195,8 +204,10 @@ class NeighbourList:
     """
 
     def __init__(self, quantities: str, cutoff, *, skin=None, cell=None, pbc=None,
-                 full: bool = False, self_interaction: bool = False, strict: bool = False):
+                 full: bool = False, self_interaction: bool = False, strict: bool = False,
+                 threads: int = 1):
         self._quantities = _quantities(quantities)
+        threads = _count(threads, "threads", 0)
         self._cell, self._pbc = _cell(cell, pbc)
         if _np.ndim(cutoff) == 0:
             one, per = _cutoff(cutoff, 0)
@@ -213,7 +224,7 @@ class NeighbourList:
                 raise ValueError(f"skin: must be finite and >= 0 ({skin})")
         self._core = _broadphase.MovingNeighbourList(
             self._cell, self._pbc, one, per, skin, bool(full), bool(self_interaction),
-            bool(strict), **_flags(self._quantities))
+            bool(strict), **_flags(self._quantities), threads=threads)
 
     def update(self, positions):
         """The list of ``positions`` ((N, 3) float64/float32 read in place,

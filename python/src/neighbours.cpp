@@ -31,13 +31,13 @@ namespace bp = broadphase;
 /// An int64 or float64 array the module owns: a vector moved out of a
 /// NeighbourList, its shape (rows, cols; cols 0 for 1-D).
 struct NeighbourArray {
-  std::vector<std::int64_t> ints;
-  std::vector<double> reals;
+  bp::NeighbourVector<std::int64_t> ints;
+  bp::NeighbourVector<double> reals;
   bool real = false;
   std::size_t rows = 0, cols = 0;
 };
 
-NeighbourArray ints(std::vector<std::int64_t>&& v, std::size_t cols) {
+NeighbourArray ints(bp::NeighbourVector<std::int64_t>&& v, std::size_t cols) {
   NeighbourArray a;
   a.rows = cols ? v.size() / cols : v.size();
   a.cols = cols;
@@ -45,7 +45,7 @@ NeighbourArray ints(std::vector<std::int64_t>&& v, std::size_t cols) {
   return a;
 }
 
-NeighbourArray reals(std::vector<double>&& v, std::size_t cols) {
+NeighbourArray reals(bp::NeighbourVector<double>&& v, std::size_t cols) {
   NeighbourArray a;
   a.real = true;
   a.rows = cols ? v.size() / cols : v.size();
@@ -99,8 +99,9 @@ py::dict to_dict(bp::NeighbourList&& l, const bp::NeighbourOptions& o) {
 }
 
 bp::NeighbourOptions options_of(bool strict, bool shifts, bool distances, bool vectors,
-                                bool offsets) {
+                                bool offsets, unsigned threads) {
   bp::NeighbourOptions o;
+  o.threads = threads;
   o.rule = strict ? bp::CutoffRule::strict : bp::CutoffRule::inclusive;
   o.shifts = shifts;
   o.distances = distances;
@@ -112,13 +113,13 @@ bp::NeighbourOptions options_of(bool strict, bool shifts, bool distances, bool v
 py::dict neighbour_list(const py::buffer& positions, const std::vector<std::vector<double>>& cell,
                         const std::vector<bool>& pbc, double cutoff, const py::object& cutoffs,
                         bool full, bool self_interaction, bool strict, bool shifts, bool distances,
-                        bool vectors, bool offsets) {
+                        bool vectors, bool offsets, unsigned threads) {
   const RealArray pos = real_array(positions, "positions", 3, false, SIZE_MAX);
   std::optional<RealArray> cuts;
   if (!cutoffs.is_none())
     cuts = real_array(cutoffs.cast<py::buffer>(), "cutoff", 0, false, pos.rows);
   const bp::NeighbourCell c = cell_of(cell, pbc);
-  bp::NeighbourOptions o = options_of(strict, shifts, distances, vectors, offsets);
+  bp::NeighbourOptions o = options_of(strict, shifts, distances, vectors, offsets, threads);
   o.full = full;
   o.self_interaction = self_interaction;
   bp::NeighbourList l;
@@ -133,11 +134,12 @@ py::dict neighbour_list(const py::buffer& positions, const std::vector<std::vect
 py::dict neighbour_list_between(const py::buffer& queries, const py::buffer& points,
                                 const std::vector<std::vector<double>>& cell,
                                 const std::vector<bool>& pbc, double cutoff, bool strict,
-                                bool shifts, bool distances, bool vectors, bool offsets) {
+                                bool shifts, bool distances, bool vectors, bool offsets,
+                                unsigned threads) {
   const RealArray q = real_array(queries, "queries", 3, false, SIZE_MAX);
   const RealArray p = real_array(points, "points", 3, false, SIZE_MAX);
   const bp::NeighbourCell c = cell_of(cell, pbc);
-  const bp::NeighbourOptions o = options_of(strict, shifts, distances, vectors, offsets);
+  const bp::NeighbourOptions o = options_of(strict, shifts, distances, vectors, offsets, threads);
   bp::NeighbourList l;
   {
     py::gil_scoped_release release;
@@ -154,9 +156,9 @@ class MovingList {
   MovingList(const std::vector<std::vector<double>>& cell, const std::vector<bool>& pbc,
              double cutoff, const py::object& cutoffs, double skin, bool full,
              bool self_interaction, bool strict, bool shifts, bool distances, bool vectors,
-             bool offsets) {
+             bool offsets, unsigned threads) {
     const bp::NeighbourCell c = cell_of(cell, pbc);
-    bp::NeighbourOptions o = options_of(strict, shifts, distances, vectors, offsets);
+    bp::NeighbourOptions o = options_of(strict, shifts, distances, vectors, offsets, threads);
     o.full = full;
     o.self_interaction = self_interaction;
     options_ = o;
@@ -218,20 +220,21 @@ void bind_neighbours(py::module_& m) {
   m.def("neighbour_list", &neighbour_list, py::arg("positions"), py::arg("cell"), py::arg("pbc"),
         py::arg("cutoff"), py::arg("cutoffs"), py::arg("full"), py::arg("self_interaction"),
         py::arg("strict"), py::arg("shifts"), py::arg("distances"), py::arg("vectors"),
-        py::arg("offsets"),
+        py::arg("offsets"), py::arg("threads"),
         "Pairs (i, j, S) within the cutoff (neighbours.hpp): a dict of int64/float64 buffers.");
   m.def("neighbour_list_between", &neighbour_list_between, py::arg("queries"), py::arg("points"),
         py::arg("cell"), py::arg("pbc"), py::arg("cutoff"), py::arg("strict"), py::arg("shifts"),
-        py::arg("distances"), py::arg("vectors"), py::arg("offsets"),
+        py::arg("distances"), py::arg("vectors"), py::arg("offsets"), py::arg("threads"),
         "Pairs (q, p, S): points moved by S within the cutoff of queries.");
   py::class_<MovingList>(
       m, "MovingNeighbourList",
       "A neighbour list with a skin, reused over frames (moving_neighbours.hpp).")
-      .def(py::init<const std::vector<std::vector<double>>&, const std::vector<bool>&, double,
-                    const py::object&, double, bool, bool, bool, bool, bool, bool, bool>(),
-           py::arg("cell"), py::arg("pbc"), py::arg("cutoff"), py::arg("cutoffs"), py::arg("skin"),
-           py::arg("full"), py::arg("self_interaction"), py::arg("strict"), py::arg("shifts"),
-           py::arg("distances"), py::arg("vectors"), py::arg("offsets"))
+      .def(
+          py::init<const std::vector<std::vector<double>>&, const std::vector<bool>&, double,
+                   const py::object&, double, bool, bool, bool, bool, bool, bool, bool, unsigned>(),
+          py::arg("cell"), py::arg("pbc"), py::arg("cutoff"), py::arg("cutoffs"), py::arg("skin"),
+          py::arg("full"), py::arg("self_interaction"), py::arg("strict"), py::arg("shifts"),
+          py::arg("distances"), py::arg("vectors"), py::arg("offsets"), py::arg("threads"))
       .def("update", &MovingList::update, py::arg("positions"),
            "The list of these positions: a dict of int64/float64 buffers, as neighbour_list.")
       .def("skin", &MovingList::skin)

@@ -280,6 +280,32 @@ def test_query_pairs_as_ckdtree_with_boxsize():
     assert g == w
 
 
+def test_threads_give_the_same_arrays():
+    # 40 000 points: parts of at least 16 384 points each, so 2 and 0 (every
+    # core) split the work; per-point cutoffs, the moving list and the
+    # two-set query too.
+    rng = np.random.default_rng(12)
+    x = rng.uniform(0, 74, (40000, 3))
+    cut = rng.uniform(0.8, 1.4, 40000)
+    cell = [74.0, 74.0, 80.0]
+    for threads in (2, 0):
+        for cutoff in (2.5, cut):
+            one = broadphase.neighbor_list("ijSdDo", x, cutoff, cell=cell, full=True)
+            many = broadphase.neighbor_list("ijSdDo", x, cutoff, cell=cell, full=True,
+                                            threads=threads)
+            assert all(np.array_equal(a, b) for a, b in zip(one, many))
+        one = broadphase.neighbor_list_between("ijS", x[:20000], x[20000:], 2.5, cell=cell)
+        many = broadphase.neighbor_list_between("ijS", x[:20000], x[20000:], 2.5, cell=cell,
+                                                threads=threads)
+        assert all(np.array_equal(a, b) for a, b in zip(one, many))
+        moving = broadphase.NeighbourList("ijS", 2.5, cell=cell, threads=threads)
+        for step in range(3):
+            y = x + step * 0.2
+            got = moving.update(y)
+            want = broadphase.neighbor_list("ijS", y, 2.5, cell=cell)
+            assert all(np.array_equal(a, b) for a, b in zip(got, want))
+
+
 # -- the package's namespace and bad input -------------------------------------------
 
 def test_namespace_shows_only_the_api():
@@ -305,6 +331,10 @@ def test_namespace_shows_only_the_api():
     (lambda: broadphase.neighbor_list("ij", [[0, 0, 0]], 1.0, cell=1.0, pbc=[True, False]), "pbc"),
     (lambda: broadphase.neighbor_list("ij", [[1e12, 0, 0]], 1.0, cell=1.0), "2^28"),
     (lambda: bp_mda.self_capped_distance(np.zeros((3, 3)), 1.0, box=[0, 1, 1, 90, 90, 90]), "box"),
+    (lambda: broadphase.neighbor_list("ij", [[0, 0, 0]], 1.0, threads=-1), "threads"),
+    (lambda: broadphase.neighbor_list_between("ij", [[0, 0, 0]], [[0, 0, 0]], 1.0,
+                                              threads=1.5), "threads"),
+    (lambda: broadphase.NeighbourList("ij", 1.0, threads=True), "threads"),
 ])
 def test_bad_input_raises_value_error(call, message):
     with pytest.raises(ValueError, match=None) as e:

@@ -1,11 +1,19 @@
 /// \file frame.hpp
-/// The frame of a neighbour cell (neighbours.cpp), shared by the one-shot
-/// lists and the moving list (moving.cpp): private to the library.
+/// The frame of a neighbour cell (neighbours.cpp), and the other pieces the
+/// one-shot lists share with the moving list (moving.cpp): private to the
+/// library.
 #pragma once
 
 #include <array>
 #include <broadphase/neighbours.hpp>
+#include <cstddef>
+#include <cstdint>
 #include <string>
+#include <vector>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 namespace broadphase::neighbours_detail {
 
@@ -28,5 +36,20 @@ Frame make_frame(const NeighbourCell& cell);
 /// Throws InvalidNeighbourInput naming `name` unless `v` is finite and >= 0
 /// (a cutoff or a skin).
 void check_cutoff(double v, const std::string& name);
+
+/// Reserves room for `count` elements of a large array that is written
+/// once, asking the kernel for huge pages on the part the new buffer spans
+/// (Linux; a hint, ignored elsewhere or when they are off).
+template <class T, class A>
+void reserve_large(std::vector<T, A>& v, std::size_t count) {
+  v.reserve(count);
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  constexpr std::uintptr_t kHuge = std::uintptr_t{1} << 21;
+  const auto begin = reinterpret_cast<std::uintptr_t>(v.data());
+  const std::uintptr_t lo = (begin + kHuge - 1) & ~(kHuge - 1);
+  const std::uintptr_t hi = (begin + count * sizeof(T)) & ~(kHuge - 1);
+  if (hi > lo) madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
+#endif
+}
 
 }  // namespace broadphase::neighbours_detail

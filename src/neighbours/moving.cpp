@@ -20,6 +20,7 @@ namespace {
 namespace rule = neighbour_rule;
 using neighbours_detail::check_cutoff;
 using neighbours_detail::number;
+using neighbours_detail::reserve_large;
 
 [[noreturn]] void refuse(const std::string& what) { throw InvalidNeighbourInput(what); }
 
@@ -171,6 +172,7 @@ void MovingNeighbourList::rebuild(const NeighbourPoints& p) {
   o.self_interaction = options_.self_interaction;
   o.shifts = true;
   o.offsets = true;
+  o.threads = options_.threads;
   NeighbourList l = !per_point_
                         ? neighbour_list(p, cell_, reach_, o)
                         : neighbour_list(p, cell_, arrays::Column::of(build_cutoffs_.data()), o);
@@ -210,7 +212,7 @@ NeighbourList MovingNeighbourList::evaluate() {
   // growing vectors were most of a frame (perf, 10^5 points).
   found_.resize(total);
   if (need_d) vectors_.resize(total);
-  std::vector<std::int64_t> offsets(n + 1);
+  NeighbourVector<std::int64_t> offsets(n + 1);
   offsets[0] = 0;
   // A candidate's other point is anywhere in memory (points are in the
   // caller's order, not in space): fetched this many candidates ahead.
@@ -253,24 +255,24 @@ NeighbourList MovingNeighbourList::evaluate() {
     offsets[i + 1] = static_cast<std::int64_t>(kept);
   }
   NeighbourList out;
-  out.first.reserve(kept);
+  reserve_large(out.first, kept);
   for (std::size_t i = 0; i < n; ++i)
     for (std::int64_t e = offsets[i]; e < offsets[i + 1]; ++e)
       out.first.push_back(static_cast<std::int64_t>(i));
-  out.second.reserve(kept);
+  reserve_large(out.second, kept);
   for (std::size_t e = 0; e < kept; ++e) out.second.push_back(found_[e].j);
   if (options_.shifts) {
-    out.shifts.reserve(3 * kept);
+    reserve_large(out.shifts, 3 * kept);
     for (std::size_t e = 0; e < kept; ++e)
       for (int k = 0; k < 3; ++k) out.shifts.push_back(found_[e].s[k]);
   }
   if (options_.distances) {
-    out.distances.reserve(kept);
+    reserve_large(out.distances, kept);
     for (std::size_t e = 0; e < kept; ++e)
       out.distances.push_back(std::sqrt(rule::squared_length(vectors_[e])));
   }
   if (options_.vectors) {
-    out.vectors.reserve(3 * kept);
+    reserve_large(out.vectors, 3 * kept);
     for (std::size_t e = 0; e < kept; ++e)
       for (int k = 0; k < 3; ++k) out.vectors.push_back(vectors_[e][k]);
   }

@@ -6,17 +6,15 @@
 #include <broadphase/neighbours.hpp>
 #include <cmath>
 #include <cstdint>
+#include <exception>
 #include <limits>
 #include <memory>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "frame.hpp"
-
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
 
 namespace broadphase {
 namespace {
@@ -29,21 +27,6 @@ namespace rule = neighbour_rule;
 constexpr double kMaxWrap = 268435456.0;  // 2^28
 constexpr std::int64_t kMaxReach = 1 << 20;
 constexpr double kMaxBinsPerAxis = 1048576.0;  // 2^20
-
-/// Reserves room for `count` elements of a large array that is written
-/// once, asking the kernel for huge pages on the part the new buffer spans
-/// (Linux; a hint, ignored elsewhere or when they are off).
-template <class T>
-void reserve_large(std::vector<T>& v, std::size_t count) {
-  v.reserve(count);
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-  constexpr std::uintptr_t kHuge = std::uintptr_t{1} << 21;
-  const auto begin = reinterpret_cast<std::uintptr_t>(v.data());
-  const std::uintptr_t lo = (begin + kHuge - 1) & ~(kHuge - 1);
-  const std::uintptr_t hi = (begin + count * sizeof(T)) & ~(kHuge - 1);
-  if (hi > lo) madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
-#endif
-}
 
 [[noreturn]] void refuse(const std::string& what) { throw InvalidNeighbourInput(what); }
 
@@ -116,6 +99,7 @@ using neighbours_detail::check_cutoff;
 using neighbours_detail::Frame;
 using neighbours_detail::make_frame;
 using neighbours_detail::number;
+using neighbours_detail::reserve_large;
 
 /// One set of points as the engine reads it: positions as given, fractional
 /// coordinates, and on periodic axes the wrap count n = floor(s).
@@ -398,15 +382,67 @@ struct WideFound {
 };
 
 /// The pairs found, grouped by the point they belong to (the home point
-/// for the self list, the query for the two-set list): group k is
-/// [start[k], start[k] + count[k]) of `found`.
+/// for the self list, the query for the two-set list). The search runs in
+/// parts, one a thread, each over consecutive groups (part p ends before
+/// group part_end[p]) with records of its own: group k is
+/// [start[k], start[k] + count[k]) of its part's records, and at[k] points
+/// at its first record once the search is done (`seal`).
 template <class Found>
 struct Groups {
-  std::vector<Found> found;
+  std::vector<std::vector<Found>> parts;
+  std::vector<std::size_t> part_end;
   std::vector<std::int64_t> start;
   std::vector<std::uint32_t> count;
-  void push(std::uint32_t j, const std::int64_t s[3]) { found.push_back(Found::make(j, s)); }
+  std::vector<Found*> at;
+
+  explicit Groups(std::size_t groups) : start(groups), count(groups) {}
+  void seal() {
+    at.resize(start.size());
+    std::size_t k = 0;
+    for (std::size_t p = 0; p < parts.size(); ++p)
+      for (; k < part_end[p]; ++k) at[k] = parts[p].data() + start[k];
+  }
 };
+
+template <class Found>
+void push(std::vector<Found>& found, std::uint32_t j, const std::int64_t s[3]) {
+  found.push_back(Found::make(j, s));
+}
+
+/// How many parts (threads) a call of `items` points or queries takes:
+/// `threads` (0: every core), at most one a 16 384 items (a thread costs
+/// tens of microseconds to start).
+unsigned parts_for(std::size_t items, unsigned threads) {
+  const unsigned want = threads != 0 ? threads : std::max(1u, std::thread::hardware_concurrency());
+  const std::size_t most = std::max<std::size_t>(1, items / 16384);
+  return static_cast<unsigned>(std::min<std::size_t>({want, most, 256}));
+}
+
+/// Runs job(p) for every part p in [0, parts), part 0 on the calling thread
+/// and each other on a thread of its own; rethrows the first part's error.
+template <class Job>
+void run_parts(unsigned parts, Job&& job) {
+  if (parts <= 1) {
+    job(0u);
+    return;
+  }
+  std::vector<std::exception_ptr> errors(parts);
+  const auto guarded = [&](unsigned p) {
+    try {
+      job(p);
+    } catch (...) {
+      errors[p] = std::current_exception();
+    }
+  };
+  {
+    std::vector<std::jthread> pool;
+    pool.reserve(parts - 1);
+    for (unsigned p = 1; p < parts; ++p) pool.emplace_back(guarded, p);
+    guarded(0u);
+  }
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
+}
 
 /// Whether every shift of a pair between `home` and `other` found through
 /// the bins of `wraps` fits the packed record: |S| <= |bin shift| + the
@@ -480,14 +516,12 @@ Wraps self_wraps(const Grid& g) {
   return Wraps(g, r);
 }
 
+/// The self search over the home bins [bin_lo, bin_hi): the groups of their
+/// points, with records in `found`.
 template <class Found>
-Groups<Found> find_self(const Context& c, const Grid& g, const Wraps& wraps, const Binned& b,
-                        bool full, bool self_interaction) {
-  Groups<Found> out;
-  const std::size_t n = b.id.size();
-  out.start.resize(n);
-  out.count.resize(n);
-  reserve_large(out.found, n * 8);
+void find_self_part(const Context& c, const Grid& g, const Wraps& wraps, const Binned& b, bool full,
+                    bool self_interaction, std::int64_t bin_lo, std::int64_t bin_hi,
+                    Groups<Found>& out, std::vector<Found>& found) {
   const std::int64_t r[3] = {wraps.base[0], wraps.base[1], wraps.base[2]};
   const std::int64_t neg_r[3] = {-r[0], -r[1], -r[2]};
   const bool one = c.cut->empty();
@@ -498,95 +532,117 @@ Groups<Found> find_self(const Context& c, const Grid& g, const Wraps& wraps, con
   // differ, as it does for the prefilter's outer reach. At 10^6 points the
   // exact test of every candidate kept was a seventh of the list.
   const double one_inner = std::max(0.0, c.cutoff - g.margin);
-  for (std::int64_t b0 = 0; b0 < g.nb[0]; ++b0)
-    for (std::int64_t b1 = 0; b1 < g.nb[1]; ++b1)
-      for (std::int64_t b2 = 0; b2 < g.nb[2]; ++b2) {
-        const std::int64_t home = (b0 * g.nb[1] + b1) * g.nb[2] + b2;
-        const std::int64_t hs = b.start[static_cast<std::size_t>(home)];
-        const std::int64_t he = b.start[static_cast<std::size_t>(home) + 1];
-        if (hs == he) continue;
-        const std::int64_t bc[3] = {b0, b1, b2};
-        buf.size = 0;
-        for_each_bin_around(
-            g, wraps, bc, neg_r, r, [&](std::int64_t nb, const std::int64_t(&sb)[3]) {
-              const Vec3 off = rule::image_offset(*c.cell, sb[0], sb[1], sb[2]);
-              const std::int64_t qs = b.start[static_cast<std::size_t>(nb)];
-              const std::int64_t qe = b.start[static_cast<std::size_t>(nb) + 1];
-              buf.reserve_more(static_cast<std::size_t>(qe - qs));
-              const std::array<std::int32_t, 3> sb32 = {static_cast<std::int32_t>(sb[0]),
-                                                        static_cast<std::int32_t>(sb[1]),
-                                                        static_cast<std::int32_t>(sb[2])};
-              for (std::int64_t q = qs; q < qe; ++q) {
-                const auto& wq = b.w[static_cast<std::size_t>(q)];
-                const std::size_t k = buf.size++;
-                buf.x[k] = wq[0] + off.x;
-                buf.y[k] = wq[1] + off.y;
-                buf.z[k] = wq[2] + off.z;
-                buf.c[k] = wq[3];
-                buf.slot[k] = static_cast<std::uint32_t>(q);
-                buf.id[k] = b.id[static_cast<std::size_t>(q)];
-                buf.sb[k] = sb32;
-              }
-            });
-        const std::size_t m = buf.size;
-        for (std::int64_t p = hs; p < he; ++p) {
-          const auto pi = static_cast<std::size_t>(p);
-          const auto& wp = b.w[pi];
-          const std::uint32_t ip = b.id[pi];
-          out.start[pi] = static_cast<std::int64_t>(out.found.size());
-          if (self_interaction) {
-            const std::int64_t zero[3] = {0, 0, 0};
-            if (exact(c, b.x[pi], b.x[pi], wp[3], wp[3], zero)) out.push(ip, zero);
-          }
-          const double px = wp[0], py = wp[1], pz = wp[2];
-          const double* cx = buf.x.data();
-          const double* cy = buf.y.data();
-          const double* cz = buf.z.data();
-          const double* cc = buf.c.data();
-          const std::uint32_t* cid = buf.id.data();
-          std::uint32_t* pick = buf.pick.data();
-          // The candidates within reach (and, in a half list, not found
-          // from their own end), compacted without a branch: the branch on
-          // each distance test was a tenth of the list, mispredicted about
-          // one time in six (perf, 10^4 points).
-          const int any_id = full ? 1 : 0;
-          std::size_t picked = 0;
-          for (std::size_t k = 0; k < m; ++k) {
-            const double dx = cx[k] - px, dy = cy[k] - py, dz = cz[k] - pz;
-            const double d2 = dx * dx + dy * dy + dz * dz;
-            const double reach = one ? one_reach : (wp[3] + cc[k]) + g.margin;
-            pick[picked] = static_cast<std::uint32_t>(k);
-            picked += static_cast<std::size_t>(static_cast<int>(d2 <= reach * reach) &
-                                               (any_id | static_cast<int>(cid[k] >= ip)));
-          }
-          for (std::size_t e = 0; e < picked; ++e) {
-            const std::size_t k = pick[e];
-            const std::uint32_t iq = cid[k];
-            const std::size_t qi = buf.slot[k];
-            std::int64_t s[3];
-            for (int a = 0; a < 3; ++a) s[a] = std::int64_t{buf.sb[k][a]} + b.n[pi][a] - b.n[qi][a];
-            const bool zero = s[0] == 0 && s[1] == 0 && s[2] == 0;
-            if (iq == ip && zero) continue;  // the point itself
-            // Canonical: the smaller index first; a point with its own
-            // image under the kept one of S and -S.
-            const bool canonical = ip < iq || (ip == iq && rule::kept_self_shift(s[0], s[1], s[2]));
-            if (!full && !canonical) continue;
-            const double dx = cx[k] - px, dy = cy[k] - py, dz = cz[k] - pz;
-            const double inner = one ? one_inner : std::max(0.0, (wp[3] + cc[k]) - g.margin);
-            bool pair = dx * dx + dy * dy + dz * dz < inner * inner;
-            if (pair) {
-            } else if (canonical) {
-              pair = exact(c, b.x[pi], b.x[qi], wp[3], b.w[qi][3], s);
-            } else {
-              const std::int64_t mirror[3] = {-s[0], -s[1], -s[2]};
-              pair = exact(c, b.x[qi], b.x[pi], b.w[qi][3], wp[3], mirror);
-            }
-            if (pair) out.push(iq, s);
-          }
-          out.count[pi] = static_cast<std::uint32_t>(static_cast<std::int64_t>(out.found.size()) -
-                                                     out.start[pi]);
-        }
+  for (std::int64_t home = bin_lo; home < bin_hi; ++home) {
+    const std::int64_t hs = b.start[static_cast<std::size_t>(home)];
+    const std::int64_t he = b.start[static_cast<std::size_t>(home) + 1];
+    if (hs == he) continue;
+    const std::int64_t bc[3] = {home / (g.nb[1] * g.nb[2]), (home / g.nb[2]) % g.nb[1],
+                                home % g.nb[2]};
+    buf.size = 0;
+    for_each_bin_around(g, wraps, bc, neg_r, r, [&](std::int64_t nb, const std::int64_t(&sb)[3]) {
+      const std::int64_t qs = b.start[static_cast<std::size_t>(nb)];
+      const std::int64_t qe = b.start[static_cast<std::size_t>(nb) + 1];
+      const Vec3 off = rule::image_offset(*c.cell, sb[0], sb[1], sb[2]);
+      buf.reserve_more(static_cast<std::size_t>(qe - qs));
+      const std::array<std::int32_t, 3> sb32 = {static_cast<std::int32_t>(sb[0]),
+                                                static_cast<std::int32_t>(sb[1]),
+                                                static_cast<std::int32_t>(sb[2])};
+      for (std::int64_t q = qs; q < qe; ++q) {
+        const auto& wq = b.w[static_cast<std::size_t>(q)];
+        const std::size_t k = buf.size++;
+        buf.x[k] = wq[0] + off.x;
+        buf.y[k] = wq[1] + off.y;
+        buf.z[k] = wq[2] + off.z;
+        buf.c[k] = wq[3];
+        buf.slot[k] = static_cast<std::uint32_t>(q);
+        buf.id[k] = b.id[static_cast<std::size_t>(q)];
+        buf.sb[k] = sb32;
       }
+    });
+    const std::size_t m = buf.size;
+    for (std::int64_t p = hs; p < he; ++p) {
+      const auto pi = static_cast<std::size_t>(p);
+      const auto& wp = b.w[pi];
+      const std::uint32_t ip = b.id[pi];
+      out.start[pi] = static_cast<std::int64_t>(found.size());
+      if (self_interaction) {
+        const std::int64_t zero[3] = {0, 0, 0};
+        if (exact(c, b.x[pi], b.x[pi], wp[3], wp[3], zero)) push(found, ip, zero);
+      }
+      const double px = wp[0], py = wp[1], pz = wp[2];
+      const double* cx = buf.x.data();
+      const double* cy = buf.y.data();
+      const double* cz = buf.z.data();
+      const double* cc = buf.c.data();
+      const std::uint32_t* cid = buf.id.data();
+      std::uint32_t* pick = buf.pick.data();
+      // The candidates within reach (and, in a half list, not found
+      // from their own end), compacted without a branch: the branch on
+      // each distance test was a tenth of the list, mispredicted about
+      // one time in six (perf, 10^4 points).
+      const int any_id = full ? 1 : 0;
+      std::size_t picked = 0;
+      for (std::size_t k = 0; k < m; ++k) {
+        const double dx = cx[k] - px, dy = cy[k] - py, dz = cz[k] - pz;
+        const double d2 = dx * dx + dy * dy + dz * dz;
+        const double reach = one ? one_reach : (wp[3] + cc[k]) + g.margin;
+        pick[picked] = static_cast<std::uint32_t>(k);
+        picked += static_cast<std::size_t>(static_cast<int>(d2 <= reach * reach) &
+                                           (any_id | static_cast<int>(cid[k] >= ip)));
+      }
+      for (std::size_t e = 0; e < picked; ++e) {
+        const std::size_t k = pick[e];
+        const std::uint32_t iq = cid[k];
+        const std::size_t qi = buf.slot[k];
+        std::int64_t s[3];
+        for (int a = 0; a < 3; ++a) s[a] = std::int64_t{buf.sb[k][a]} + b.n[pi][a] - b.n[qi][a];
+        const bool zero = s[0] == 0 && s[1] == 0 && s[2] == 0;
+        if (iq == ip && zero) continue;  // the point itself
+        // Canonical: the smaller index first; a point with its own
+        // image under the kept one of S and -S.
+        const bool canonical = ip < iq || (ip == iq && rule::kept_self_shift(s[0], s[1], s[2]));
+        if (!full && !canonical) continue;
+        const double dx = cx[k] - px, dy = cy[k] - py, dz = cz[k] - pz;
+        const double inner = one ? one_inner : std::max(0.0, (wp[3] + cc[k]) - g.margin);
+        bool pair = dx * dx + dy * dy + dz * dz < inner * inner;
+        if (!pair) {
+          const std::int64_t mirror[3] = {-s[0], -s[1], -s[2]};
+          pair = canonical ? exact(c, b.x[pi], b.x[qi], wp[3], b.w[qi][3], s)
+                           : exact(c, b.x[qi], b.x[pi], b.w[qi][3], wp[3], mirror);
+        }
+        if (pair) push(found, iq, s);
+      }
+      out.count[pi] =
+          static_cast<std::uint32_t>(static_cast<std::int64_t>(found.size()) - out.start[pi]);
+    }
+  }
+}
+
+/// The self search in parts of about equal numbers of points, each a run
+/// of whole bins.
+template <class Found>
+Groups<Found> find_self(const Context& c, const Grid& g, const Wraps& wraps, const Binned& b,
+                        bool full, bool self_interaction, unsigned threads) {
+  const std::size_t n = b.id.size();
+  Groups<Found> out(n);
+  const unsigned parts = parts_for(n, threads);
+  std::vector<std::int64_t> cut(parts + 1, 0);
+  cut[parts] = g.bins();
+  for (unsigned p = 1; p < parts; ++p) {
+    const auto want = static_cast<std::int64_t>(n * p / parts);
+    const auto it = std::upper_bound(b.start.begin(), b.start.end(), want);
+    cut[p] = std::max(cut[p - 1], static_cast<std::int64_t>(it - b.start.begin()) - 1);
+  }
+  out.parts.resize(parts);
+  out.part_end.resize(parts);
+  for (unsigned p = 0; p < parts; ++p)
+    out.part_end[p] = static_cast<std::size_t>(b.start[static_cast<std::size_t>(cut[p + 1])]);
+  run_parts(parts, [&](unsigned p) {
+    const std::size_t first = p == 0 ? 0 : out.part_end[p - 1];
+    reserve_large(out.parts[p], (out.part_end[p] - first) * 8);
+    find_self_part(c, g, wraps, b, full, self_interaction, cut[p], cut[p + 1], out, out.parts[p]);
+  });
+  out.seal();
   return out;
 }
 
@@ -598,13 +654,12 @@ Wraps between_wraps(const Grid& g) {
 }
 
 template <class Found>
-Groups<Found> find_between(const Context& c, const Grid& g, const Wraps& wraps, const Binned& b) {
-  Groups<Found> out;
+void find_between_part(const Context& c, const Grid& g, const Wraps& wraps, const Binned& b,
+                       std::size_t q_lo, std::size_t q_hi, Groups<Found>& out,
+                       std::vector<Found>& found) {
   const PointSet& qs = *c.home;
-  out.start.resize(qs.x.size());
-  out.count.resize(qs.x.size());
-  for (std::size_t qi = 0; qi < qs.x.size(); ++qi) {
-    out.start[qi] = static_cast<std::int64_t>(out.found.size());
+  for (std::size_t qi = q_lo; qi < q_hi; ++qi) {
+    out.start[qi] = static_cast<std::int64_t>(found.size());
     std::int64_t bc[3];
     for (int k = 0; k < 3; ++k) bc[k] = g.coordinate(k, qs.s[qi][k]);
     const Vec3 qo = rule::image_offset(*c.cell, qs.n[qi][0], qs.n[qi][1], qs.n[qi][2]);
@@ -630,12 +685,29 @@ Groups<Found> find_between(const Context& c, const Grid& g, const Wraps& wraps, 
         const auto pj = static_cast<std::size_t>(p);
         std::int64_t s[3];
         for (int k = 0; k < 3; ++k) s[k] = sb[k] + qs.n[qi][k] - b.n[pj][k];
-        if (exact(c, qs.x[qi], b.x[pj], 0.0, 0.0, s)) out.push(b.id[pj], s);
+        if (exact(c, qs.x[qi], b.x[pj], 0.0, 0.0, s)) push(found, b.id[pj], s);
       }
     });
     out.count[qi] =
-        static_cast<std::uint32_t>(static_cast<std::int64_t>(out.found.size()) - out.start[qi]);
+        static_cast<std::uint32_t>(static_cast<std::int64_t>(found.size()) - out.start[qi]);
   }
+}
+
+/// The two-set search in parts of equal numbers of queries.
+template <class Found>
+Groups<Found> find_between(const Context& c, const Grid& g, const Wraps& wraps, const Binned& b,
+                           unsigned threads) {
+  const std::size_t n = c.home->x.size();
+  Groups<Found> out(n);
+  const unsigned parts = parts_for(n, threads);
+  out.parts.resize(parts);
+  out.part_end.resize(parts);
+  for (unsigned p = 0; p < parts; ++p) out.part_end[p] = n * (p + 1) / parts;
+  run_parts(parts, [&](unsigned p) {
+    find_between_part(c, g, wraps, b, p == 0 ? 0 : out.part_end[p - 1], out.part_end[p], out,
+                      out.parts[p]);
+  });
+  out.seal();
   return out;
 }
 
@@ -648,64 +720,86 @@ NeighbourList assemble(const Context& c, Groups<Found>& gr,
                        bool between) {
   const std::size_t n = gr.start.size();
   const auto group = [&](std::size_t i) -> std::size_t { return group_of ? (*group_of)[i] : i; };
-  std::vector<std::int64_t> offsets(n + 1);
+  // Parts of equal numbers of points, each written by a thread where the
+  // prefix sums of the group sizes place it.
+  const unsigned parts = parts_for(n, opt.threads);
+  const auto part_lo = [&](unsigned p) { return n * p / parts; };
+  NeighbourVector<std::int64_t> offsets(n + 1);
   offsets[0] = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (i + 16 < n) __builtin_prefetch(&gr.count[group(i + 16)]);
-    offsets[i + 1] = offsets[i] + gr.count[group(i)];
-  }
-  const auto total = static_cast<std::size_t>(offsets[n]);
-  const auto less = [](const Found& a, const Found& b) { return a < b; };
-  NeighbourList out;
-  // Reserved, then written once (resizing zeroes them first: at 10^6
-  // points that doubled the cost of writing the outputs).
-  reserve_large(out.first, total);
-  reserve_large(out.second, total);
-  if (opt.shifts) reserve_large(out.shifts, 3 * total);
-  if (opt.distances) reserve_large(out.distances, total);
-  if (opt.vectors) reserve_large(out.vectors, 3 * total);
-  // Groups are read in index order from bin order: a cache and TLB miss
-  // each, so the group 8 points ahead is fetched while this one is written
-  // (and its start 16 ahead); at 10^6 points the misses were two thirds
-  // of this function (perf).
-  constexpr std::size_t kAhead = 8;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (i + 2 * kAhead < n) __builtin_prefetch(&gr.start[group(i + 2 * kAhead)]);
-    if (i + kAhead < n) __builtin_prefetch(gr.found.data() + gr.start[group(i + kAhead)]);
-    const std::size_t k = group(i);
-    Found* lo = gr.found.data() + gr.start[k];
-    Found* hi = lo + gr.count[k];
-    if (hi - lo > 32) {
-      std::sort(lo, hi, less);
-    } else {
-      for (Found* e = lo + 1; e < hi; ++e)  // a point has a few neighbours
-        for (Found* f = e; f > lo && less(*f, f[-1]); --f) std::swap(*f, f[-1]);
+  std::vector<std::int64_t> part_total(parts + 1, 0);
+  run_parts(parts, [&](unsigned p) {
+    std::int64_t sum = 0;
+    for (std::size_t i = part_lo(p), hi = part_lo(p + 1); i < hi; ++i) {
+      if (i + 16 < hi) __builtin_prefetch(&gr.count[group(i + 16)]);
+      sum += gr.count[group(i)];
+      offsets[i + 1] = sum;
     }
-    for (const Found* e = lo; e < hi; ++e) {
-      out.first.push_back(static_cast<std::int64_t>(i));
-      out.second.push_back(e->j());
-      if (opt.shifts)
-        for (int a = 0; a < 3; ++a) out.shifts.push_back(e->s(a));
-      if (opt.distances || opt.vectors) {
-        const auto j = static_cast<std::size_t>(e->j());
-        Vec3 d;
-        const bool canonical = between || i < j ||
-                               (i == j && (rule::kept_self_shift(e->s(0), e->s(1), e->s(2)) ||
-                                           (e->s(0) == 0 && e->s(1) == 0 && e->s(2) == 0)));
-        if (canonical) {
-          d = rule::pair_vector(c.home->x[i], c.other->x[j],
-                                rule::image_offset(*c.cell, e->s(0), e->s(1), e->s(2)));
-        } else {
-          d = rule::pair_vector(c.home->x[j], c.other->x[i],
-                                rule::image_offset(*c.cell, -e->s(0), -e->s(1), -e->s(2)));
-          d = Vec3{-d.x, -d.y, -d.z};
+    part_total[p + 1] = sum;
+  });
+  for (unsigned p = 0; p < parts; ++p) part_total[p + 1] += part_total[p];
+  const auto total = static_cast<std::size_t>(part_total[parts]);
+  NeighbourList out;
+  // Sized without being written, then each value written once by its part.
+  const auto size = [&](auto& v, std::size_t count) {
+    reserve_large(v, count);
+    v.resize(count);
+  };
+  size(out.first, total);
+  size(out.second, total);
+  if (opt.shifts) size(out.shifts, 3 * total);
+  if (opt.distances) size(out.distances, total);
+  if (opt.vectors) size(out.vectors, 3 * total);
+  const auto less = [](const Found& a, const Found& b) { return a < b; };
+  run_parts(parts, [&](unsigned p) {
+    const std::size_t lo_i = part_lo(p), hi_i = part_lo(p + 1);
+    for (std::size_t i = lo_i; i < hi_i; ++i) offsets[i + 1] += part_total[p];
+    // Groups are read in index order from bin order: a cache and TLB miss
+    // each, so the group 8 points ahead is fetched while this one is
+    // written (and where it is and its size 16 ahead); at 10^6 points the
+    // misses were two thirds of this function (perf).
+    constexpr std::size_t kAhead = 8;
+    auto e_out = static_cast<std::size_t>(offsets[lo_i]);
+    for (std::size_t i = lo_i; i < hi_i; ++i) {
+      if (i + 2 * kAhead < hi_i) {
+        __builtin_prefetch(&gr.at[group(i + 2 * kAhead)]);
+        __builtin_prefetch(&gr.count[group(i + 2 * kAhead)]);
+      }
+      if (i + kAhead < hi_i) __builtin_prefetch(gr.at[group(i + kAhead)]);
+      const std::size_t k = group(i);
+      Found* lo = gr.at[k];
+      Found* hi = lo + gr.count[k];
+      if (hi - lo > 32) {
+        std::sort(lo, hi, less);
+      } else {
+        for (Found* e = lo + 1; e < hi; ++e)  // a point has a few neighbours
+          for (Found* f = e; f > lo && less(*f, f[-1]); --f) std::swap(*f, f[-1]);
+      }
+      for (const Found* e = lo; e < hi; ++e, ++e_out) {
+        out.first[e_out] = static_cast<std::int64_t>(i);
+        out.second[e_out] = e->j();
+        if (opt.shifts)
+          for (int a = 0; a < 3; ++a) out.shifts[3 * e_out + a] = e->s(a);
+        if (opt.distances || opt.vectors) {
+          const auto j = static_cast<std::size_t>(e->j());
+          Vec3 d;
+          const bool canonical = between || i < j ||
+                                 (i == j && (rule::kept_self_shift(e->s(0), e->s(1), e->s(2)) ||
+                                             (e->s(0) == 0 && e->s(1) == 0 && e->s(2) == 0)));
+          if (canonical) {
+            d = rule::pair_vector(c.home->x[i], c.other->x[j],
+                                  rule::image_offset(*c.cell, e->s(0), e->s(1), e->s(2)));
+          } else {
+            d = rule::pair_vector(c.home->x[j], c.other->x[i],
+                                  rule::image_offset(*c.cell, -e->s(0), -e->s(1), -e->s(2)));
+            d = Vec3{-d.x, -d.y, -d.z};
+          }
+          if (opt.distances) out.distances[e_out] = std::sqrt(rule::squared_length(d));
+          if (opt.vectors)
+            for (int a = 0; a < 3; ++a) out.vectors[3 * e_out + a] = d[a];
         }
-        if (opt.distances) out.distances.push_back(std::sqrt(rule::squared_length(d)));
-        if (opt.vectors)
-          for (int a = 0; a < 3; ++a) out.vectors.push_back(d[a]);
       }
     }
-  }
+  });
   if (opt.offsets) out.offsets = std::move(offsets);
   return out;
 }
@@ -738,7 +832,8 @@ NeighbourList self_list(const NeighbourPoints& points, const NeighbourCell& cell
     group_of[b.id[slot]] = static_cast<std::uint32_t>(slot);
   const auto run = [&](auto record) {
     using Found = decltype(record);
-    Groups<Found> gr = find_self<Found>(c, g, wraps, b, opt.full, opt.self_interaction);
+    Groups<Found> gr =
+        find_self<Found>(c, g, wraps, b, opt.full, opt.self_interaction, opt.threads);
     return assemble(c, gr, &group_of, opt, false);
   };
   return packed_shifts_fit(wraps.shift, pts, pts) ? run(PackedFound{}) : run(WideFound{});
@@ -771,7 +866,7 @@ NeighbourList neighbour_list_between(const NeighbourPoints& queries, const Neigh
   const Wraps wraps = between_wraps(g);
   const auto run = [&](auto record) {
     using Found = decltype(record);
-    Groups<Found> gr = find_between<Found>(c, g, wraps, b);
+    Groups<Found> gr = find_between<Found>(c, g, wraps, b, options.threads);
     return assemble(c, gr, nullptr, options, true);
   };
   return packed_shifts_fit(wraps.shift, qs, ps) ? run(PackedFound{}) : run(WideFound{});
