@@ -240,30 +240,71 @@ Grid make_grid(const NeighbourCell& cell, const Frame& f, const PointSet& pts,
   return g;
 }
 
+/// How many parts (threads) a call of `items` points or queries takes:
+/// `threads` (0: every core), at most one a 16 384 items (a thread costs
+/// tens of microseconds to start).
+unsigned parts_for(std::size_t items, unsigned threads) {
+  const unsigned want = threads != 0 ? threads : std::max(1u, std::thread::hardware_concurrency());
+  const std::size_t most = std::max<std::size_t>(1, items / 16384);
+  return static_cast<unsigned>(std::min<std::size_t>({want, most, 256}));
+}
+
+/// Runs job(p) for every part p in [0, parts), part 0 on the calling thread
+/// and each other on a thread of its own; rethrows the first part's error.
+template <class Job>
+void run_parts(unsigned parts, Job&& job) {
+  if (parts <= 1) {
+    job(0u);
+    return;
+  }
+  std::vector<std::exception_ptr> errors(parts);
+  const auto guarded = [&](unsigned p) {
+    try {
+      job(p);
+    } catch (...) {
+      errors[p] = std::current_exception();
+    }
+  };
+  {
+    std::vector<std::jthread> pool;
+    pool.reserve(parts - 1);
+    for (unsigned p = 1; p < parts; ++p) pool.emplace_back(guarded, p);
+    guarded(0u);
+  }
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
+}
+
 /// The points sorted by bin: wrapped positions and cutoff (prefilter), the
 /// position as given, wrap counts and id (the exact rule).
 struct Binned {
   std::vector<std::int64_t> start;  // bins + 1
-  std::vector<std::array<double, 4>> w;
-  std::vector<Vec3> x;
-  std::vector<std::array<std::int32_t, 3>> n;
-  std::vector<std::uint32_t> id;
+  NeighbourVector<std::array<double, 4>> w;
+  NeighbourVector<Vec3> x;
+  NeighbourVector<std::array<std::int32_t, 3>> n;
+  NeighbourVector<std::uint32_t> id;
 };
 
 Binned bin_points(const Grid& g, const NeighbourCell& cell, const PointSet& pts,
-                  const std::vector<double>& cut) {
+                  const std::vector<double>& cut, unsigned threads) {
   const std::size_t n = pts.x.size();
   const std::int64_t bins = g.bins();
-  std::vector<std::int64_t> bin(n);
+  const unsigned parts = parts_for(n, threads);
+  // The bins of points, and the gather below, by parts of the points and of
+  // the slots; counting and placing the ids stay on one thread (a pass of
+  // 4 or 8 bytes a point).
+  NeighbourVector<std::int64_t> bin(n);
+  run_parts(parts, [&](unsigned p) {
+    for (std::size_t i = n * p / parts, hi = n * (p + 1) / parts; i < hi; ++i) {
+      std::int64_t c[3];
+      for (int k = 0; k < 3; ++k)
+        c[k] = std::clamp<std::int64_t>(g.coordinate(k, pts.s[i][k]), 0, g.nb[k] - 1);
+      bin[i] = (c[0] * g.nb[1] + c[1]) * g.nb[2] + c[2];
+    }
+  });
   Binned b;
   b.start.assign(static_cast<std::size_t>(bins) + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    std::int64_t c[3];
-    for (int k = 0; k < 3; ++k)
-      c[k] = std::clamp<std::int64_t>(g.coordinate(k, pts.s[i][k]), 0, g.nb[k] - 1);
-    bin[i] = (c[0] * g.nb[1] + c[1]) * g.nb[2] + c[2];
-    ++b.start[static_cast<std::size_t>(bin[i]) + 1];
-  }
+  for (std::size_t i = 0; i < n; ++i) ++b.start[static_cast<std::size_t>(bin[i]) + 1];
   for (std::int64_t k = 0; k < bins; ++k) b.start[k + 1] += b.start[k];
   // The ids by bin (a scatter of 4 bytes a point), then the slots' data
   // gathered in slot order: at 10^6 points, scattering the whole records
@@ -278,13 +319,16 @@ Binned bin_points(const Grid& g, const NeighbourCell& cell, const PointSet& pts,
   b.w.resize(n);
   b.x.resize(n);
   b.n.resize(n);
-  for (std::size_t slot = 0; slot < n; ++slot) {
-    const std::uint32_t i = b.id[slot];
-    const Vec3 o = rule::image_offset(cell, pts.n[i][0], pts.n[i][1], pts.n[i][2]);
-    b.w[slot] = {pts.x[i].x - o.x, pts.x[i].y - o.y, pts.x[i].z - o.z, cut.empty() ? 0.0 : cut[i]};
-    b.x[slot] = pts.x[i];
-    b.n[slot] = pts.n[i];
-  }
+  run_parts(parts, [&](unsigned p) {
+    for (std::size_t slot = n * p / parts, hi = n * (p + 1) / parts; slot < hi; ++slot) {
+      const std::uint32_t i = b.id[slot];
+      const Vec3 o = rule::image_offset(cell, pts.n[i][0], pts.n[i][1], pts.n[i][2]);
+      b.w[slot] = {pts.x[i].x - o.x, pts.x[i].y - o.y, pts.x[i].z - o.z,
+                   cut.empty() ? 0.0 : cut[i]};
+      b.x[slot] = pts.x[i];
+      b.n[slot] = pts.n[i];
+    }
+  });
   return b;
 }
 
@@ -409,41 +453,6 @@ void push(std::vector<Found>& found, std::uint32_t j, const std::int64_t s[3]) {
   found.push_back(Found::make(j, s));
 }
 
-/// How many parts (threads) a call of `items` points or queries takes:
-/// `threads` (0: every core), at most one a 16 384 items (a thread costs
-/// tens of microseconds to start).
-unsigned parts_for(std::size_t items, unsigned threads) {
-  const unsigned want = threads != 0 ? threads : std::max(1u, std::thread::hardware_concurrency());
-  const std::size_t most = std::max<std::size_t>(1, items / 16384);
-  return static_cast<unsigned>(std::min<std::size_t>({want, most, 256}));
-}
-
-/// Runs job(p) for every part p in [0, parts), part 0 on the calling thread
-/// and each other on a thread of its own; rethrows the first part's error.
-template <class Job>
-void run_parts(unsigned parts, Job&& job) {
-  if (parts <= 1) {
-    job(0u);
-    return;
-  }
-  std::vector<std::exception_ptr> errors(parts);
-  const auto guarded = [&](unsigned p) {
-    try {
-      job(p);
-    } catch (...) {
-      errors[p] = std::current_exception();
-    }
-  };
-  {
-    std::vector<std::jthread> pool;
-    pool.reserve(parts - 1);
-    for (unsigned p = 1; p < parts; ++p) pool.emplace_back(guarded, p);
-    guarded(0u);
-  }
-  for (const std::exception_ptr& e : errors)
-    if (e) std::rethrow_exception(e);
-}
-
 /// Whether every shift of a pair between `home` and `other` found through
 /// the bins of `wraps` fits the packed record: |S| <= |bin shift| + the
 /// spread of the wrap counts.
@@ -459,26 +468,58 @@ bool packed_shifts_fit(const std::array<std::vector<std::int64_t>, 3>& bin_shift
   return true;
 }
 
-/// The candidates of a home bin's neighbourhood, by columns (the distance
-/// loop vectorises over them): wrapped positions moved by the bin's wrap
-/// shift, cutoffs, slots and those shifts.
-struct Candidates {
-  std::vector<double> x, y, z, c;
-  std::vector<std::uint32_t> slot, id, pick;
-  std::vector<std::array<std::int32_t, 3>> sb;
-  std::size_t size = 0;
-  /// Room for `more` after the first `size` (kept between bins, never
-  /// shrunk: the columns are written by index, not appended to).
-  void reserve_more(std::size_t more) {
-    if (size + more <= x.size()) return;
-    const std::size_t cap = 2 * (size + more);
-    for (auto* v : {&x, &y, &z, &c}) v->resize(cap);
-    slot.resize(cap);
-    id.resize(cap);
-    pick.resize(cap);
-    sb.resize(cap);
-  }
+/// The candidates of a home bin's neighbourhood as runs of bins that are
+/// consecutive on the last axis and seen under one wrap shift: slots
+/// [lo, hi), moved by `off` = image_offset(sb).
+struct Run {
+  std::uint32_t lo, hi;
+  std::array<std::int32_t, 3> sb;
+  Vec3 off;
 };
+
+/// The runs of the bins at offsets [-r, r] from bin bc (per axis) that
+/// `wraps` resolves, in the order for_each_bin_around visits their bins.
+void runs_around(const Grid& g, const Wraps& wraps, const Binned& b, const NeighbourCell& cell,
+                 const std::int64_t (&bc)[3], const std::int64_t (&r)[3], std::vector<Run>& runs) {
+  runs.clear();
+  for (std::int64_t o0 = -r[0]; o0 <= r[0]; ++o0) {
+    std::int64_t n0, s0;
+    if (!wraps.resolve(0, bc[0] + o0, n0, s0)) continue;
+    for (std::int64_t o1 = -r[1]; o1 <= r[1]; ++o1) {
+      std::int64_t n1, s1;
+      if (!wraps.resolve(1, bc[1] + o1, n1, s1)) continue;
+      const std::int64_t base = (n0 * g.nb[1] + n1) * g.nb[2];
+      std::int64_t first = -1, last = -1, s2 = 0;
+      const auto flush = [&] {
+        if (first < 0) return;
+        const std::int64_t lo = b.start[static_cast<std::size_t>(base + first)];
+        const std::int64_t hi = b.start[static_cast<std::size_t>(base + last + 1)];
+        if (lo < hi)
+          runs.push_back({static_cast<std::uint32_t>(lo),
+                          static_cast<std::uint32_t>(hi),
+                          {static_cast<std::int32_t>(s0), static_cast<std::int32_t>(s1),
+                           static_cast<std::int32_t>(s2)},
+                          rule::image_offset(cell, s0, s1, s2)});
+        first = -1;
+      };
+      for (std::int64_t o2 = -r[2]; o2 <= r[2]; ++o2) {
+        std::int64_t n2, t2;
+        if (!wraps.resolve(2, bc[2] + o2, n2, t2)) {
+          flush();
+          continue;
+        }
+        if (first >= 0 && t2 == s2 && n2 == last + 1) {
+          last = n2;
+          continue;
+        }
+        flush();
+        first = last = n2;
+        s2 = t2;
+      }
+      flush();
+    }
+  }
+}
 
 /// Every point's pairs, found from the point itself in bin order, so that
 /// each point's pairs come out together: the output is then in index order
@@ -523,43 +564,26 @@ void find_self_part(const Context& c, const Grid& g, const Wraps& wraps, const B
                     bool self_interaction, std::int64_t bin_lo, std::int64_t bin_hi,
                     Groups<Found>& out, std::vector<Found>& found) {
   const std::int64_t r[3] = {wraps.base[0], wraps.base[1], wraps.base[2]};
-  const std::int64_t neg_r[3] = {-r[0], -r[1], -r[2]};
   const bool one = c.cut->empty();
-  Candidates buf;
+  std::vector<Run> runs;
+  std::vector<std::uint64_t> pick;  // run << 32 | slot
   const double one_reach = c.cutoff + g.margin;
   // Within `inner` of each other (cutoff less the margin), the prefilter's
   // distance decides for the exact rule: the margin bounds how far the two
   // differ, as it does for the prefilter's outer reach. At 10^6 points the
   // exact test of every candidate kept was a seventh of the list.
   const double one_inner = std::max(0.0, c.cutoff - g.margin);
+  const int any_id = full ? 1 : 0;
   for (std::int64_t home = bin_lo; home < bin_hi; ++home) {
     const std::int64_t hs = b.start[static_cast<std::size_t>(home)];
     const std::int64_t he = b.start[static_cast<std::size_t>(home) + 1];
     if (hs == he) continue;
     const std::int64_t bc[3] = {home / (g.nb[1] * g.nb[2]), (home / g.nb[2]) % g.nb[1],
                                 home % g.nb[2]};
-    buf.size = 0;
-    for_each_bin_around(g, wraps, bc, neg_r, r, [&](std::int64_t nb, const std::int64_t(&sb)[3]) {
-      const std::int64_t qs = b.start[static_cast<std::size_t>(nb)];
-      const std::int64_t qe = b.start[static_cast<std::size_t>(nb) + 1];
-      const Vec3 off = rule::image_offset(*c.cell, sb[0], sb[1], sb[2]);
-      buf.reserve_more(static_cast<std::size_t>(qe - qs));
-      const std::array<std::int32_t, 3> sb32 = {static_cast<std::int32_t>(sb[0]),
-                                                static_cast<std::int32_t>(sb[1]),
-                                                static_cast<std::int32_t>(sb[2])};
-      for (std::int64_t q = qs; q < qe; ++q) {
-        const auto& wq = b.w[static_cast<std::size_t>(q)];
-        const std::size_t k = buf.size++;
-        buf.x[k] = wq[0] + off.x;
-        buf.y[k] = wq[1] + off.y;
-        buf.z[k] = wq[2] + off.z;
-        buf.c[k] = wq[3];
-        buf.slot[k] = static_cast<std::uint32_t>(q);
-        buf.id[k] = b.id[static_cast<std::size_t>(q)];
-        buf.sb[k] = sb32;
-      }
-    });
-    const std::size_t m = buf.size;
+    runs_around(g, wraps, b, *c.cell, bc, r, runs);
+    std::size_t m = 0;
+    for (const Run& run : runs) m += run.hi - run.lo;
+    if (pick.size() < m) pick.resize(2 * m);
     for (std::int64_t p = hs; p < he; ++p) {
       const auto pi = static_cast<std::size_t>(p);
       const auto& wp = b.w[pi];
@@ -570,45 +594,50 @@ void find_self_part(const Context& c, const Grid& g, const Wraps& wraps, const B
         if (exact(c, b.x[pi], b.x[pi], wp[3], wp[3], zero)) push(found, ip, zero);
       }
       const double px = wp[0], py = wp[1], pz = wp[2];
-      const double* cx = buf.x.data();
-      const double* cy = buf.y.data();
-      const double* cz = buf.z.data();
-      const double* cc = buf.c.data();
-      const std::uint32_t* cid = buf.id.data();
-      std::uint32_t* pick = buf.pick.data();
-      // The candidates within reach (and, in a half list, not found
-      // from their own end), compacted without a branch: the branch on
-      // each distance test was a tenth of the list, mispredicted about
-      // one time in six (perf, 10^4 points).
-      const int any_id = full ? 1 : 0;
+      // The candidates within reach (and, in a half list, not found from
+      // their own end), read in place run by run and compacted without a
+      // branch: the branch on each distance test was a tenth of the list,
+      // mispredicted about one time in six (perf, 10^4 points); copying
+      // the candidates of each home bin into columns first cost more than
+      // the runs' loops (perf, 10^4 and 10^6 points).
+      // The point is moved by -off rather than each candidate by +off: the
+      // same rounding bound (a few ulps of the magnitudes the margin is
+      // taken of), three additions fewer a candidate.
       std::size_t picked = 0;
-      for (std::size_t k = 0; k < m; ++k) {
-        const double dx = cx[k] - px, dy = cy[k] - py, dz = cz[k] - pz;
-        const double d2 = dx * dx + dy * dy + dz * dz;
-        const double reach = one ? one_reach : (wp[3] + cc[k]) + g.margin;
-        pick[picked] = static_cast<std::uint32_t>(k);
-        picked += static_cast<std::size_t>(static_cast<int>(d2 <= reach * reach) &
-                                           (any_id | static_cast<int>(cid[k] >= ip)));
+      for (std::size_t k = 0; k < runs.size(); ++k) {
+        const Run& run = runs[k];
+        const double qx = px - run.off.x, qy = py - run.off.y, qz = pz - run.off.z;
+        for (std::uint32_t q = run.lo; q < run.hi; ++q) {
+          const auto& wq = b.w[q];
+          const double dx = wq[0] - qx, dy = wq[1] - qy, dz = wq[2] - qz;
+          const double d2 = dx * dx + dy * dy + dz * dz;
+          const double reach = one ? one_reach : (wp[3] + wq[3]) + g.margin;
+          pick[picked] = std::uint64_t{k} << 32 | q;
+          picked += static_cast<std::size_t>(static_cast<int>(d2 <= reach * reach) &
+                                             (any_id | static_cast<int>(b.id[q] >= ip)));
+        }
       }
       for (std::size_t e = 0; e < picked; ++e) {
-        const std::size_t k = pick[e];
-        const std::uint32_t iq = cid[k];
-        const std::size_t qi = buf.slot[k];
+        const std::size_t qi = static_cast<std::uint32_t>(pick[e]);
+        const Run& run = runs[pick[e] >> 32];
+        const std::uint32_t iq = b.id[qi];
         std::int64_t s[3];
-        for (int a = 0; a < 3; ++a) s[a] = std::int64_t{buf.sb[k][a]} + b.n[pi][a] - b.n[qi][a];
+        for (int a = 0; a < 3; ++a) s[a] = std::int64_t{run.sb[a]} + b.n[pi][a] - b.n[qi][a];
         const bool zero = s[0] == 0 && s[1] == 0 && s[2] == 0;
         if (iq == ip && zero) continue;  // the point itself
         // Canonical: the smaller index first; a point with its own
         // image under the kept one of S and -S.
         const bool canonical = ip < iq || (ip == iq && rule::kept_self_shift(s[0], s[1], s[2]));
         if (!full && !canonical) continue;
-        const double dx = cx[k] - px, dy = cy[k] - py, dz = cz[k] - pz;
-        const double inner = one ? one_inner : std::max(0.0, (wp[3] + cc[k]) - g.margin);
+        const auto& wq = b.w[qi];
+        const double dx = wq[0] - (px - run.off.x), dy = wq[1] - (py - run.off.y),
+                     dz = wq[2] - (pz - run.off.z);
+        const double inner = one ? one_inner : std::max(0.0, (wp[3] + wq[3]) - g.margin);
         bool pair = dx * dx + dy * dy + dz * dz < inner * inner;
         if (!pair) {
           const std::int64_t mirror[3] = {-s[0], -s[1], -s[2]};
-          pair = canonical ? exact(c, b.x[pi], b.x[qi], wp[3], b.w[qi][3], s)
-                           : exact(c, b.x[qi], b.x[pi], b.w[qi][3], wp[3], mirror);
+          pair = canonical ? exact(c, b.x[pi], b.x[qi], wp[3], wq[3], s)
+                           : exact(c, b.x[qi], b.x[pi], wq[3], wp[3], mirror);
         }
         if (pair) push(found, iq, s);
       }
@@ -823,7 +852,7 @@ NeighbourList self_list(const NeighbourPoints& points, const NeighbourCell& cell
   }
   const PointSet pts = read_points(points, cell, f, "positions");
   const Grid g = make_grid(cell, f, pts, nullptr, reach);
-  const Binned b = bin_points(g, cell, pts, cut);
+  const Binned b = bin_points(g, cell, pts, cut, opt.threads);
   const Context c{&cell, &pts, &pts, &cut, cutoff, opt.rule};
   const Wraps wraps = self_wraps(g);
   // Point i's group is its slot.
@@ -861,7 +890,7 @@ NeighbourList neighbour_list_between(const NeighbourPoints& queries, const Neigh
   const PointSet ps = read_points(points, cell, f, "points");
   const Grid g = make_grid(cell, f, ps, &qs, cutoff);
   const std::vector<double> none;
-  const Binned b = bin_points(g, cell, ps, none);
+  const Binned b = bin_points(g, cell, ps, none, options.threads);
   const Context c{&cell, &qs, &ps, &none, cutoff, options.rule};
   const Wraps wraps = between_wraps(g);
   const auto run = [&](auto record) {
