@@ -183,6 +183,42 @@ TEST(MovingNeighbours, RandomWalksMatchTheOneShotListOnEveryFrame) {
   EXPECT_GT(pairs, frames * 10);
 }
 
+// On two and three threads, the list of every frame is the one-shot list:
+// 50 000 points (three parts of at least 16 384 points), small steps and wraps,
+// one cutoff and per-point ones, half and full, all the quantities.
+TEST(MovingNeighbours, ThreadsGiveTheOneShotListOnEveryFrame) {
+  for (std::uint64_t seed = 1; seed <= 2; ++seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    Case c;
+    c.cell = NeighbourCell::orthorhombic({80, 80, 80});
+    if (seed == 2) c.cell.vectors[1].x = 15;  // triclinic
+    c.x.resize(50000);
+    for (Vec3& p : c.x)
+      p = c.cell.vectors[0] * u(rng) + c.cell.vectors[1] * u(rng) + c.cell.vectors[2] * u(rng);
+    c.cutoff = 2.5;
+    if (seed == 2) {
+      c.cutoffs.resize(c.x.size());
+      for (double& v : c.cutoffs) v = 0.8 + 0.5 * u(rng);
+    }
+    c.skin = 0.6;
+    c.options.full = seed == 2;
+    c.options.distances = c.options.vectors = c.options.offsets = true;
+    c.options.threads = seed == 1 ? 2 : 3;
+    MovingNeighbourList m = make_list(c);
+    std::vector<float> f32;
+    std::size_t jumps = 0;
+    for (int frame = 0; frame < 4; ++frame) {
+      if (frame > 0) step(c, rng, 0.02, jumps);
+      const Frame f = both(c, m, f32);
+      expect_same(f.got, f.want,
+                  "seed " + std::to_string(seed) + " frame " + std::to_string(frame));
+      if (::testing::Test::HasFailure()) return;
+    }
+    EXPECT_LT(m.rebuilds(), 4u);
+  }
+}
+
 // Two streams of points moving against each other: pairs close in at twice
 // the speed of a point, the case the skin's halving is for. A list that
 // waited for a point to move the whole skin would miss pairs here.

@@ -281,21 +281,21 @@ def test_query_pairs_as_ckdtree_with_boxsize():
 
 
 def test_threads_give_the_same_arrays():
-    # 40 000 points: parts of at least 16 384 points each, so 2 and 0 (every
-    # core) split the work; per-point cutoffs, the moving list and the
+    # 50 000 points: parts of at least 16 384 points each, so 2, 3 and 0
+    # (every core) split the work; per-point cutoffs, the moving list and the
     # two-set query too.
     rng = np.random.default_rng(12)
-    x = rng.uniform(0, 74, (40000, 3))
-    cut = rng.uniform(0.8, 1.4, 40000)
-    cell = [74.0, 74.0, 80.0]
-    for threads in (2, 0):
+    x = rng.uniform(0, 80, (50000, 3))
+    cut = rng.uniform(0.8, 1.4, 50000)
+    cell = [80.0, 80.0, 84.0]
+    for threads in (2, 3, 0):
         for cutoff in (2.5, cut):
             one = broadphase.neighbor_list("ijSdDo", x, cutoff, cell=cell, full=True)
             many = broadphase.neighbor_list("ijSdDo", x, cutoff, cell=cell, full=True,
                                             threads=threads)
             assert all(np.array_equal(a, b) for a, b in zip(one, many))
-        one = broadphase.neighbor_list_between("ijS", x[:20000], x[20000:], 2.5, cell=cell)
-        many = broadphase.neighbor_list_between("ijS", x[:20000], x[20000:], 2.5, cell=cell,
+        one = broadphase.neighbor_list_between("ijS", x, x[::2], 2.5, cell=cell)
+        many = broadphase.neighbor_list_between("ijS", x, x[::2], 2.5, cell=cell,
                                                 threads=threads)
         assert all(np.array_equal(a, b) for a, b in zip(one, many))
         moving = broadphase.NeighbourList("ijS", 2.5, cell=cell, threads=threads)

@@ -4,11 +4,14 @@
 /// library.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <broadphase/neighbours.hpp>
 #include <cstddef>
 #include <cstdint>
+#include <exception>
 #include <string>
+#include <thread>
 #include <vector>
 
 #if defined(__linux__)
@@ -50,6 +53,41 @@ void reserve_large(std::vector<T, A>& v, std::size_t count) {
   const std::uintptr_t hi = (begin + count * sizeof(T)) & ~(kHuge - 1);
   if (hi > lo) madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
 #endif
+}
+
+/// How many parts (threads) a call of `items` points or queries takes:
+/// `threads` (0: every core), at most one a 16 384 items (a thread costs
+/// tens of microseconds to start).
+inline unsigned parts_for(std::size_t items, unsigned threads) {
+  const unsigned want = threads != 0 ? threads : std::max(1u, std::thread::hardware_concurrency());
+  const std::size_t most = std::max<std::size_t>(1, items / 16384);
+  return static_cast<unsigned>(std::min<std::size_t>({want, most, 256}));
+}
+
+/// Runs job(p) for every part p in [0, parts), part 0 on the calling thread
+/// and each other on a thread of its own; rethrows the first part's error.
+template <class Job>
+void run_parts(unsigned parts, Job&& job) {
+  if (parts <= 1) {
+    job(0u);
+    return;
+  }
+  std::vector<std::exception_ptr> errors(parts);
+  const auto guarded = [&](unsigned p) {
+    try {
+      job(p);
+    } catch (...) {
+      errors[p] = std::current_exception();
+    }
+  };
+  {
+    std::vector<std::jthread> pool;
+    pool.reserve(parts - 1);
+    for (unsigned p = 1; p < parts; ++p) pool.emplace_back(guarded, p);
+    guarded(0u);
+  }
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
 }
 
 }  // namespace broadphase::neighbours_detail

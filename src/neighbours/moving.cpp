@@ -20,7 +20,9 @@ namespace {
 namespace rule = neighbour_rule;
 using neighbours_detail::check_cutoff;
 using neighbours_detail::number;
+using neighbours_detail::parts_for;
 using neighbours_detail::reserve_large;
+using neighbours_detail::run_parts;
 
 [[noreturn]] void refuse(const std::string& what) { throw InvalidNeighbourInput(what); }
 
@@ -209,73 +211,101 @@ NeighbourList MovingNeighbourList::evaluate() {
   const bool need_d = options_.distances || options_.vectors;
   // Written for every candidate, kept by advancing past it: the branch on
   // the rule, taken about one time in three, and the writes into five
-  // growing vectors were most of a frame (perf, 10^5 points).
+  // growing vectors were most of a frame (perf, 10^5 points). Each part (a
+  // range of points, on a thread of its own) keeps its candidates at the
+  // front of its own range of them; the output is then written by parts
+  // where the counts place them.
   found_.resize(total);
   if (need_d) vectors_.resize(total);
   NeighbourVector<std::int64_t> offsets(n + 1);
   offsets[0] = 0;
-  // A candidate's other point is anywhere in memory (points are in the
-  // caller's order, not in space): fetched this many candidates ahead.
-  constexpr std::size_t kAhead = 8;
-  std::size_t kept = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const Point& pi = points_[i];
-    const Vec3 xi{pi.x, pi.y, pi.z};
-    const auto lo = static_cast<std::size_t>(start_[i]);
-    const auto hi = static_cast<std::size_t>(start_[i + 1]);
-    for (std::size_t e = lo; e < hi; ++e) {
-      if (e + kAhead < total) __builtin_prefetch(&points_[second_[e + kAhead].j]);
-      const Candidate& c = second_[e];
-      const Point& pj = points_[c.j];
-      const Vec3 xj{pj.x, pj.y, pj.z};
-      std::int64_t s[3] = {c.s[0], c.s[1], c.s[2]};
-      if (wrapped_)
-        for (int k = 0; k < 3; ++k) s[k] += std::int64_t{pj.m[k]} - std::int64_t{pi.m[k]};
-      // The pair is decided in its canonical orientation, as neighbour_list
-      // decides it (a full list's mirror takes the canonical vector, negated).
-      const bool zero = s[0] == 0 && s[1] == 0 && s[2] == 0;
-      const bool canonical =
-          i < c.j || (i == c.j && (zero || rule::kept_self_shift(s[0], s[1], s[2])));
-      const std::int64_t sign = canonical ? 1 : -1;
-      const std::int64_t t[3] = {sign * s[0], sign * s[1], sign * s[2]};
-      const bool near =
-          t[0] >= -1 && t[0] <= 1 && t[1] >= -1 && t[1] <= 1 && t[2] >= -1 && t[2] <= 1;
-      const Vec3 o =
-          near ? offsets_[static_cast<std::size_t>((t[0] + 1) * 9 + (t[1] + 1) * 3 + (t[2] + 1))]
-               : rule::image_offset(cell_, t[0], t[1], t[2]);
-      const Vec3 d = rule::pair_vector(canonical ? xi : xj, canonical ? xj : xi, o);
-      const double reach = one ? cutoff_ : cutoffs_[i] + cutoffs_[c.j];
-      const bool pair = rule::within(rule::squared_length(d), reach, options_.rule);
-      found_[kept] = {c.j,
-                      {static_cast<std::int32_t>(s[0]), static_cast<std::int32_t>(s[1]),
-                       static_cast<std::int32_t>(s[2])}};
-      if (need_d) vectors_[kept] = canonical ? d : Vec3{-d.x, -d.y, -d.z};
-      kept += static_cast<std::size_t>(pair);
+  const unsigned parts = parts_for(n, options_.threads);
+  const auto part_lo = [&](unsigned p) { return n * p / parts; };
+  std::vector<std::size_t> part_kept(parts + 1, 0);
+  run_parts(parts, [&](unsigned p) {
+    // A candidate's other point is anywhere in memory (points are in the
+    // caller's order, not in space): fetched this many candidates ahead.
+    constexpr std::size_t kAhead = 8;
+    const std::size_t first = part_lo(p), last = part_lo(p + 1);
+    const auto base = static_cast<std::size_t>(start_[first]);
+    const auto end = static_cast<std::size_t>(start_[last]);
+    std::size_t kept = base;
+    for (std::size_t i = first; i < last; ++i) {
+      const Point& pi = points_[i];
+      const Vec3 xi{pi.x, pi.y, pi.z};
+      const auto lo = static_cast<std::size_t>(start_[i]);
+      const auto hi = static_cast<std::size_t>(start_[i + 1]);
+      for (std::size_t e = lo; e < hi; ++e) {
+        if (e + kAhead < end) __builtin_prefetch(&points_[second_[e + kAhead].j]);
+        const Candidate& c = second_[e];
+        const Point& pj = points_[c.j];
+        const Vec3 xj{pj.x, pj.y, pj.z};
+        std::int64_t s[3] = {c.s[0], c.s[1], c.s[2]};
+        if (wrapped_)
+          for (int k = 0; k < 3; ++k) s[k] += std::int64_t{pj.m[k]} - std::int64_t{pi.m[k]};
+        // The pair is decided in its canonical orientation, as
+        // neighbour_list decides it (a full list's mirror takes the
+        // canonical vector, negated).
+        const bool zero = s[0] == 0 && s[1] == 0 && s[2] == 0;
+        const bool canonical =
+            i < c.j || (i == c.j && (zero || rule::kept_self_shift(s[0], s[1], s[2])));
+        const std::int64_t sign = canonical ? 1 : -1;
+        const std::int64_t t[3] = {sign * s[0], sign * s[1], sign * s[2]};
+        const bool near =
+            t[0] >= -1 && t[0] <= 1 && t[1] >= -1 && t[1] <= 1 && t[2] >= -1 && t[2] <= 1;
+        const Vec3 o =
+            near ? offsets_[static_cast<std::size_t>((t[0] + 1) * 9 + (t[1] + 1) * 3 + (t[2] + 1))]
+                 : rule::image_offset(cell_, t[0], t[1], t[2]);
+        const Vec3 d = rule::pair_vector(canonical ? xi : xj, canonical ? xj : xi, o);
+        const double reach = one ? cutoff_ : cutoffs_[i] + cutoffs_[c.j];
+        const bool pair = rule::within(rule::squared_length(d), reach, options_.rule);
+        found_[kept] = {c.j,
+                        {static_cast<std::int32_t>(s[0]), static_cast<std::int32_t>(s[1]),
+                         static_cast<std::int32_t>(s[2])}};
+        if (need_d) vectors_[kept] = canonical ? d : Vec3{-d.x, -d.y, -d.z};
+        kept += static_cast<std::size_t>(pair);
+      }
+      offsets[i + 1] = static_cast<std::int64_t>(kept - base);
     }
-    offsets[i + 1] = static_cast<std::int64_t>(kept);
-  }
+    part_kept[p + 1] = kept - base;
+  });
+  for (unsigned p = 0; p < parts; ++p) part_kept[p + 1] += part_kept[p];
+  const std::size_t kept = part_kept[parts];
   NeighbourList out;
-  reserve_large(out.first, kept);
-  for (std::size_t i = 0; i < n; ++i)
-    for (std::int64_t e = offsets[i]; e < offsets[i + 1]; ++e)
-      out.first.push_back(static_cast<std::int64_t>(i));
-  reserve_large(out.second, kept);
-  for (std::size_t e = 0; e < kept; ++e) out.second.push_back(found_[e].j);
-  if (options_.shifts) {
-    reserve_large(out.shifts, 3 * kept);
-    for (std::size_t e = 0; e < kept; ++e)
-      for (int k = 0; k < 3; ++k) out.shifts.push_back(found_[e].s[k]);
-  }
-  if (options_.distances) {
-    reserve_large(out.distances, kept);
-    for (std::size_t e = 0; e < kept; ++e)
-      out.distances.push_back(std::sqrt(rule::squared_length(vectors_[e])));
-  }
-  if (options_.vectors) {
-    reserve_large(out.vectors, 3 * kept);
-    for (std::size_t e = 0; e < kept; ++e)
-      for (int k = 0; k < 3; ++k) out.vectors.push_back(vectors_[e][k]);
-  }
+  const auto size = [&](auto& v, std::size_t count) {
+    reserve_large(v, count);
+    v.resize(count);
+  };
+  size(out.first, kept);
+  size(out.second, kept);
+  if (options_.shifts) size(out.shifts, 3 * kept);
+  if (options_.distances) size(out.distances, kept);
+  if (options_.vectors) size(out.vectors, 3 * kept);
+  run_parts(parts, [&](unsigned p) {
+    const std::size_t first = part_lo(p), last = part_lo(p + 1);
+    const auto base = static_cast<std::size_t>(start_[first]);
+    const std::size_t at = part_kept[p];
+    // offsets[i + 1] of the part's points: the part's own count so far,
+    // made global here (each part reads and writes only its own).
+    std::size_t lo = 0;
+    for (std::size_t i = first; i < last; ++i) {
+      const auto hi = static_cast<std::size_t>(offsets[i + 1]);
+      for (std::size_t k = lo; k < hi; ++k) out.first[at + k] = static_cast<std::int64_t>(i);
+      offsets[i + 1] = static_cast<std::int64_t>(at + hi);
+      lo = hi;
+    }
+    const std::size_t count = part_kept[p + 1] - at;
+    for (std::size_t k = 0; k < count; ++k) {
+      const Candidate& f = found_[base + k];
+      out.second[at + k] = f.j;
+      if (options_.shifts)
+        for (int a = 0; a < 3; ++a) out.shifts[3 * (at + k) + a] = f.s[a];
+      if (options_.distances)
+        out.distances[at + k] = std::sqrt(rule::squared_length(vectors_[base + k]));
+      if (options_.vectors)
+        for (int a = 0; a < 3; ++a) out.vectors[3 * (at + k) + a] = vectors_[base + k][a];
+    }
+  });
   if (options_.offsets) out.offsets = std::move(offsets);
   return out;
 }

@@ -6,12 +6,10 @@
 #include <broadphase/neighbours.hpp>
 #include <cmath>
 #include <cstdint>
-#include <exception>
 #include <limits>
 #include <memory>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "frame.hpp"
@@ -99,7 +97,9 @@ using neighbours_detail::check_cutoff;
 using neighbours_detail::Frame;
 using neighbours_detail::make_frame;
 using neighbours_detail::number;
+using neighbours_detail::parts_for;
 using neighbours_detail::reserve_large;
+using neighbours_detail::run_parts;
 
 /// One set of points as the engine reads it: positions as given, fractional
 /// coordinates, and on periodic axes the wrap count n = floor(s).
@@ -238,41 +238,6 @@ Grid make_grid(const NeighbourCell& cell, const Frame& f, const PointSet& pts,
     }
   }
   return g;
-}
-
-/// How many parts (threads) a call of `items` points or queries takes:
-/// `threads` (0: every core), at most one a 16 384 items (a thread costs
-/// tens of microseconds to start).
-unsigned parts_for(std::size_t items, unsigned threads) {
-  const unsigned want = threads != 0 ? threads : std::max(1u, std::thread::hardware_concurrency());
-  const std::size_t most = std::max<std::size_t>(1, items / 16384);
-  return static_cast<unsigned>(std::min<std::size_t>({want, most, 256}));
-}
-
-/// Runs job(p) for every part p in [0, parts), part 0 on the calling thread
-/// and each other on a thread of its own; rethrows the first part's error.
-template <class Job>
-void run_parts(unsigned parts, Job&& job) {
-  if (parts <= 1) {
-    job(0u);
-    return;
-  }
-  std::vector<std::exception_ptr> errors(parts);
-  const auto guarded = [&](unsigned p) {
-    try {
-      job(p);
-    } catch (...) {
-      errors[p] = std::current_exception();
-    }
-  };
-  {
-    std::vector<std::jthread> pool;
-    pool.reserve(parts - 1);
-    for (unsigned p = 1; p < parts; ++p) pool.emplace_back(guarded, p);
-    guarded(0u);
-  }
-  for (const std::exception_ptr& e : errors)
-    if (e) std::rethrow_exception(e);
 }
 
 /// The points sorted by bin: wrapped positions and cutoff (prefilter), the
@@ -787,7 +752,7 @@ NeighbourList assemble(const Context& c, Groups<Found>& gr,
     // written (and where it is and its size 16 ahead); at 10^6 points the
     // misses were two thirds of this function (perf).
     constexpr std::size_t kAhead = 8;
-    auto e_out = static_cast<std::size_t>(offsets[lo_i]);
+    auto e_out = static_cast<std::size_t>(part_total[p]);
     for (std::size_t i = lo_i; i < hi_i; ++i) {
       if (i + 2 * kAhead < hi_i) {
         __builtin_prefetch(&gr.at[group(i + 2 * kAhead)]);
