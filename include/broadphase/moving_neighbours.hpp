@@ -96,10 +96,7 @@ class MovingNeighbourList {
     std::int16_t pad;
   };
   /// A candidate's other point and its shift at the reference positions.
-  struct Candidate {
-    std::uint32_t j;
-    std::int32_t s[3];
-  };
+  using Candidate = neighbours_detail::Candidate;
   static_assert(sizeof(Point) == 32 && sizeof(Candidate) == 16);
 
   void init_frame();
@@ -126,7 +123,7 @@ class MovingNeighbourList {
   std::vector<Vec3> reference_;
   std::vector<Point> points_;
   NeighbourVector<std::int64_t> start_;  ///< n + 1: point i's candidates
-  std::vector<Candidate> second_;
+  NeighbourVector<Candidate> second_;
   // Scratch of `evaluate`, kept between frames: every candidate is written
   // to it and the pairs kept by advancing past them (no branch on the
   // rule), then the output is written from it.

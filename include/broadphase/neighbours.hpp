@@ -96,6 +96,15 @@ struct UninitialisedAllocator : std::allocator<T> {
 template <class T>
 using NeighbourVector = std::vector<T, UninitialisedAllocator<T>>;
 
+namespace neighbours_detail {
+/// A pair as MovingNeighbourList keeps it, and as the engine hands it its
+/// candidates: the second point and the shift.
+struct Candidate {
+  std::uint32_t j;
+  std::int32_t s[3];
+};
+}  // namespace neighbours_detail
+
 /// `<=` (the library's contract) or `<` (ASE) at the cutoff.
 enum class CutoffRule : std::uint8_t { inclusive, strict };
 

@@ -40,6 +40,15 @@ Frame make_frame(const NeighbourCell& cell);
 /// (a cutoff or a skin).
 void check_cutoff(double v, const std::string& name);
 
+/// neighbour_list's pairs with `options` (rule, full, self_interaction,
+/// threads; the quantities are not made) as point i's candidates
+/// [offsets[i], offsets[i + 1]) of the result: one `cutoff`, or per-point
+/// `cutoffs` when not null. Throws as neighbour_list does.
+NeighbourVector<Candidate> candidate_list(const NeighbourPoints& points, const NeighbourCell& cell,
+                                          double cutoff, const arrays::Column* cutoffs,
+                                          const NeighbourOptions& options,
+                                          NeighbourVector<std::int64_t>& offsets);
+
 /// Reserves room for `count` elements of a large array that is written
 /// once, asking the kernel for huge pages on the part the new buffer spans
 /// (Linux; a hint, ignored elsewhere or when they are off).

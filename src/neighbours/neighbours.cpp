@@ -711,7 +711,7 @@ Groups<Found> find_between(const Context& c, const Grid& g, const Wraps& wraps, 
 template <class Found>
 NeighbourList assemble(const Context& c, Groups<Found>& gr,
                        const std::vector<std::uint32_t>* group_of, const NeighbourOptions& opt,
-                       bool between) {
+                       bool between, NeighbourVector<neighbours_detail::Candidate>* candidates) {
   const std::size_t n = gr.start.size();
   const auto group = [&](std::size_t i) -> std::size_t { return group_of ? (*group_of)[i] : i; };
   // Parts of equal numbers of points, each written by a thread where the
@@ -738,11 +738,15 @@ NeighbourList assemble(const Context& c, Groups<Found>& gr,
     reserve_large(v, count);
     v.resize(count);
   };
-  size(out.first, total);
-  size(out.second, total);
-  if (opt.shifts) size(out.shifts, 3 * total);
-  if (opt.distances) size(out.distances, total);
-  if (opt.vectors) size(out.vectors, 3 * total);
+  if (candidates) {
+    size(*candidates, total);
+  } else {
+    size(out.first, total);
+    size(out.second, total);
+    if (opt.shifts) size(out.shifts, 3 * total);
+    if (opt.distances) size(out.distances, total);
+    if (opt.vectors) size(out.vectors, 3 * total);
+  }
   const auto less = [](const Found& a, const Found& b) { return a < b; };
   run_parts(parts, [&](unsigned p) {
     const std::size_t lo_i = part_lo(p), hi_i = part_lo(p + 1);
@@ -769,6 +773,13 @@ NeighbourList assemble(const Context& c, Groups<Found>& gr,
           for (Found* f = e; f > lo && less(*f, f[-1]); --f) std::swap(*f, f[-1]);
       }
       for (const Found* e = lo; e < hi; ++e, ++e_out) {
+        if (candidates) {
+          (*candidates)[e_out] = {
+              e->j(),
+              {static_cast<std::int32_t>(e->s(0)), static_cast<std::int32_t>(e->s(1)),
+               static_cast<std::int32_t>(e->s(2))}};
+          continue;
+        }
         out.first[e_out] = static_cast<std::int64_t>(i);
         out.second[e_out] = e->j();
         if (opt.shifts)
@@ -799,7 +810,8 @@ NeighbourList assemble(const Context& c, Groups<Found>& gr,
 }
 
 NeighbourList self_list(const NeighbourPoints& points, const NeighbourCell& cell, double cutoff,
-                        const Column* cutoffs, const NeighbourOptions& opt) {
+                        const Column* cutoffs, const NeighbourOptions& opt,
+                        NeighbourVector<neighbours_detail::Candidate>* candidates = nullptr) {
   const Frame f = make_frame(cell);
   std::vector<double> cut;
   double reach = cutoff;
@@ -828,12 +840,28 @@ NeighbourList self_list(const NeighbourPoints& points, const NeighbourCell& cell
     using Found = decltype(record);
     Groups<Found> gr =
         find_self<Found>(c, g, wraps, b, opt.full, opt.self_interaction, opt.threads);
-    return assemble(c, gr, &group_of, opt, false);
+    return assemble(c, gr, &group_of, opt, false, candidates);
   };
   return packed_shifts_fit(wraps.shift, pts, pts) ? run(PackedFound{}) : run(WideFound{});
 }
 
 }  // namespace
+
+namespace neighbours_detail {
+
+NeighbourVector<Candidate> candidate_list(const NeighbourPoints& points, const NeighbourCell& cell,
+                                          double cutoff, const arrays::Column* cutoffs,
+                                          const NeighbourOptions& options,
+                                          NeighbourVector<std::int64_t>& offsets) {
+  NeighbourOptions o = options;
+  o.shifts = o.distances = o.vectors = false;
+  o.offsets = true;
+  NeighbourVector<Candidate> out;
+  offsets = self_list(points, cell, cutoff, cutoffs, o, &out).offsets;
+  return out;
+}
+
+}  // namespace neighbours_detail
 
 NeighbourList neighbour_list(const NeighbourPoints& points, const NeighbourCell& cell,
                              double cutoff, const NeighbourOptions& options) {
@@ -861,7 +889,7 @@ NeighbourList neighbour_list_between(const NeighbourPoints& queries, const Neigh
   const auto run = [&](auto record) {
     using Found = decltype(record);
     Groups<Found> gr = find_between<Found>(c, g, wraps, b, options.threads);
-    return assemble(c, gr, nullptr, options, true);
+    return assemble(c, gr, nullptr, options, true, nullptr);
   };
   return packed_shifts_fit(wraps.shift, qs, ps) ? run(PackedFound{}) : run(WideFound{});
 }
