@@ -15,7 +15,10 @@ MDAnalysis: pairs; ASE: its full list 'ijS', the only form it has). With
 per-atom cutoffs, cKDTree and MDAnalysis run at the largest reach (3.6 Å)
 and a numpy filter keeps the pairs within c_i + c_j. Medians of --runs
 runs (fewer when a call takes long), wall and process CPU time; the pair
-counts are checked against broadphase's.
+counts are checked against broadphase's. Ours runs on each of --threads
+(default 1 and 2): the first gives the wall and CPU ratios, each other one
+a wall ratio (the peers run on one thread), its arrays checked equal to the
+first's.
 
 With --moving: a moving system instead, 100 frames (--frames) of
 thermal-like motion of N points in the cube at the same density: each point
@@ -33,7 +36,7 @@ every list checked against the one-shot one on those frames. --skins
 measures several skins (the default skin's choice).
 
 Usage: PYTHONPATH=build/python /usr/bin/python3 python/bench/neighbours.py
-       [--sizes 1000 10000 100000 1000000] [--runs 5] [--ase-max 100000]
+       [--sizes 1000 10000 100000 1000000] [--runs 5] [--ase-max 100000] [--threads 1 2]
        [--moving [--frames 100] [--peer-frames 5] [--skins 0.3 0.6]]
        [--out FILE.json]
 """
@@ -134,6 +137,13 @@ def cpu_call(fn):
     return time.process_time() - c, out
 
 
+def timed_call(fn):
+    """CPU and wall seconds of one call, and its result."""
+    t, c = time.perf_counter(), time.process_time()
+    out = fn()
+    return time.process_time() - c, time.perf_counter() - t, out
+
+
 def moving(args, cpu, versions):
     """The moving-system table (see the module's docstring)."""
     rows = []
@@ -142,7 +152,7 @@ def moving(args, cpu, versions):
         peer_frames = set(np.linspace(0, args.frames - 1, args.peer_frames).astype(int).tolist())
         # Rebuilding each frame: cKDTree and our one-shot list on a few
         # frames; the moving lists are checked against the one-shot ones.
-        kd_cpu, one_cpu, checks = [], [], {}
+        kd_cpu, kd_wall, one_cpu, checks = [], [], [], {}
         for frame, (x, _) in enumerate(trajectory(n, args.frames, n, args.step)):
             if frame not in peer_frames:
                 continue
@@ -151,47 +161,57 @@ def moving(args, cpu, versions):
             one_cpu.append(c)
             checks[frame] = one
             if cKDTree is not None:
-                c, p = cpu_call(lambda: cKDTree(x, boxsize=side).query_pairs(
+                c, w, p = timed_call(lambda: cKDTree(x, boxsize=side).query_pairs(
                     CUTOFF, output_type="ndarray"))
                 kd_cpu.append(c)
+                kd_wall.append(w)
                 if len(p) != len(one[0]):
                     print(f"note: cKDTree found {len(p)} pairs, broadphase {len(one[0])} "
                           f"(n {n}, frame {frame}): ties at the cutoff")
-        for skin in args.skins or [None]:
-            totals, rebuilds = [], 0
+        for skin, threads in [(s, t) for s in args.skins or [None] for t in args.threads]:
+            totals, walls, rebuilds = [], [], 0
             for run in range(args.runs):
-                nl = broadphase.NeighbourList("ijS", CUTOFF, skin=skin, cell=side, strict=True)
-                total = 0.0
+                nl = broadphase.NeighbourList("ijS", CUTOFF, skin=skin, cell=side, strict=True,
+                                              threads=threads)
+                total = wall = 0.0
                 for frame, (x, _) in enumerate(trajectory(n, args.frames, n, args.step)):
-                    c, out = cpu_call(lambda: nl.update(x))
+                    c, w, out = timed_call(lambda: nl.update(x))
                     total += c
+                    wall += w
                     if run == 0 and frame in checks:
                         assert all(np.array_equal(a, b) for a, b in zip(out, checks[frame])), \
                             f"n {n} frame {frame}: the moving list differs from the one-shot one"
                 totals.append(total)
+                walls.append(wall)
                 rebuilds = nl.rebuilds
                 if total > args.budget:
                     break
             per_frame = float(np.median(totals)) / args.frames
-            row = {"n": n, "frames": args.frames, "step": args.step, "skin": nl.skin, "rebuilds": rebuilds,
+            per_frame_wall = float(np.median(walls)) / args.frames
+            row = {"n": n, "frames": args.frames, "step": args.step, "skin": nl.skin,
+                   "threads": threads, "rebuilds": rebuilds,
                    "pairs": len(checks[min(checks)][0]), "candidates": nl.candidates,
-                   "moving_cpu": per_frame, "runs": len(totals),
+                   "moving_cpu": per_frame, "moving_wall": per_frame_wall, "runs": len(totals),
                    "oneshot_cpu": float(np.median(one_cpu)),
                    "oneshot_cpu_ratio": float(np.median(one_cpu)) / per_frame}
             if kd_cpu:
                 row.update(ckdtree_cpu=float(np.median(kd_cpu)),
-                           ckdtree_cpu_ratio=float(np.median(kd_cpu)) / per_frame)
+                           ckdtree_cpu_ratio=float(np.median(kd_cpu)) / per_frame,
+                           ckdtree_wall=float(np.median(kd_wall)),
+                           ckdtree_wall_ratio=float(np.median(kd_wall)) / per_frame_wall)
             rows.append(row)
             print(json.dumps(row), flush=True)
 
     print()
-    print("| N | pairs | skin Å | rebuilds | moving, CPU s a frame | one-shot each frame × "
-          "| cKDTree each frame × |")
-    print("|---:|---:|---:|---:|---:|---:|---:|")
+    print("| N | pairs | skin Å | threads | rebuilds | moving, CPU s a frame (wall) "
+          "| one-shot each frame × (CPU) | cKDTree each frame × (CPU; wall) |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
-        kd = f"{r['ckdtree_cpu_ratio']:.1f}×" if "ckdtree_cpu_ratio" in r else "—"
-        print(f"| {r['n']:,} | {r['pairs']:,} | {r['skin']:.2f} | {r['rebuilds']} / {r['frames']} | "
-              f"{r['moving_cpu']:.4f} | {r['oneshot_cpu_ratio']:.1f}× | {kd} |")
+        kd = (f"{r['ckdtree_cpu_ratio']:.1f}×; {r['ckdtree_wall_ratio']:.1f}×"
+              if "ckdtree_cpu_ratio" in r else "—")
+        print(f"| {r['n']:,} | {r['pairs']:,} | {r['skin']:.2f} | {r['threads']} | "
+              f"{r['rebuilds']} / {r['frames']} | {r['moving_cpu']:.4f} ({r['moving_wall']:.4f}) | "
+              f"{r['oneshot_cpu_ratio']:.1f}× | {kd} |")
     if args.out:
         with open(args.out, "w") as f:
             json.dump({"machine": cpu, "versions": versions, "rows": rows}, f, indent=1)
@@ -213,6 +233,9 @@ def main():
                     help="skins to measure (default: the list's default)")
     ap.add_argument("--step", type=float, default=STEP,
                     help="the velocity's standard deviation per axis, Å a frame")
+    ap.add_argument("--threads", type=int, nargs="+", default=[1, 2],
+                    help="thread counts of ours (threads=); the first is the one the CPU ratios "
+                         "are of, the others are compared by wall time")
     ap.add_argument("--budget", type=float, default=60.0,
                     help="CPU seconds after which a moving case stops repeating")
     args = ap.parse_args()
@@ -253,11 +276,20 @@ def main():
                        "cutoff": "per-atom 1.2-1.8" if per_atom else f"{CUTOFF}"}
 
                 def ours():
-                    return broadphase.neighbor_list("ijS", x, cutoff, cell=cell, strict=True)
+                    return broadphase.neighbor_list("ijS", x, cutoff, cell=cell, strict=True,
+                                                    threads=args.threads[0])
 
                 w, c, k, out = measure(ours, args.runs)
                 pairs = len(out[0])
                 row.update(pairs=pairs, broadphase=w, broadphase_cpu=c, runs=k)
+                for threads in args.threads[1:]:
+                    def ours_threads():
+                        return broadphase.neighbor_list("ijS", x, cutoff, cell=cell, strict=True,
+                                                        threads=threads)
+
+                    w, _, _, more = measure(ours_threads, args.runs)
+                    assert all(np.array_equal(a, b) for a, b in zip(out, more))
+                    row[f"broadphase_t{threads}"] = w
 
                 if cKDTree is not None and not triclinic:
                     L = np.diag(cell).copy()
@@ -295,6 +327,9 @@ def main():
 
                 for peer in ("ckdtree", "mdanalysis", "ase"):
                     if peer in row:
+                        for threads in args.threads[1:]:
+                            row[f"{peer}_ratio_t{threads}"] = (row[peer] /
+                                                               row[f"broadphase_t{threads}"])
                         row[f"{peer}_ratio"] = row[peer] / row["broadphase"]
                         row[f"{peer}_cpu_ratio"] = row[f"{peer}_cpu"] / row["broadphase_cpu"]
                         if row[f"{peer}_pairs"] != pairs:
@@ -305,17 +340,22 @@ def main():
                 print(json.dumps(row), flush=True)
 
     print()
-    print("| cell | cutoff | N | pairs | broadphase s (cpu) | cKDTree × | MDAnalysis nsgrid × | ASE × |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|")
+    more = args.threads[1:]
+    print("| cell | cutoff | N | pairs | broadphase s (cpu) | "
+          + "".join(f"{t} threads, s | " for t in more)
+          + "cKDTree × | MDAnalysis nsgrid × | ASE × |")
+    print("|---|---|---:|---:|---:|" + "---:|" * len(more) + "---:|---:|---:|")
     for r in rows:
         def ratio(peer):
             if peer not in r:
                 return "—"
-            return f"{r[peer + '_ratio']:.1f} ({r[peer + '_cpu_ratio']:.1f})"
+            text = f"{r[peer + '_ratio']:.1f} ({r[peer + '_cpu_ratio']:.1f})"
+            return text + "".join(f"; {r[f'{peer}_ratio_t{t}']:.1f}" for t in more)
 
         print(f"| {r['cell']} | {r['cutoff']} | {r['n']:,} | {r['pairs']:,} | "
-              f"{r['broadphase']:.4f} ({r['broadphase_cpu']:.4f}) | {ratio('ckdtree')} | "
-              f"{ratio('mdanalysis')} | {ratio('ase')} |")
+              f"{r['broadphase']:.4f} ({r['broadphase_cpu']:.4f}) | "
+              + "".join(f"{r[f'broadphase_t{t}']:.4f} | " for t in more)
+              + f"{ratio('ckdtree')} | {ratio('mdanalysis')} | {ratio('ase')} |")
     if args.out:
         with open(args.out, "w") as f:
             json.dump({"machine": cpu, "versions": versions, "rows": rows}, f, indent=1)

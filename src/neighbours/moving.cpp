@@ -184,6 +184,12 @@ void MovingNeighbourList::rebuild(const NeighbourPoints& p) {
   // allocation.
   const std::size_t n = p.count;
   reference_.resize(n);
+  // Read at random each frame (a candidate's other point): on huge pages,
+  // so that the reads do not also miss the TLB.
+  if (points_.capacity() < n) {
+    points_.clear();
+    reserve_large(points_, n);
+  }
   points_.resize(n);
   reference_max_ = 0;
   const arrays::Column cols[3] = {p.x, p.y, p.z};
@@ -220,8 +226,11 @@ NeighbourList MovingNeighbourList::evaluate() {
   std::vector<std::size_t> part_kept(parts + 1, 0);
   run_parts(parts, [&](unsigned p) {
     // A candidate's other point is anywhere in memory (points are in the
-    // caller's order, not in space): fetched this many candidates ahead.
-    constexpr std::size_t kAhead = 8;
+    // caller's order, not in space): fetched this many candidates ahead,
+    // from huge pages (see rebuild). At 10^6 points a frame without a
+    // rebuild took 0.26 s with 8 ahead on 4 KiB pages, 0.21 on huge pages,
+    // 0.13 to 0.16 with 24 ahead, 0.19 with 48 (one thread).
+    constexpr std::size_t kAhead = 24;
     const std::size_t first = part_lo(p), last = part_lo(p + 1);
     const auto base = static_cast<std::size_t>(start_[first]);
     const auto end = static_cast<std::size_t>(start_[last]);
