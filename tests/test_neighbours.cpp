@@ -434,6 +434,15 @@ TEST(Neighbours, BadInput) {
   NeighbourCell zero = cell;
   zero.vectors[1] = {0, 0, 0};
   expect_message([&] { neighbour_list(NeighbourPoints::rows(good, 2), zero, 1.0); }, "cell");
+  // On three threads (three parts of 50 000 points), the first bad row is
+  // named, not a later part's.
+  std::vector<double> many(3 * 50000, 1.0);
+  many[3 * 40000] = many[3 * 20000 + 1] = std::nan("");
+  NeighbourOptions three;
+  three.threads = 3;
+  expect_message(
+      [&] { neighbour_list(NeighbourPoints::rows(many.data(), 50000), cell, 1.0, three); },
+      "positions[20000, 1]");
   const double far[3] = {1e12, 0, 0};
   expect_message([&] { neighbour_list(NeighbourPoints::rows(far, 1), cell, 1.0); }, "2^28");
   expect_message([&] { neighbour_list(NeighbourPoints::rows(good, 2), cell, 1e9); }, "2^20");

@@ -64,6 +64,17 @@ void reserve_large(std::vector<T, A>& v, std::size_t count) {
 #endif
 }
 
+/// Sizes `v` to `count` elements (capacity on huge pages when it has to
+/// grow): the engine's arrays of a value or a few a point, written once.
+template <class T, class A>
+void resize_large(std::vector<T, A>& v, std::size_t count) {
+  if (v.capacity() < count) {
+    std::vector<T, A>().swap(v);
+    reserve_large(v, count);
+  }
+  v.resize(count);
+}
+
 /// How many parts (threads) a call of `items` points or queries takes:
 /// `threads` (0: every core), at most one a 16 384 items (a thread costs
 /// tens of microseconds to start).

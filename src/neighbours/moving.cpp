@@ -22,6 +22,7 @@ using neighbours_detail::check_cutoff;
 using neighbours_detail::number;
 using neighbours_detail::parts_for;
 using neighbours_detail::reserve_large;
+using neighbours_detail::resize_large;
 using neighbours_detail::run_parts;
 
 [[noreturn]] void refuse(const std::string& what) { throw InvalidNeighbourInput(what); }
@@ -277,15 +278,11 @@ NeighbourList MovingNeighbourList::evaluate() {
   for (unsigned p = 0; p < parts; ++p) part_kept[p + 1] += part_kept[p];
   const std::size_t kept = part_kept[parts];
   NeighbourList out;
-  const auto size = [&](auto& v, std::size_t count) {
-    reserve_large(v, count);
-    v.resize(count);
-  };
-  size(out.first, kept);
-  size(out.second, kept);
-  if (options_.shifts) size(out.shifts, 3 * kept);
-  if (options_.distances) size(out.distances, kept);
-  if (options_.vectors) size(out.vectors, 3 * kept);
+  resize_large(out.first, kept);
+  resize_large(out.second, kept);
+  if (options_.shifts) resize_large(out.shifts, 3 * kept);
+  if (options_.distances) resize_large(out.distances, kept);
+  if (options_.vectors) resize_large(out.vectors, 3 * kept);
   run_parts(parts, [&](unsigned p) {
     const std::size_t first = part_lo(p), last = part_lo(p + 1);
     const auto base = static_cast<std::size_t>(start_[first]);

@@ -99,14 +99,15 @@ using neighbours_detail::make_frame;
 using neighbours_detail::number;
 using neighbours_detail::parts_for;
 using neighbours_detail::reserve_large;
+using neighbours_detail::resize_large;
 using neighbours_detail::run_parts;
 
 /// One set of points as the engine reads it: positions as given, fractional
 /// coordinates, and on periodic axes the wrap count n = floor(s).
 struct PointSet {
-  std::vector<Vec3> x;
-  std::vector<std::array<double, 3>> s;
-  std::vector<std::array<std::int32_t, 3>> n;
+  NeighbourVector<Vec3> x;
+  NeighbourVector<std::array<double, 3>> s;
+  NeighbourVector<std::array<std::int32_t, 3>> n;
   double max_abs_x = 0;
   double max_abs_s = 0;
   std::array<double, 3> lo{}, hi{};            // fractional range on each axis
@@ -114,43 +115,62 @@ struct PointSet {
 };
 
 PointSet read_points(const NeighbourPoints& p, const NeighbourCell& cell, const Frame& f,
-                     const char* name) {
+                     const char* name, unsigned threads) {
   if (p.count > std::numeric_limits<std::uint32_t>::max() - 1)
     refuse(std::string(name) + ": more than 2^32 - 2 points");
   PointSet out;
-  out.x.resize(p.count);
-  out.s.resize(p.count);
-  out.n.resize(p.count);
+  resize_large(out.x, p.count);
+  resize_large(out.s, p.count);
+  resize_large(out.n, p.count);
+  // By parts of the points, each with its own ranges, joined after; the
+  // first part's error is the first row's.
+  const unsigned parts = parts_for(p.count, threads);
+  std::vector<PointSet> range(parts);
+  const Column cols[3] = {p.x, p.y, p.z};
+  run_parts(parts, [&](unsigned part) {
+    PointSet& r = range[part];
+    r.lo = {HUGE_VAL, HUGE_VAL, HUGE_VAL};
+    r.hi = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    for (std::size_t i = p.count * part / parts, end = p.count * (part + 1) / parts; i < end; ++i) {
+      Vec3 v;
+      for (int k = 0; k < 3; ++k) {
+        v[k] = cols[k].at(i);
+        if (!std::isfinite(v[k]))
+          refuse(std::string(name) + "[" + std::to_string(i) + ", " + std::to_string(k) +
+                 "]: not finite (" + number(v[k]) + ")");
+        r.max_abs_x = std::max(r.max_abs_x, std::fabs(v[k]));
+      }
+      out.x[i] = v;
+      for (int k = 0; k < 3; ++k) {
+        const double s = dot(v, f.col[k]);
+        out.s[i][k] = s;
+        r.max_abs_s = std::max(r.max_abs_s, std::fabs(s));
+        r.lo[k] = std::min(r.lo[k], s);
+        r.hi[k] = std::max(r.hi[k], s);
+        std::int32_t n = 0;
+        if (cell.periodic[k]) {
+          const double w = std::floor(s);
+          if (!(std::fabs(w) <= kMaxWrap))
+            refuse(std::string(name) + "[" + std::to_string(i) +
+                   "]: more than 2^28 cells away from the cell on axis " + std::to_string(k));
+          n = static_cast<std::int32_t>(w);
+        }
+        out.n[i][k] = n;
+        r.n_lo[k] = std::min(r.n_lo[k], n);
+        r.n_hi[k] = std::max(r.n_hi[k], n);
+      }
+    }
+  });
   out.lo = {HUGE_VAL, HUGE_VAL, HUGE_VAL};
   out.hi = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
-  const Column cols[3] = {p.x, p.y, p.z};
-  for (std::size_t i = 0; i < p.count; ++i) {
-    Vec3 v;
+  for (const PointSet& r : range) {
+    out.max_abs_x = std::max(out.max_abs_x, r.max_abs_x);
+    out.max_abs_s = std::max(out.max_abs_s, r.max_abs_s);
     for (int k = 0; k < 3; ++k) {
-      v[k] = cols[k].at(i);
-      if (!std::isfinite(v[k]))
-        refuse(std::string(name) + "[" + std::to_string(i) + ", " + std::to_string(k) +
-               "]: not finite (" + number(v[k]) + ")");
-      out.max_abs_x = std::max(out.max_abs_x, std::fabs(v[k]));
-    }
-    out.x[i] = v;
-    for (int k = 0; k < 3; ++k) {
-      const double s = dot(v, f.col[k]);
-      out.s[i][k] = s;
-      out.max_abs_s = std::max(out.max_abs_s, std::fabs(s));
-      out.lo[k] = std::min(out.lo[k], s);
-      out.hi[k] = std::max(out.hi[k], s);
-      std::int32_t n = 0;
-      if (cell.periodic[k]) {
-        const double w = std::floor(s);
-        if (!(std::fabs(w) <= kMaxWrap))
-          refuse(std::string(name) + "[" + std::to_string(i) +
-                 "]: more than 2^28 cells away from the cell on axis " + std::to_string(k));
-        n = static_cast<std::int32_t>(w);
-      }
-      out.n[i][k] = n;
-      out.n_lo[k] = std::min(out.n_lo[k], n);
-      out.n_hi[k] = std::max(out.n_hi[k], n);
+      out.lo[k] = std::min(out.lo[k], r.lo[k]);
+      out.hi[k] = std::max(out.hi[k], r.hi[k]);
+      out.n_lo[k] = std::min(out.n_lo[k], r.n_lo[k]);
+      out.n_hi[k] = std::max(out.n_hi[k], r.n_hi[k]);
     }
   }
   return out;
@@ -258,7 +278,8 @@ Binned bin_points(const Grid& g, const NeighbourCell& cell, const PointSet& pts,
   // The bins of points, and the gather below, by parts of the points and of
   // the slots; counting and placing the ids stay on one thread (a pass of
   // 4 or 8 bytes a point).
-  NeighbourVector<std::int64_t> bin(n);
+  NeighbourVector<std::int64_t> bin;
+  resize_large(bin, n);
   run_parts(parts, [&](unsigned p) {
     for (std::size_t i = n * p / parts, hi = n * (p + 1) / parts; i < hi; ++i) {
       std::int64_t c[3];
@@ -276,14 +297,14 @@ Binned bin_points(const Grid& g, const NeighbourCell& cell, const PointSet& pts,
   // took a sixth of the list (perf).
   {
     std::vector<std::int64_t> fill(b.start.begin(), b.start.end() - 1);
-    b.id.resize(n);
+    resize_large(b.id, n);
     for (std::size_t i = 0; i < n; ++i)
       b.id[static_cast<std::size_t>(fill[static_cast<std::size_t>(bin[i])]++)] =
           static_cast<std::uint32_t>(i);
   }
-  b.w.resize(n);
-  b.x.resize(n);
-  b.n.resize(n);
+  resize_large(b.w, n);
+  resize_large(b.x, n);
+  resize_large(b.n, n);
   run_parts(parts, [&](unsigned p) {
     for (std::size_t slot = n * p / parts, hi = n * (p + 1) / parts; slot < hi; ++slot) {
       const std::uint32_t i = b.id[slot];
@@ -404,9 +425,12 @@ struct Groups {
   std::vector<std::uint32_t> count;
   std::vector<Found*> at;
 
-  explicit Groups(std::size_t groups) : start(groups), count(groups) {}
+  explicit Groups(std::size_t groups) {
+    resize_large(start, groups);
+    resize_large(count, groups);
+  }
   void seal() {
-    at.resize(start.size());
+    resize_large(at, start.size());
     std::size_t k = 0;
     for (std::size_t p = 0; p < parts.size(); ++p)
       for (; k < part_end[p]; ++k) at[k] = parts[p].data() + start[k];
@@ -734,18 +758,14 @@ NeighbourList assemble(const Context& c, Groups<Found>& gr,
   const auto total = static_cast<std::size_t>(part_total[parts]);
   NeighbourList out;
   // Sized without being written, then each value written once by its part.
-  const auto size = [&](auto& v, std::size_t count) {
-    reserve_large(v, count);
-    v.resize(count);
-  };
   if (candidates) {
-    size(*candidates, total);
+    resize_large(*candidates, total);
   } else {
-    size(out.first, total);
-    size(out.second, total);
-    if (opt.shifts) size(out.shifts, 3 * total);
-    if (opt.distances) size(out.distances, total);
-    if (opt.vectors) size(out.vectors, 3 * total);
+    resize_large(out.first, total);
+    resize_large(out.second, total);
+    if (opt.shifts) resize_large(out.shifts, 3 * total);
+    if (opt.distances) resize_large(out.distances, total);
+    if (opt.vectors) resize_large(out.vectors, 3 * total);
   }
   const auto less = [](const Found& a, const Found& b) { return a < b; };
   run_parts(parts, [&](unsigned p) {
@@ -827,13 +847,14 @@ NeighbourList self_list(const NeighbourPoints& points, const NeighbourCell& cell
   } else {
     check_cutoff(cutoff, "cutoff");
   }
-  const PointSet pts = read_points(points, cell, f, "positions");
+  const PointSet pts = read_points(points, cell, f, "positions", opt.threads);
   const Grid g = make_grid(cell, f, pts, nullptr, reach);
   const Binned b = bin_points(g, cell, pts, cut, opt.threads);
   const Context c{&cell, &pts, &pts, &cut, cutoff, opt.rule};
   const Wraps wraps = self_wraps(g);
   // Point i's group is its slot.
-  std::vector<std::uint32_t> group_of(pts.x.size());
+  std::vector<std::uint32_t> group_of;
+  resize_large(group_of, pts.x.size());
   for (std::size_t slot = 0; slot < b.id.size(); ++slot)
     group_of[b.id[slot]] = static_cast<std::uint32_t>(slot);
   const auto run = [&](auto record) {
@@ -879,8 +900,8 @@ NeighbourList neighbour_list_between(const NeighbourPoints& queries, const Neigh
                                      const NeighbourOptions& options) {
   check_cutoff(cutoff, "cutoff");
   const Frame f = make_frame(cell);
-  const PointSet qs = read_points(queries, cell, f, "queries");
-  const PointSet ps = read_points(points, cell, f, "points");
+  const PointSet qs = read_points(queries, cell, f, "queries", options.threads);
+  const PointSet ps = read_points(points, cell, f, "points", options.threads);
   const Grid g = make_grid(cell, f, ps, &qs, cutoff);
   const std::vector<double> none;
   const Binned b = bin_points(g, cell, ps, none, options.threads);
