@@ -29,7 +29,9 @@
 /// cutoffs. `memory_bytes()` tells. The returned lists are the caller's.
 ///
 /// Thread-safety: `update` changes the object: one thread at a time. The
-/// const members may run concurrently with each other. One thread inside.
+/// const members may run concurrently with each other. Inside, `update`
+/// runs on the options' `threads` (one by default); the list does not
+/// depend on how many.
 #pragma once
 
 #include <array>
