@@ -510,18 +510,10 @@ void runs_around(const Grid& g, const Wraps& wraps, const Binned& b, const Neigh
   }
 }
 
-/// Every point's pairs, found from the point itself in bin order, so that
-/// each point's pairs come out together: the output is then in index order
-/// by moving whole groups, not single pairs. At 10^6 points a half search
-/// (each pair found once, from either end) spent a third of the list
-/// scattering its pairs into index order (perf); a full search visits
-/// twice the candidates but rejects half of them by index after the
-/// distance test. The candidates of a home bin are gathered once into one
-/// buffer, so the inner loop over them is long and branch-light.
 /// Calls f(nb, sb) for each bin at the offsets lo to hi (per axis) from bin
 /// bc that `wraps` resolves: nb the bin's index, sb the image shift of its
-/// points. The search's one stencil walk, for a half or full list and for
-/// queries against another set.
+/// points. The two-set search's stencil walk (the self search walks the
+/// same bins as runs, runs_around).
 template <class F>
 void for_each_bin_around(const Grid& g, const Wraps& wraps, const std::int64_t (&bc)[3],
                          const std::int64_t (&lo)[3], const std::int64_t (&hi)[3], F&& f) {
@@ -547,7 +539,13 @@ Wraps self_wraps(const Grid& g) {
 }
 
 /// The self search over the home bins [bin_lo, bin_hi): the groups of their
-/// points, with records in `found`.
+/// points, with records in `found`. Every point's pairs are found from the
+/// point itself in bin order, so that each point's pairs come out together:
+/// the output is then in index order by moving whole groups, not single
+/// pairs. At 10^6 points a half search (each pair found once, from either
+/// end) spent a third of the list scattering its pairs into index order
+/// (perf); a full search visits twice the candidates but rejects half of
+/// them by index after the distance test.
 template <class Found>
 void find_self_part(const Context& c, const Grid& g, const Wraps& wraps, const Binned& b, bool full,
                     bool self_interaction, std::int64_t bin_lo, std::int64_t bin_hi,
