@@ -155,7 +155,8 @@ for r in csv.DictReader(open(out + "/results.csv")):
         errors.append("row %s disagrees with lab/metrics.json" % r); break
 report = open(out + "/REPORT.md").read()
 for section in ("## Pictures of the workloads", "## Cell-size sweep", "## Trees, sweeps and caches",
-                "## Octrees and the k-d tree", "## Tunneling", "## Performance"):
+                "## Octrees and the k-d tree", "## Tunneling", "## Performance",
+                "## Neighbour lists and nearest neighbours"):
     if section not in report:
         errors.append("REPORT.md lacks the experiment section %r" % section)
 if "lab/goals.json" not in report:
