@@ -16,46 +16,20 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <nanoflann.hpp>
-#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "knn_peer.hpp"
+
 namespace {
 
-struct Cloud {
-  const std::vector<double>* xyz;
-  std::size_t kdtree_get_point_count() const { return xyz->size() / 3; }
-  double kdtree_get_pt(std::size_t i, std::size_t d) const { return (*xyz)[3 * i + d]; }
-  template <class Box>
-  bool kdtree_get_bbox(Box&) const {
-    return false;
-  }
-};
-using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud>, Cloud,
-                                                 3, std::uint32_t>;
-
 std::vector<double> make(const std::string& set, std::size_t n, double sigma) {
-  std::mt19937_64 rng(2026);
-  std::uniform_real_distribution<double> u(0, 1);
-  std::vector<double> xyz(3 * n);
-  if (set == "uniform") {
-    for (double& v : xyz) v = u(rng);
-  } else if (set == "clustered") {
-    std::vector<double> centres(3 * 1000);
-    for (double& v : centres) v = u(rng);
-    std::normal_distribution<double> g(0, sigma);
-    std::uniform_int_distribution<std::size_t> blob(0, 999);
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::size_t b = blob(rng);
-      for (int a = 0; a < 3; ++a) xyz[3 * i + a] = centres[3 * b + a] + g(rng);
-    }
-  } else {
+  if (set != "uniform" && set != "clustered") {
     std::fprintf(stderr, "knn_bench: unknown set '%s' (uniform, clustered)\n", set.c_str());
     std::exit(2);
   }
-  return xyz;
+  return broadphase::app::knn_points(set == "clustered", n, 2026, sigma);
 }
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
@@ -126,8 +100,9 @@ int main(int argc, char** argv) {
         ours.push_back(seconds_since(t0));
         t0 = std::chrono::steady_clock::now();
         {
-          const Cloud cloud{&xyz};
-          Tree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+          const broadphase::app::NanoflannCloud cloud{&xyz};
+          broadphase::app::NanoflannTree tree(3, cloud,
+                                              nanoflann::KDTreeSingleIndexAdaptorParams(10));
           tree.buildIndex();
           for (std::size_t i = 0; i < n; ++i)
             tree.knnSearch(&xyz[3 * i], k, &nindex[i * k], &nd2[i * k]);

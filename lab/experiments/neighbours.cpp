@@ -19,10 +19,7 @@
 #include <vector>
 
 #include "experiment.hpp"
-
-#if defined(BROADPHASE_HAVE_NANOFLANN)
-#include <nanoflann.hpp>
-#endif
+#include "knn_peer.hpp"
 
 namespace broadphase::app {
 
@@ -77,41 +74,6 @@ Row row(std::string part, std::string set, std::size_t n, std::size_t k, unsigne
   r.k = k;
   r.threads = threads;
   return r;
-}
-
-#if defined(BROADPHASE_HAVE_NANOFLANN)
-struct Cloud {
-  const std::vector<double>* xyz;
-  std::size_t kdtree_get_point_count() const { return xyz->size() / 3; }
-  double kdtree_get_pt(std::size_t i, std::size_t d) const { return (*xyz)[3 * i + d]; }
-  template <class Box>
-  bool kdtree_get_bbox(Box&) const {
-    return false;
-  }
-};
-using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud>, Cloud,
-                                                 3, std::uint32_t>;
-#endif
-
-/// Points in the unit cube: uniform, or in 1 000 Gaussian blobs (sigma
-/// 0.01), as bench/knn/knn_bench.cpp makes them.
-std::vector<double> knn_points(bool clustered, std::size_t n, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(0, 1);
-  std::vector<double> xyz(3 * n);
-  if (!clustered) {
-    for (double& v : xyz) v = u(rng);
-    return xyz;
-  }
-  std::vector<double> centres(3 * 1000);
-  for (double& v : centres) v = u(rng);
-  std::normal_distribution<double> g(0, 0.01);
-  std::uniform_int_distribution<std::size_t> blob(0, 999);
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::size_t b = blob(rng);
-    for (std::size_t a = 0; a < 3; ++a) xyz[3 * i + a] = centres[3 * b + a] + g(rng);
-  }
-  return xyz;
 }
 
 std::vector<Row> measure_lists(std::size_t n, int frames, std::uint64_t seed, double share,
@@ -218,8 +180,8 @@ std::vector<Row> measure_knn(std::size_t small, std::size_t big, std::uint64_t s
       std::vector<std::uint32_t> nindex(n * k);
       r.peer = "nanoflann k-d tree";
       r.peer_s = timed(runs, share / 14, [&] {
-        const Cloud cloud{&xyz};
-        Tree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+        const NanoflannCloud cloud{&xyz};
+        NanoflannTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
         tree.buildIndex();
         for (std::size_t i = 0; i < n; ++i)
           tree.knnSearch(&xyz[3 * i], k, &nindex[i * k], &nd2[i * k]);
