@@ -1,11 +1,11 @@
 #include "rays.hpp"
 
 #include <bit>
+#include <broadphase/detail/in_order.hpp>
 #include <broadphase/registry.hpp>
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <thread>
 
 #include "index.hpp"
 #include "input.hpp"
@@ -129,8 +129,7 @@ py::tuple cast_lean(const bp::arrays::RayCaster& c, const std::vector<bp::Ray>& 
         // Ties at the same t go to the smallest id, which need not be the
         // smallest index: the visitor keeps the best by (t, id) and clips
         // at its t (hits at exactly the clip are still reported).
-        const unsigned shares =
-            threads == 0 ? std::max(1u, std::thread::hardware_concurrency()) : threads;
+        const unsigned shares = bp::detail::thread_count(threads);
         bp::detail::run_shares(
             rays.size(), std::min(shares, bp::ArrayOptions::kMaxThreads),
             [&](std::size_t begin, std::size_t end, std::size_t) {

@@ -7,7 +7,6 @@
 #include <broadphase/arrays/arrays.hpp>
 #include <broadphase/detail/in_order.hpp>
 #include <span>
-#include <thread>
 #include <vector>
 
 #include "sphere_kernel.hpp"
@@ -17,11 +16,7 @@ namespace broadphase::arrays::detail {
 // The library's in-order joiner (include/broadphase/detail/in_order.hpp).
 using broadphase::detail::kChunkItems;
 using broadphase::detail::run_in_order;
-
-inline unsigned thread_count(unsigned requested) {
-  if (requested != 0) return requested;
-  return std::max(1u, std::thread::hardware_concurrency());
-}
+using broadphase::detail::thread_count;
 
 // Object i as a Shape, always inlined: perf showed GCC calling
 // Objects::shape out of line from the tracker's scan once the scan grew

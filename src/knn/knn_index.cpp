@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <broadphase/detail/in_order.hpp>
 #include <broadphase/knn.hpp>
 #include <cmath>
 #include <limits>
@@ -42,9 +43,9 @@ std::string row_text(const char* what, std::size_t i) {
   return std::string(what) + "[" + std::to_string(i) + "]";
 }
 
+// An explicit count is capped at 1024; 0 takes every core.
 unsigned thread_count(unsigned threads) {
-  if (threads != 0) return std::min(threads, 1024u);
-  return std::max(1u, std::thread::hardware_concurrency());
+  return threads != 0 ? std::min(threads, 1024u) : broadphase::detail::thread_count(0);
 }
 
 // Runs job(c) for every chunk c in [0, chunks) on up to `threads` threads.

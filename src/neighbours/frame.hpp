@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <array>
+#include <broadphase/detail/in_order.hpp>
 #include <broadphase/neighbours.hpp>
 #include <cstddef>
 #include <cstdint>
@@ -79,7 +80,7 @@ void resize_large(std::vector<T, A>& v, std::size_t count) {
 /// `threads` (0: every core), at most one a 16 384 items (a thread costs
 /// tens of microseconds to start).
 inline unsigned parts_for(std::size_t items, unsigned threads) {
-  const unsigned want = threads != 0 ? threads : std::max(1u, std::thread::hardware_concurrency());
+  const unsigned want = broadphase::detail::thread_count(threads);
   const std::size_t most = std::max<std::size_t>(1, items / 16384);
   return static_cast<unsigned>(std::min<std::size_t>({want, most, 256}));
 }

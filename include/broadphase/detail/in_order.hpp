@@ -22,6 +22,13 @@
 
 namespace broadphase::detail {
 
+/// The threads a call asked for: `requested`, or every core for 0 (the
+/// library's `threads` options and arguments).
+inline unsigned thread_count(unsigned requested) {
+  if (requested != 0) return requested;
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
 /// Which of `pieces` pieces are made, and which is joined next.
 class InOrder {
  public:
