@@ -306,7 +306,14 @@ Binned bin_points(const Grid& g, const NeighbourCell& cell, const PointSet& pts,
   resize_large(b.x, n);
   resize_large(b.n, n);
   run_parts(parts, [&](unsigned p) {
+    // The points are read in bin order, a miss each: fetched 16 slots ahead.
+    constexpr std::size_t kAhead = 16;
     for (std::size_t slot = n * p / parts, hi = n * (p + 1) / parts; slot < hi; ++slot) {
+      if (slot + kAhead < hi) {
+        const std::uint32_t ahead = b.id[slot + kAhead];
+        __builtin_prefetch(&pts.x[ahead]);
+        __builtin_prefetch(&pts.n[ahead]);
+      }
       const std::uint32_t i = b.id[slot];
       const Vec3 o = rule::image_offset(cell, pts.n[i][0], pts.n[i][1], pts.n[i][2]);
       b.w[slot] = {pts.x[i].x - o.x, pts.x[i].y - o.y, pts.x[i].z - o.z,
