@@ -264,7 +264,9 @@ Grid make_grid(const NeighbourCell& cell, const Frame& f, const PointSet& pts,
 /// position as given, wrap counts and id (the exact rule).
 struct Binned {
   std::vector<std::int64_t> start;  // bins + 1
-  NeighbourVector<std::array<double, 4>> w;
+  // Wrapped positions and cutoffs (cutoffs only for per-point ones), a
+  // column each.
+  NeighbourVector<double> wx, wy, wz, wc;
   NeighbourVector<Vec3> x;
   NeighbourVector<std::array<std::int32_t, 3>> n;
   NeighbourVector<std::uint32_t> id;
@@ -302,7 +304,8 @@ Binned bin_points(const Grid& g, const NeighbourCell& cell, const PointSet& pts,
       b.id[static_cast<std::size_t>(fill[static_cast<std::size_t>(bin[i])]++)] =
           static_cast<std::uint32_t>(i);
   }
-  resize_large(b.w, n);
+  for (auto* v : {&b.wx, &b.wy, &b.wz}) resize_large(*v, n);
+  if (!cut.empty()) resize_large(b.wc, n);
   resize_large(b.x, n);
   resize_large(b.n, n);
   run_parts(parts, [&](unsigned p) {
@@ -316,8 +319,10 @@ Binned bin_points(const Grid& g, const NeighbourCell& cell, const PointSet& pts,
       }
       const std::uint32_t i = b.id[slot];
       const Vec3 o = rule::image_offset(cell, pts.n[i][0], pts.n[i][1], pts.n[i][2]);
-      b.w[slot] = {pts.x[i].x - o.x, pts.x[i].y - o.y, pts.x[i].z - o.z,
-                   cut.empty() ? 0.0 : cut[i]};
+      b.wx[slot] = pts.x[i].x - o.x;
+      b.wy[slot] = pts.x[i].y - o.y;
+      b.wz[slot] = pts.x[i].z - o.z;
+      if (!cut.empty()) b.wc[slot] = cut[i];
       b.x[slot] = pts.x[i];
       b.n[slot] = pts.n[i];
     }
@@ -580,14 +585,14 @@ void find_self_part(const Context& c, const Grid& g, const Wraps& wraps, const B
     if (pick.size() < m) pick.resize(2 * m);
     for (std::int64_t p = hs; p < he; ++p) {
       const auto pi = static_cast<std::size_t>(p);
-      const auto& wp = b.w[pi];
+      const double cp = one ? 0.0 : b.wc[pi];
       const std::uint32_t ip = b.id[pi];
       out.start[pi] = static_cast<std::int64_t>(found.size());
       if (self_interaction) {
         const std::int64_t zero[3] = {0, 0, 0};
-        if (exact(c, b.x[pi], b.x[pi], wp[3], wp[3], zero)) push(found, ip, zero);
+        if (exact(c, b.x[pi], b.x[pi], cp, cp, zero)) push(found, ip, zero);
       }
-      const double px = wp[0], py = wp[1], pz = wp[2];
+      const double px = b.wx[pi], py = b.wy[pi], pz = b.wz[pi];
       // The candidates within reach (and, in a half list, not found from
       // their own end), read in place run by run and compacted without a
       // branch: the branch on each distance test was a tenth of the list,
@@ -602,10 +607,9 @@ void find_self_part(const Context& c, const Grid& g, const Wraps& wraps, const B
         const Run& run = runs[k];
         const double qx = px - run.off.x, qy = py - run.off.y, qz = pz - run.off.z;
         for (std::uint32_t q = run.lo; q < run.hi; ++q) {
-          const auto& wq = b.w[q];
-          const double dx = wq[0] - qx, dy = wq[1] - qy, dz = wq[2] - qz;
+          const double dx = b.wx[q] - qx, dy = b.wy[q] - qy, dz = b.wz[q] - qz;
           const double d2 = dx * dx + dy * dy + dz * dz;
-          const double reach = one ? one_reach : (wp[3] + wq[3]) + g.margin;
+          const double reach = one ? one_reach : (cp + b.wc[q]) + g.margin;
           pick[picked] = std::uint64_t{k} << 32 | q;
           picked += static_cast<std::size_t>(static_cast<int>(d2 <= reach * reach) &
                                              (any_id | static_cast<int>(b.id[q] >= ip)));
@@ -623,15 +627,15 @@ void find_self_part(const Context& c, const Grid& g, const Wraps& wraps, const B
         // image under the kept one of S and -S.
         const bool canonical = ip < iq || (ip == iq && rule::kept_self_shift(s[0], s[1], s[2]));
         if (!full && !canonical) continue;
-        const auto& wq = b.w[qi];
-        const double dx = wq[0] - (px - run.off.x), dy = wq[1] - (py - run.off.y),
-                     dz = wq[2] - (pz - run.off.z);
-        const double inner = one ? one_inner : std::max(0.0, (wp[3] + wq[3]) - g.margin);
+        const double cq = one ? 0.0 : b.wc[qi];
+        const double dx = b.wx[qi] - (px - run.off.x), dy = b.wy[qi] - (py - run.off.y),
+                     dz = b.wz[qi] - (pz - run.off.z);
+        const double inner = one ? one_inner : std::max(0.0, (cp + cq) - g.margin);
         bool pair = dx * dx + dy * dy + dz * dz < inner * inner;
         if (!pair) {
           const std::int64_t mirror[3] = {-s[0], -s[1], -s[2]};
-          pair = canonical ? exact(c, b.x[pi], b.x[qi], wp[3], wq[3], s)
-                           : exact(c, b.x[qi], b.x[pi], wq[3], wp[3], mirror);
+          pair = canonical ? exact(c, b.x[pi], b.x[qi], cp, cq, s)
+                           : exact(c, b.x[qi], b.x[pi], cq, cp, mirror);
         }
         if (pair) push(found, iq, s);
       }
@@ -702,8 +706,8 @@ void find_between_part(const Context& c, const Grid& g, const Wraps& wraps, cons
       const Vec3 off = rule::image_offset(*c.cell, sb[0], sb[1], sb[2]);
       const double px = wq.x - off.x, py = wq.y - off.y, pz = wq.z - off.z;
       for (std::int64_t p = ns; p < ne; ++p) {
-        const auto& wp = b.w[static_cast<std::size_t>(p)];
-        const double dx = wp[0] - px, dy = wp[1] - py, dz = wp[2] - pz;
+        const auto pw = static_cast<std::size_t>(p);
+        const double dx = b.wx[pw] - px, dy = b.wy[pw] - py, dz = b.wz[pw] - pz;
         if (dx * dx + dy * dy + dz * dz > r * r) continue;
         const auto pj = static_cast<std::size_t>(p);
         std::int64_t s[3];
