@@ -16,6 +16,8 @@
 #include <tuple>
 #include <vector>
 
+#include "neighbours/frame.hpp"
+
 namespace {
 
 using namespace broadphase;
@@ -174,41 +176,56 @@ std::vector<Vec3> random_points(std::mt19937_64& rng, const NeighbourCell& cell,
   return x;
 }
 
-TEST(Neighbours, RandomAgainstBruteForce) {
-  for (std::uint64_t seed = 1; seed <= 200; ++seed) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<double> u(0, 1);
-    const int kind = static_cast<int>(seed % 5);
-    const NeighbourCell cell = random_cell(rng, kind);
-    const std::size_t n = 1 + static_cast<std::size_t>(u(rng) * 40);
-    const std::vector<Vec3> x = random_points(rng, cell, n);
-    const bool per_point = seed % 3 == 0;
-    const double cutoff = kind == 3 ? 0.5 + 2.0 * u(rng) : 0.5 + 3.0 * u(rng);
-    std::vector<double> cut(n);
-    for (double& c : cut) c = cutoff * (0.2 + 0.4 * u(rng));
-    NeighbourOptions opt;
-    opt.rule = seed % 2 ? CutoffRule::strict : CutoffRule::inclusive;
-    opt.self_interaction = seed % 7 == 0;
-    opt.distances = opt.vectors = opt.offsets = true;
-    const auto points = NeighbourPoints::rows(&x[0].x, n);
-    SCOPED_TRACE("seed " + std::to_string(seed) + " kind " + std::to_string(kind) + " n " +
-                 std::to_string(n) + (per_point ? " per-point" : ""));
-    const Brute b =
-        brute_force(x, cell, cutoff, per_point ? &cut : nullptr, opt.rule, opt.self_interaction);
-    const NeighbourList half =
-        per_point ? neighbour_list(points, cell, arrays::Column::of(cut.data()), opt)
-                  : neighbour_list(points, cell, cutoff, opt);
-    ASSERT_EQ(keys(half), b.half);
-    check_quantities(half, x, cell);
-    check_offsets(half, n);
-    opt.full = true;
-    const NeighbourList full =
-        per_point ? neighbour_list(points, cell, arrays::Column::of(cut.data()), opt)
-                  : neighbour_list(points, cell, cutoff, opt);
-    ASSERT_EQ(keys(full), mirrored(b.half));
-    check_quantities(full, x, cell);
-    check_offsets(full, n);
+// The search's candidate passes this processor runs: the scalar one, and
+// the AVX-512 one where the processor has it. Restores the default after.
+struct EachSearch {
+  std::vector<bool> vector;
+  EachSearch() {
+    vector.push_back(false);
+    if (neighbours_detail::vector_search_available()) vector.push_back(true);
   }
+  ~EachSearch() { neighbours_detail::allow_vector_search(true); }
+};
+
+TEST(Neighbours, RandomAgainstBruteForce) {
+  EachSearch each;
+  for (const bool vector : each.vector)
+    for (std::uint64_t seed = 1; seed <= 200; ++seed) {
+      neighbours_detail::allow_vector_search(vector);
+      std::mt19937_64 rng(seed);
+      std::uniform_real_distribution<double> u(0, 1);
+      const int kind = static_cast<int>(seed % 5);
+      const NeighbourCell cell = random_cell(rng, kind);
+      const std::size_t n = 1 + static_cast<std::size_t>(u(rng) * 40);
+      const std::vector<Vec3> x = random_points(rng, cell, n);
+      const bool per_point = seed % 3 == 0;
+      const double cutoff = kind == 3 ? 0.5 + 2.0 * u(rng) : 0.5 + 3.0 * u(rng);
+      std::vector<double> cut(n);
+      for (double& c : cut) c = cutoff * (0.2 + 0.4 * u(rng));
+      NeighbourOptions opt;
+      opt.rule = seed % 2 ? CutoffRule::strict : CutoffRule::inclusive;
+      opt.self_interaction = seed % 7 == 0;
+      opt.distances = opt.vectors = opt.offsets = true;
+      const auto points = NeighbourPoints::rows(&x[0].x, n);
+      SCOPED_TRACE("seed " + std::to_string(seed) + " kind " + std::to_string(kind) + " n " +
+                   std::to_string(n) + (per_point ? " per-point" : "") +
+                   (vector ? " vector search" : " scalar search"));
+      const Brute b =
+          brute_force(x, cell, cutoff, per_point ? &cut : nullptr, opt.rule, opt.self_interaction);
+      const NeighbourList half =
+          per_point ? neighbour_list(points, cell, arrays::Column::of(cut.data()), opt)
+                    : neighbour_list(points, cell, cutoff, opt);
+      ASSERT_EQ(keys(half), b.half);
+      check_quantities(half, x, cell);
+      check_offsets(half, n);
+      opt.full = true;
+      const NeighbourList full =
+          per_point ? neighbour_list(points, cell, arrays::Column::of(cut.data()), opt)
+                    : neighbour_list(points, cell, cutoff, opt);
+      ASSERT_EQ(keys(full), mirrored(b.half));
+      check_quantities(full, x, cell);
+      check_offsets(full, n);
+    }
 }
 
 // The two-set query against the brute force over every shift.
@@ -403,6 +420,57 @@ TEST(Neighbours, ThreadsGiveTheSameList) {
       const auto many = lists(threads);
       for (int k = 0; k < 3; ++k)
         same(many[static_cast<std::size_t>(k)], one[static_cast<std::size_t>(k)]);
+    }
+  }
+}
+
+// The AVX-512 candidate pass gives the scalar pass's list, array for
+// array, where the processor has it (skipped elsewhere): 20 000 points at
+// liquid density with some outside the cell and some on one another, one
+// cutoff and per-point ones, half and full, free space, orthorhombic,
+// triclinic and mixed cells.
+TEST(Neighbours, VectorSearchGivesTheScalarList) {
+  if (!neighbours_detail::vector_search_available())
+    GTEST_SKIP() << "this processor has no AVX-512: only the scalar search runs here";
+  EachSearch each;
+  for (std::uint64_t seed = 1; seed <= 8; ++seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    const int kind = static_cast<int>(seed % 4);
+    NeighbourCell cell = NeighbourCell::orthorhombic({58, 58, 58});
+    if (kind == 0) cell.periodic = {false, false, false};
+    if (kind == 2) cell.vectors[1].x = cell.vectors[2].y = 15;
+    if (kind == 3) cell.periodic = {true, false, true};
+    const std::size_t n = 20000;
+    std::vector<Vec3> x(n);
+    for (std::size_t i = 0; i < n; ++i)
+      x[i] = i > 0 && u(rng) < 0.02 ? x[i - 1]
+                                    : cell.vectors[0] * (1.1 * u(rng) - 0.05) +
+                                          cell.vectors[1] * u(rng) + cell.vectors[2] * u(rng);
+    std::vector<double> cut(n);
+    for (double& c : cut) c = 0.8 + 0.8 * u(rng);
+    NeighbourOptions opt;
+    opt.full = seed % 2 == 0;
+    opt.self_interaction = seed % 3 == 0;
+    opt.rule = seed % 5 < 2 ? CutoffRule::strict : CutoffRule::inclusive;
+    opt.distances = opt.vectors = opt.offsets = true;
+    SCOPED_TRACE("seed " + std::to_string(seed) + " kind " + std::to_string(kind));
+    const auto points = NeighbourPoints::rows(&x[0].x, n);
+    const auto lists = [&](bool vector) {
+      neighbours_detail::allow_vector_search(vector);
+      return std::array<NeighbourList, 2>{
+          neighbour_list(points, cell, 3.0, opt),
+          neighbour_list(points, cell, arrays::Column::of(cut.data()), opt)};
+    };
+    const auto scalar = lists(false);
+    const auto vector = lists(true);
+    EXPECT_GT(scalar[0].size(), n);
+    for (std::size_t k = 0; k < 2; ++k) {
+      EXPECT_EQ(vector[k].first, scalar[k].first);
+      EXPECT_EQ(vector[k].second, scalar[k].second);
+      EXPECT_EQ(vector[k].shifts, scalar[k].shifts);
+      EXPECT_EQ(vector[k].distances, scalar[k].distances);
+      EXPECT_EQ(vector[k].offsets, scalar[k].offsets);
     }
   }
 }

@@ -50,6 +50,15 @@ NeighbourVector<Candidate> candidate_list(const NeighbourPoints& points, const N
                                           const NeighbourOptions& options,
                                           NeighbourVector<std::int64_t>& offsets);
 
+/// Whether this processor can run the self search's AVX-512 kernel.
+bool vector_search_available();
+/// Whether the self search uses it: available and allowed.
+bool vector_search();
+/// Allows (the default) or forbids it, for every later call in the process:
+/// the tests compare the two searches. Not to be called while a list is
+/// being made.
+void allow_vector_search(bool allow);
+
 /// Reserves room for `count` elements of a large array that is written
 /// once, asking the kernel for huge pages on the part the new buffer spans
 /// (Linux; a hint, ignored elsewhere or when they are off).
