@@ -155,14 +155,19 @@ NeighbourCell random_cell(std::mt19937_64& rng, int kind) {
 
 // Points with fractional coordinates in [-1, 2) (some outside the cell),
 // some duplicated, some on the cell's faces.
-std::vector<Vec3> random_points(std::mt19937_64& rng, const NeighbourCell& cell, std::size_t n) {
+// Points in and around the cell (fractional coordinates in [-1, 2), some
+// on a face), or all in it when `inside` (on periodic axes): the search
+// takes a path of its own when every wrap count is zero.
+std::vector<Vec3> random_points(std::mt19937_64& rng, const NeighbourCell& cell, std::size_t n,
+                                bool inside = false) {
   std::uniform_real_distribution<double> u(0, 1);
   std::vector<Vec3> x;
   for (std::size_t i = 0; i < n; ++i) {
     double f[3];
-    for (double& v : f) {
+    for (int k = 0; k < 3; ++k) {
       const double t = u(rng);
-      v = t < 0.1 ? -1 + u(rng) : (t < 0.2 ? 1 + u(rng) : (t < 0.3 ? 0.0 : u(rng)));
+      f[k] = t < 0.1 ? -1 + u(rng) : (t < 0.2 ? 1 + u(rng) : (t < 0.3 ? 0.0 : u(rng)));
+      if (inside && cell.periodic[k]) f[k] -= std::floor(f[k]);
     }
     Vec3 p{};
     for (int k = 0; k < 3; ++k) {
@@ -197,7 +202,8 @@ TEST(Neighbours, RandomAgainstBruteForce) {
       const int kind = static_cast<int>(seed % 5);
       const NeighbourCell cell = random_cell(rng, kind);
       const std::size_t n = 1 + static_cast<std::size_t>(u(rng) * 40);
-      const std::vector<Vec3> x = random_points(rng, cell, n);
+      const bool inside = seed % 4 == 1;
+      const std::vector<Vec3> x = random_points(rng, cell, n, inside);
       const bool per_point = seed % 3 == 0;
       const double cutoff = kind == 3 ? 0.5 + 2.0 * u(rng) : 0.5 + 3.0 * u(rng);
       std::vector<double> cut(n);
@@ -208,7 +214,7 @@ TEST(Neighbours, RandomAgainstBruteForce) {
       opt.distances = opt.vectors = opt.offsets = true;
       const auto points = NeighbourPoints::rows(&x[0].x, n);
       SCOPED_TRACE("seed " + std::to_string(seed) + " kind " + std::to_string(kind) + " n " +
-                   std::to_string(n) + (per_point ? " per-point" : "") +
+                   std::to_string(n) + (per_point ? " per-point" : "") + (inside ? " inside" : "") +
                    (vector ? " vector search" : " scalar search"));
       const Brute b =
           brute_force(x, cell, cutoff, per_point ? &cut : nullptr, opt.rule, opt.self_interaction);
@@ -424,9 +430,9 @@ TEST(Neighbours, ThreadsGiveTheSameList) {
   }
 }
 
-// The AVX-512 candidate pass gives the scalar pass's list, array for
-// array, where the processor has it (skipped elsewhere): 20 000 points at
-// liquid density with some outside the cell and some on one another, one
+// The AVX-512 candidate passes give the scalar pass's list, array for
+// array, where the processor has them (skipped elsewhere): 20 000 points at
+// liquid density, all in the cell or some outside, some on one another, one
 // cutoff and per-point ones, half and full, free space, orthorhombic,
 // triclinic and mixed cells.
 TEST(Neighbours, VectorSearchGivesTheScalarList) {
@@ -442,10 +448,13 @@ TEST(Neighbours, VectorSearchGivesTheScalarList) {
     if (kind == 2) cell.vectors[1].x = cell.vectors[2].y = 15;
     if (kind == 3) cell.periodic = {true, false, true};
     const std::size_t n = 20000;
+    // Seeds 1 to 4 keep every point in the cell (the search's own path when
+    // all wrap counts are zero), 5 to 8 put some outside.
+    const double out = seed <= 4 ? 0.0 : 0.05;
     std::vector<Vec3> x(n);
     for (std::size_t i = 0; i < n; ++i)
       x[i] = i > 0 && u(rng) < 0.02 ? x[i - 1]
-                                    : cell.vectors[0] * (1.1 * u(rng) - 0.05) +
+                                    : cell.vectors[0] * ((1 + 2 * out) * u(rng) - out) +
                                           cell.vectors[1] * u(rng) + cell.vectors[2] * u(rng);
     std::vector<double> cut(n);
     for (double& c : cut) c = 0.8 + 0.8 * u(rng);

@@ -11,6 +11,7 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "frame.hpp"
@@ -441,7 +442,7 @@ struct WideFound {
 /// at its first record once the search is done (`seal`).
 template <class Found>
 struct Groups {
-  std::vector<std::vector<Found>> parts;
+  std::vector<NeighbourVector<Found>> parts;
   std::vector<std::size_t> part_end;
   std::vector<std::int64_t> start;
   std::vector<std::uint32_t> count;
@@ -460,7 +461,7 @@ struct Groups {
 };
 
 template <class Found>
-void push(std::vector<Found>& found, std::uint32_t j, const std::int64_t s[3]) {
+void push(NeighbourVector<Found>& found, std::uint32_t j, const std::int64_t s[3]) {
   found.push_back(Found::make(j, s));
 }
 
@@ -607,6 +608,72 @@ __attribute__((target("avx512f,avx512vl"))) std::size_t pick_avx512(
 }
 #endif
 
+#if BROADPHASE_NEIGHBOURS_AVX512
+/// The self search's pass for packed records when every point lies in the
+/// cell (wrap counts all zero, so a pair's shift is its run's): a candidate
+/// inside the inner reach whose record the point keeps (a larger index in a
+/// half list, another index in a full one) is written as its record at
+/// `keys`; the others within reach that the scalar loop would pick (self
+/// images, the point itself, the rim between the inner and outer reach) go
+/// to `pick` for the pick loop. Writes up to 8 entries past each. Returns
+/// the records written; `picked` counts the picks. At 10^6 points the
+/// list took 0.27 s instead of 0.29 on one thread, 0.16 instead of 0.18 on
+/// two: the pick loop spends a branch or two on each kept pair.
+__attribute__((target("avx512f,avx512vl"))) std::size_t records_avx512(
+    const Binned& b, const std::vector<Run>& runs, double px, double py, double pz, double cp,
+    double one_reach2, double one_inner2, double margin, std::uint32_t ip, bool full,
+    PackedFound* keys, std::uint64_t* pick, std::size_t& picked) {
+  std::size_t written = 0;
+  picked = 0;
+  const __m512i iota = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
+  const __m256i mine = _mm256_set1_epi32(static_cast<int>(ip));
+  const bool one = one_reach2 >= 0;
+  const __m512d reach2_one = _mm512_set1_pd(one_reach2), inner2_one = _mm512_set1_pd(one_inner2);
+  const __m512d cpv = _mm512_set1_pd(cp), marginv = _mm512_set1_pd(margin);
+  for (std::size_t k = 0; k < runs.size(); ++k) {
+    const Run& run = runs[k];
+    const __m512d qx = _mm512_set1_pd(px - run.off.x), qy = _mm512_set1_pd(py - run.off.y),
+                  qz = _mm512_set1_pd(pz - run.off.z);
+    const std::int64_t s[3] = {run.sb[0], run.sb[1], run.sb[2]};
+    const __m512i shift = _mm512_set1_epi64(static_cast<long long>(PackedFound::make(0, s).key));
+    for (std::uint32_t q = run.lo; q < run.hi; q += 8) {
+      const std::uint32_t left = run.hi - q;
+      const auto m = static_cast<__mmask8>(left >= 8 ? 0xffu : (1u << left) - 1);
+      const __m512d dx = _mm512_sub_pd(_mm512_maskz_loadu_pd(m, b.wx.data() + q), qx);
+      const __m512d dy = _mm512_sub_pd(_mm512_maskz_loadu_pd(m, b.wy.data() + q), qy);
+      const __m512d dz = _mm512_sub_pd(_mm512_maskz_loadu_pd(m, b.wz.data() + q), qz);
+      const __m512d d2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)),
+                                       _mm512_mul_pd(dz, dz));
+      __m512d reach2 = reach2_one, inner2 = inner2_one;
+      if (!one) {
+        const __m512d sum = _mm512_add_pd(cpv, _mm512_maskz_loadu_pd(m, b.wc.data() + q));
+        const __m512d reach = _mm512_add_pd(sum, marginv);
+        const __m512d inner =
+            _mm512_maskz_max_pd(0xff, _mm512_sub_pd(sum, marginv), _mm512_setzero_pd());
+        reach2 = _mm512_mul_pd(reach, reach);
+        inner2 = _mm512_mul_pd(inner, inner);
+      }
+      const __mmask8 in = _mm512_mask_cmp_pd_mask(m, d2, reach2, _CMP_LE_OQ);
+      const __mmask8 sure = _mm512_mask_cmp_pd_mask(in, d2, inner2, _CMP_LT_OQ);
+      const __m256i ids = _mm256_maskz_loadu_epi32(m, b.id.data() + q);
+      const __mmask8 kept =
+          _mm256_mask_cmp_epu32_mask(sure, ids, mine, full ? _MM_CMPINT_NE : _MM_CMPINT_GT);
+      const __mmask8 rest = in & static_cast<__mmask8>(~kept) &
+                            (full ? m : _mm256_mask_cmp_epu32_mask(m, ids, mine, _MM_CMPINT_NLT));
+      const __m512i records = _mm512_or_si512(
+          _mm512_maskz_slli_epi64(0xff, _mm512_maskz_cvtepu32_epi64(0xff, ids), 32), shift);
+      _mm512_storeu_si512(keys + written, _mm512_maskz_compress_epi64(kept, records));
+      written += static_cast<std::size_t>(__builtin_popcount(kept));
+      const __m512i refs = _mm512_add_epi64(
+          _mm512_set1_epi64(static_cast<long long>(std::uint64_t{k} << 32 | q)), iota);
+      _mm512_storeu_si512(pick + picked, _mm512_maskz_compress_epi64(rest, refs));
+      picked += static_cast<std::size_t>(__builtin_popcount(rest));
+    }
+  }
+  return written;
+}
+#endif
+
 /// The self search's bins: on an axis that is not periodic, no offset
 /// beyond nb - 1 lands in a bin.
 Wraps self_wraps(const Grid& g) {
@@ -626,7 +693,7 @@ Wraps self_wraps(const Grid& g) {
 template <class Found>
 void find_self_part(const Context& c, const Grid& g, const Wraps& wraps, const Binned& b, bool full,
                     bool self_interaction, std::int64_t bin_lo, std::int64_t bin_hi,
-                    Groups<Found>& out, std::vector<Found>& found) {
+                    Groups<Found>& out, NeighbourVector<Found>& found) {
   const std::int64_t r[3] = {wraps.base[0], wraps.base[1], wraps.base[2]};
   const bool one = c.cut->empty();
   std::vector<Run> runs;
@@ -640,6 +707,11 @@ void find_self_part(const Context& c, const Grid& g, const Wraps& wraps, const B
   const int any_id = full ? 1 : 0;
 #if BROADPHASE_NEIGHBOURS_AVX512
   const bool vector = neighbours_detail::vector_search();
+  // Every point inside the cell (wrap counts all zero, as most codes keep
+  // them) and packed records: the vector pass writes the records itself.
+  const PointSet& ps = *c.home;
+  const bool records = vector && std::is_same_v<Found, PackedFound> &&
+                       ps.n_lo == std::array<std::int32_t, 3>{} && ps.n_hi == ps.n_lo;
 #endif
   for (std::int64_t home = bin_lo; home < bin_hi; ++home) {
     const std::int64_t hs = b.start[static_cast<std::size_t>(home)];
@@ -672,10 +744,19 @@ void find_self_part(const Context& c, const Grid& g, const Wraps& wraps, const B
       // taken of), three additions fewer a candidate.
       std::size_t picked = 0;
 #if BROADPHASE_NEIGHBOURS_AVX512
-      if (vector)
+      if (records) {
+        if constexpr (std::is_same_v<Found, PackedFound>) {
+          const std::size_t size = found.size();
+          found.resize(size + m + 8);
+          const std::size_t written = records_avx512(
+              b, runs, px, py, pz, cp, one ? one_reach * one_reach : -1.0, one_inner * one_inner,
+              g.margin, ip, full, found.data() + size, pick.data(), picked);
+          found.resize(size + written);
+        }
+      } else if (vector) {
         picked = pick_avx512(b, runs, px, py, pz, cp, one ? one_reach * one_reach : -1.0, g.margin,
                              ip, full, pick.data());
-      else
+      } else
 #endif
         for (std::size_t k = 0; k < runs.size(); ++k) {
           const Run& run = runs[k];
@@ -757,7 +838,7 @@ Wraps between_wraps(const Grid& g) {
 template <class Found>
 void find_between_part(const Context& c, const Grid& g, const Wraps& wraps, const Binned& b,
                        std::size_t q_lo, std::size_t q_hi, Groups<Found>& out,
-                       std::vector<Found>& found) {
+                       NeighbourVector<Found>& found) {
   const PointSet& qs = *c.home;
   for (std::size_t qi = q_lo; qi < q_hi; ++qi) {
     out.start[qi] = static_cast<std::int64_t>(found.size());
