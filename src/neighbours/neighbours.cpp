@@ -554,61 +554,104 @@ void for_each_bin_around(const Grid& g, const Wraps& wraps, const std::int64_t (
 }
 
 #if BROADPHASE_NEIGHBOURS_AVX512
-/// The self search's candidate pass with AVX-512, eight candidates at a
-/// time: the picks (run << 32 | slot) the scalar loop in find_self_part
-/// makes, in its order, from the same double arithmetic (a fused
-/// multiply-add may round a distance differently by an ulp: the margin
-/// covers a few). `one_reach2` is the one cutoff's reach squared, or
-/// negative for per-point cutoffs (cp, the point's own). Writes up to 8
-/// entries past the picks. At 10^6 points the search took 165 ms instead
-/// of 197 on one thread (the scalar loop goes one candidate at a time, at
-/// about 11 cycles each); a pass of sixteen a turn, to spare the runs'
-/// loop exits, and marking the candidates inside the inner reach for the
-/// pick loop both measured slower or no faster.
-__attribute__((target("avx512f,avx512vl"))) std::size_t pick_avx512(
-    const Binned& b, const std::vector<Run>& runs, double px, double py, double pz, double cp,
-    double one_reach2, double margin, std::uint32_t ip, bool full, std::uint64_t* pick) {
-  std::size_t picked = 0;
-  const __m512i iota = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
-  const __m256i mine = _mm256_set1_epi32(static_cast<int>(ip));
-  const bool one = one_reach2 >= 0;
-  const __m512d reach2_one = _mm512_set1_pd(one_reach2);
-  const __m512d cpv = _mm512_set1_pd(cp), marginv = _mm512_set1_pd(margin);
+/// The vector passes' test of slots [q, q + 8) (those of mask `m`) against
+/// a point at `qx, qy, qz` (the point moved by the run's offset, px - off,
+/// as the scalar loop computes it), in the scalar loop's double arithmetic
+/// (a fused multiply-add may round a distance differently by an ulp: the
+/// margin covers a few): the lanes within reach, those also inside the
+/// inner reach, and the slots' ids. `one` selects the one cutoff's squared
+/// reaches; otherwise each pair's from cp and the slots' cutoffs.
+struct Lanes {
+  __mmask8 in, inside;
+  __m256i ids;
+};
+
+struct Reaches {
+  bool one;
+  __m512d reach2, inner2;  // the one cutoff's
+  __m512d cp, margin;      // per-point cutoffs: the point's, and the margin
+};
+
+__attribute__((target("avx512f,avx512vl"))) inline Lanes test_eight(const Binned& b,
+                                                                    std::uint32_t q, __mmask8 m,
+                                                                    __m512d qx, __m512d qy,
+                                                                    __m512d qz, const Reaches& r) {
+  const __m512d dx = _mm512_sub_pd(_mm512_maskz_loadu_pd(m, b.wx.data() + q), qx);
+  const __m512d dy = _mm512_sub_pd(_mm512_maskz_loadu_pd(m, b.wy.data() + q), qy);
+  const __m512d dz = _mm512_sub_pd(_mm512_maskz_loadu_pd(m, b.wz.data() + q), qz);
+  const __m512d d2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)),
+                                   _mm512_mul_pd(dz, dz));
+  __m512d reach2 = r.reach2, inner2 = r.inner2;
+  if (!r.one) {
+    const __m512d sum = _mm512_add_pd(r.cp, _mm512_maskz_loadu_pd(m, b.wc.data() + q));
+    const __m512d reach = _mm512_add_pd(sum, r.margin);
+    const __m512d inner =
+        _mm512_maskz_max_pd(0xff, _mm512_sub_pd(sum, r.margin), _mm512_setzero_pd());
+    reach2 = _mm512_mul_pd(reach, reach);
+    inner2 = _mm512_mul_pd(inner, inner);
+  }
+  Lanes l;
+  l.in = _mm512_mask_cmp_pd_mask(m, d2, reach2, _CMP_LE_OQ);
+  l.inside = _mm512_mask_cmp_pd_mask(l.in, d2, inner2, _CMP_LT_OQ);
+  l.ids = _mm256_maskz_loadu_epi32(m, b.id.data() + q);
+  return l;
+}
+
+/// The vector passes' walk: calls eight(q, m, qx, qy, qz, k) for the
+/// slots of each run k, eight at a time.
+template <class Eight>
+__attribute__((target("avx512f,avx512vl"))) inline void each_eight(const std::vector<Run>& runs,
+                                                                   double px, double py, double pz,
+                                                                   Eight&& eight) {
   for (std::size_t k = 0; k < runs.size(); ++k) {
     const Run& run = runs[k];
     const __m512d qx = _mm512_set1_pd(px - run.off.x), qy = _mm512_set1_pd(py - run.off.y),
                   qz = _mm512_set1_pd(pz - run.off.z);
     for (std::uint32_t q = run.lo; q < run.hi; q += 8) {
       const std::uint32_t left = run.hi - q;
-      const auto m = static_cast<__mmask8>(left >= 8 ? 0xffu : (1u << left) - 1);
-      const __m512d dx = _mm512_sub_pd(_mm512_maskz_loadu_pd(m, b.wx.data() + q), qx);
-      const __m512d dy = _mm512_sub_pd(_mm512_maskz_loadu_pd(m, b.wy.data() + q), qy);
-      const __m512d dz = _mm512_sub_pd(_mm512_maskz_loadu_pd(m, b.wz.data() + q), qz);
-      const __m512d d2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)),
-                                       _mm512_mul_pd(dz, dz));
-      __m512d reach2 = reach2_one;
-      if (!one) {
-        const __m512d reach =
-            _mm512_add_pd(_mm512_add_pd(cpv, _mm512_maskz_loadu_pd(m, b.wc.data() + q)), marginv);
-        reach2 = _mm512_mul_pd(reach, reach);
-      }
-      __mmask8 in = _mm512_mask_cmp_pd_mask(m, d2, reach2, _CMP_LE_OQ);
-      if (!full)
-        in &= _mm256_mask_cmp_epu32_mask(m, _mm256_maskz_loadu_epi32(m, b.id.data() + q), mine,
-                                         _MM_CMPINT_NLT);
-      // Compressed in a register and stored whole: a compressing store to
-      // memory is microcoded on some processors.
-      const __m512i refs = _mm512_add_epi64(
-          _mm512_set1_epi64(static_cast<long long>(std::uint64_t{k} << 32 | q)), iota);
-      _mm512_storeu_si512(pick + picked, _mm512_maskz_compress_epi64(in, refs));
-      picked += static_cast<std::size_t>(__builtin_popcount(in));
+      eight(q, static_cast<__mmask8>(left >= 8 ? 0xffu : (1u << left) - 1), qx, qy, qz, k);
     }
   }
+}
+
+/// `picks` (run << 32 | slot) of the lanes of `keep`, stored whole after a
+/// compress in a register (a compressing store to memory is microcoded on
+/// some processors): writes up to 8 entries past them.
+__attribute__((target("avx512f,avx512vl"))) inline void store_picks(std::uint64_t* pick,
+                                                                    std::size_t& picked,
+                                                                    __mmask8 keep, std::size_t k,
+                                                                    std::uint32_t q) {
+  const __m512i refs =
+      _mm512_add_epi64(_mm512_set1_epi64(static_cast<long long>(std::uint64_t{k} << 32 | q)),
+                       _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0));
+  _mm512_storeu_si512(pick + picked, _mm512_maskz_compress_epi64(keep, refs));
+  picked += static_cast<std::size_t>(__builtin_popcount(keep));
+}
+
+/// The self search's candidate pass with AVX-512, eight candidates at a
+/// time: the picks the scalar loop in find_self_part makes, in its order.
+/// At 10^6 points the search took 165 ms instead of 197 on one thread (the
+/// scalar loop goes one candidate at a time, at about 11 cycles each).
+/// Tried and not kept: sixteen candidates a turn to spare the runs' loop
+/// exits, a bin's chunks in one loop a point, marking the candidates inside
+/// the inner reach for the pick loop (slower or no faster).
+__attribute__((target("avx512f,avx512vl"))) std::size_t pick_avx512(
+    const Binned& b, const std::vector<Run>& runs, double px, double py, double pz,
+    const Reaches& r, std::uint32_t ip, bool full, std::uint64_t* pick) {
+  std::size_t picked = 0;
+  const __m256i mine = _mm256_set1_epi32(static_cast<int>(ip));
+  each_eight(
+      runs, px, py, pz,
+      [&](std::uint32_t q, __mmask8 m, __m512d qx, __m512d qy, __m512d qz, std::size_t k)
+          __attribute__((target("avx512f,avx512vl"))) {
+            const Lanes l = test_eight(b, q, m, qx, qy, qz, r);
+            const __mmask8 keep =
+                full ? l.in : _mm256_mask_cmp_epu32_mask(l.in, l.ids, mine, _MM_CMPINT_NLT);
+            store_picks(pick, picked, keep, k, q);
+          });
   return picked;
 }
-#endif
 
-#if BROADPHASE_NEIGHBOURS_AVX512
 /// The self search's pass for packed records when every point lies in the
 /// cell (wrap counts all zero, so a pair's shift is its run's): a candidate
 /// inside the inner reach whose record the point keeps (a larger index in a
@@ -620,57 +663,46 @@ __attribute__((target("avx512f,avx512vl"))) std::size_t pick_avx512(
 /// list took 0.27 s instead of 0.29 on one thread, 0.16 instead of 0.18 on
 /// two: the pick loop spends a branch or two on each kept pair.
 __attribute__((target("avx512f,avx512vl"))) std::size_t records_avx512(
-    const Binned& b, const std::vector<Run>& runs, double px, double py, double pz, double cp,
-    double one_reach2, double one_inner2, double margin, std::uint32_t ip, bool full,
-    PackedFound* keys, std::uint64_t* pick, std::size_t& picked) {
+    const Binned& b, const std::vector<Run>& runs, double px, double py, double pz,
+    const Reaches& r, std::uint32_t ip, bool full, PackedFound* keys, std::uint64_t* pick,
+    std::size_t& picked) {
   std::size_t written = 0;
   picked = 0;
-  const __m512i iota = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
   const __m256i mine = _mm256_set1_epi32(static_cast<int>(ip));
-  const bool one = one_reach2 >= 0;
-  const __m512d reach2_one = _mm512_set1_pd(one_reach2), inner2_one = _mm512_set1_pd(one_inner2);
-  const __m512d cpv = _mm512_set1_pd(cp), marginv = _mm512_set1_pd(margin);
-  for (std::size_t k = 0; k < runs.size(); ++k) {
-    const Run& run = runs[k];
-    const __m512d qx = _mm512_set1_pd(px - run.off.x), qy = _mm512_set1_pd(py - run.off.y),
-                  qz = _mm512_set1_pd(pz - run.off.z);
-    const std::int64_t s[3] = {run.sb[0], run.sb[1], run.sb[2]};
-    const __m512i shift = _mm512_set1_epi64(static_cast<long long>(PackedFound::make(0, s).key));
-    for (std::uint32_t q = run.lo; q < run.hi; q += 8) {
-      const std::uint32_t left = run.hi - q;
-      const auto m = static_cast<__mmask8>(left >= 8 ? 0xffu : (1u << left) - 1);
-      const __m512d dx = _mm512_sub_pd(_mm512_maskz_loadu_pd(m, b.wx.data() + q), qx);
-      const __m512d dy = _mm512_sub_pd(_mm512_maskz_loadu_pd(m, b.wy.data() + q), qy);
-      const __m512d dz = _mm512_sub_pd(_mm512_maskz_loadu_pd(m, b.wz.data() + q), qz);
-      const __m512d d2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)),
-                                       _mm512_mul_pd(dz, dz));
-      __m512d reach2 = reach2_one, inner2 = inner2_one;
-      if (!one) {
-        const __m512d sum = _mm512_add_pd(cpv, _mm512_maskz_loadu_pd(m, b.wc.data() + q));
-        const __m512d reach = _mm512_add_pd(sum, marginv);
-        const __m512d inner =
-            _mm512_maskz_max_pd(0xff, _mm512_sub_pd(sum, marginv), _mm512_setzero_pd());
-        reach2 = _mm512_mul_pd(reach, reach);
-        inner2 = _mm512_mul_pd(inner, inner);
-      }
-      const __mmask8 in = _mm512_mask_cmp_pd_mask(m, d2, reach2, _CMP_LE_OQ);
-      const __mmask8 sure = _mm512_mask_cmp_pd_mask(in, d2, inner2, _CMP_LT_OQ);
-      const __m256i ids = _mm256_maskz_loadu_epi32(m, b.id.data() + q);
-      const __mmask8 kept =
-          _mm256_mask_cmp_epu32_mask(sure, ids, mine, full ? _MM_CMPINT_NE : _MM_CMPINT_GT);
-      const __mmask8 rest = in & static_cast<__mmask8>(~kept) &
-                            (full ? m : _mm256_mask_cmp_epu32_mask(m, ids, mine, _MM_CMPINT_NLT));
-      const __m512i records = _mm512_or_si512(
-          _mm512_maskz_slli_epi64(0xff, _mm512_maskz_cvtepu32_epi64(0xff, ids), 32), shift);
-      _mm512_storeu_si512(keys + written, _mm512_maskz_compress_epi64(kept, records));
-      written += static_cast<std::size_t>(__builtin_popcount(kept));
-      const __m512i refs = _mm512_add_epi64(
-          _mm512_set1_epi64(static_cast<long long>(std::uint64_t{k} << 32 | q)), iota);
-      _mm512_storeu_si512(pick + picked, _mm512_maskz_compress_epi64(rest, refs));
-      picked += static_cast<std::size_t>(__builtin_popcount(rest));
-    }
-  }
+  std::size_t shift_of = runs.size();
+  __m512i shift = _mm512_setzero_si512();
+  each_eight(
+      runs, px, py, pz,
+      [&](std::uint32_t q, __mmask8 m, __m512d qx, __m512d qy, __m512d qz, std::size_t k)
+          __attribute__((target("avx512f,avx512vl"))) {
+            if (k != shift_of) {
+              const std::int64_t s[3] = {runs[k].sb[0], runs[k].sb[1], runs[k].sb[2]};
+              shift = _mm512_set1_epi64(static_cast<long long>(PackedFound::make(0, s).key));
+              shift_of = k;
+            }
+            const Lanes l = test_eight(b, q, m, qx, qy, qz, r);
+            const __mmask8 kept =
+                full ? _mm256_mask_cmp_epu32_mask(l.inside, l.ids, mine, _MM_CMPINT_NE)
+                     : _mm256_mask_cmp_epu32_mask(l.inside, l.ids, mine, _MM_CMPINT_GT);
+            const __mmask8 rest =
+                l.in & static_cast<__mmask8>(~kept) &
+                (full ? l.in : _mm256_mask_cmp_epu32_mask(l.in, l.ids, mine, _MM_CMPINT_NLT));
+            const __m512i records = _mm512_or_si512(
+                _mm512_maskz_slli_epi64(0xff, _mm512_maskz_cvtepu32_epi64(0xff, l.ids), 32), shift);
+            _mm512_storeu_si512(keys + written, _mm512_maskz_compress_epi64(kept, records));
+            written += static_cast<std::size_t>(__builtin_popcount(kept));
+            store_picks(pick, picked, rest, k, q);
+          });
   return written;
+}
+
+/// The reaches of a point's vector pass (one_reach and one_inner are the
+/// one cutoff's; cp the point's own cutoff otherwise).
+__attribute__((target("avx512f,avx512vl"))) Reaches reaches(bool one, double one_reach,
+                                                            double one_inner, double cp,
+                                                            double margin) {
+  return {one, _mm512_set1_pd(one_reach * one_reach), _mm512_set1_pd(one_inner * one_inner),
+          _mm512_set1_pd(cp), _mm512_set1_pd(margin)};
 }
 #endif
 
@@ -748,13 +780,13 @@ void find_self_part(const Context& c, const Grid& g, const Wraps& wraps, const B
         if constexpr (std::is_same_v<Found, PackedFound>) {
           const std::size_t size = found.size();
           found.resize(size + m + 8);
-          const std::size_t written = records_avx512(
-              b, runs, px, py, pz, cp, one ? one_reach * one_reach : -1.0, one_inner * one_inner,
-              g.margin, ip, full, found.data() + size, pick.data(), picked);
+          const std::size_t written =
+              records_avx512(b, runs, px, py, pz, reaches(one, one_reach, one_inner, cp, g.margin),
+                             ip, full, found.data() + size, pick.data(), picked);
           found.resize(size + written);
         }
       } else if (vector) {
-        picked = pick_avx512(b, runs, px, py, pz, cp, one ? one_reach * one_reach : -1.0, g.margin,
+        picked = pick_avx512(b, runs, px, py, pz, reaches(one, one_reach, one_inner, cp, g.margin),
                              ip, full, pick.data());
       } else
 #endif
