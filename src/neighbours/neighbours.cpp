@@ -14,6 +14,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "engine.hpp"
 #include "frame.hpp"
 
 // The self search's AVX-512 kernel, chosen at run time (vector_search):
@@ -29,6 +30,10 @@ namespace broadphase {
 namespace {
 
 using arrays::Column;
+using neighbours_detail::Binned;
+using neighbours_detail::PackedFound;
+using neighbours_detail::Run;
+using neighbours_detail::WideFound;
 namespace rule = neighbour_rule;
 
 // Limits that keep every integer in range: |floor(s)| of a point on a
@@ -271,18 +276,6 @@ Grid make_grid(const NeighbourCell& cell, const Frame& f, const PointSet& pts,
   return g;
 }
 
-/// The points sorted by bin: wrapped positions and cutoff (prefilter), the
-/// position as given, wrap counts and id (the exact rule).
-struct Binned {
-  std::vector<std::int64_t> start;  // bins + 1
-  // Wrapped positions and cutoffs (cutoffs only for per-point ones), a
-  // column each: the vector search reads eight candidates at a time.
-  NeighbourVector<double> wx, wy, wz, wc;
-  NeighbourVector<Vec3> x;
-  NeighbourVector<std::array<std::int32_t, 3>> n;
-  NeighbourVector<std::uint32_t> id;
-};
-
 Binned bin_points(const Grid& g, const NeighbourCell& cell, const PointSet& pts,
                   const std::vector<double>& cut, unsigned threads) {
   const std::size_t n = pts.x.size();
@@ -395,45 +388,6 @@ inline bool exact(const Context& c, Vec3 xi, Vec3 xj, double ci, double cj,
   return rule::within(rule::squared_length(d), reach, c.rule);
 }
 
-/// A neighbour as found for the point whose group it is in: its index and
-/// the shift on it, in one of two layouts that order alike (by index, then
-/// shift). Packed: 8 bytes, one integer key, for shifts in [-127, 127] on
-/// every axis (whenever the points lie within 100 cells of the cell and the
-/// cutoff spans fewer than 100 cells: at 10^6 points, halving the records
-/// took a fifth off the list, and the groups sort by comparing one
-/// integer). Wide: 16 bytes, any shift.
-struct PackedFound {
-  std::uint64_t key;
-  static constexpr std::int64_t kLimit = 127;
-  static PackedFound make(std::uint32_t j, const std::int64_t s[3]) {
-    return {std::uint64_t{j} << 32 | static_cast<std::uint64_t>(s[0] + 128) << 16 |
-            static_cast<std::uint64_t>(s[1] + 128) << 8 | static_cast<std::uint64_t>(s[2] + 128)};
-  }
-  std::uint32_t j() const { return static_cast<std::uint32_t>(key >> 32); }
-  std::int64_t s(int a) const {
-    return static_cast<std::int64_t>((key >> (16 - 8 * a)) & 0xff) - 128;
-  }
-  bool operator<(const PackedFound& o) const { return key < o.key; }
-};
-
-struct WideFound {
-  std::uint32_t j_;
-  std::int32_t s_[3];
-  static WideFound make(std::uint32_t j, const std::int64_t s[3]) {
-    return {j,
-            {static_cast<std::int32_t>(s[0]), static_cast<std::int32_t>(s[1]),
-             static_cast<std::int32_t>(s[2])}};
-  }
-  std::uint32_t j() const { return j_; }
-  std::int64_t s(int a) const { return s_[a]; }
-  bool operator<(const WideFound& o) const {
-    if (j_ != o.j_) return j_ < o.j_;
-    if (s_[0] != o.s_[0]) return s_[0] < o.s_[0];
-    if (s_[1] != o.s_[1]) return s_[1] < o.s_[1];
-    return s_[2] < o.s_[2];
-  }
-};
-
 /// The pairs found, grouped by the point they belong to (the home point
 /// for the self list, the query for the two-set list). The search runs in
 /// parts, one a thread, each over consecutive groups (part p ends before
@@ -479,15 +433,6 @@ bool packed_shifts_fit(const std::array<std::vector<std::int64_t>, 3>& bin_shift
   }
   return true;
 }
-
-/// The candidates of a home bin's neighbourhood as runs of bins that are
-/// consecutive on the last axis and seen under one wrap shift: slots
-/// [lo, hi), moved by `off` = image_offset(sb).
-struct Run {
-  std::uint32_t lo, hi;
-  std::array<std::int32_t, 3> sb;
-  Vec3 off;
-};
 
 /// The runs of the bins at offsets [-r, r] from bin bc (per axis) that
 /// `wraps` resolves, in the order for_each_bin_around visits their bins.
