@@ -13,14 +13,19 @@
 // magnitudes. Infinite coordinates are clamped to +-1e300 (monotone, so
 // still a superset); NaN boxes never pass.
 //
-// Pairs. Each proxy keeps its partners (the proxies its box overlaps and
-// whose filters pass). A pass looks only at the proxies whose box or
-// filter changed since the last one: their partners that no longer
-// overlap leave the cache, and of the structure's pairs (of fat boxes)
-// those with a changed proxy in them are tested. No pair is hashed: every
-// pair of every pass through a hash of pairs (PairCache) took 2.6-4.9 ms a
-// pass on 3 000 boxes falling onto a plane, 2 to 4 times btDbvtBroadphase;
-// a query of the structure per changed proxy, 5-20 ms.
+// Pairs. The adapter keeps the structure's pairs of fat boxes as its own
+// list of candidates, each with a bit: begun (in Bullet's cache) or not.
+// Every pass tests every candidate on the proxies' btScalar boxes, read
+// from one array by proxy id, and begins or ends the pairs whose bit
+// changes: a resting pile stays awake in Bullet and gives every proxy a
+// new box each step, but few leave their fat box, so the candidates stay.
+// Only the proxies that are new or left their fat box ("fresh") change the
+// list: their candidates leave it and come back from one structure query
+// each, or, when many are fresh, from the structure's whole pair list.
+// Measured on 3 000 boxes falling onto a plane (docs/bullet.md): each
+// proxy keeping its partners and every pass looking at every changed
+// proxy's pairs took twice btDbvtBroadphase's time; hashing every pair of
+// every pass (PairCache), 2 to 4 times.
 #include <algorithm>
 #include <broadphase/bullet.hpp>
 #include <broadphase/config_error.hpp>
@@ -33,14 +38,13 @@
 namespace broadphase {
 
 struct BulletBroadphase::Proxy : btBroadphaseProxy {
-  Handle handle;                        // in the structure; null for a huge proxy
-  double fat_lo[3], fat_hi[3];          // the box the structure holds (within its Shape)
-  std::vector<Proxy*> partners;         // the pairs it is in
-  std::size_t live_index = 0;           // in live_
-  std::size_t move_index = kNoMove;     // in moves_, kNoMove when none is pending
-  std::size_t changed_index = kNoMove;  // in changed_, kNoMove when unchanged
-  std::size_t huge_index = kNoMove;     // in huge_, kNoMove when in the structure
-  Filter given{};                       // group and mask as of the last pass
+  Handle handle;                     // in the structure; null for a huge proxy
+  double fat_lo[3], fat_hi[3];       // the box the structure holds (within its Shape)
+  std::vector<Proxy*> partners;      // the pairs it is in
+  std::uint32_t id = 0;              // index of its box, filter and flag
+  std::size_t live_index = 0;        // in live_
+  std::size_t move_index = kNoMove;  // in moves_, kNoMove when none is pending
+  std::size_t huge_index = kNoMove;  // in huge_, kNoMove when in the structure
   static constexpr std::size_t kNoMove = ~std::size_t{0};
   bool huge() const { return huge_index != kNoMove; }
 };
@@ -116,6 +120,23 @@ Filter filter_of(const btBroadphaseProxy& p) {
 
 Vec3 to_vec(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
 
+template <class Box>
+void set_box(Box& box, const btVector3& aabbMin, const btVector3& aabbMax) {
+  for (int a = 0; a < 3; ++a) {
+    box.lo[a] = aabbMin[a];
+    box.hi[a] = aabbMax[a];
+  }
+}
+
+// A proxy id's flag between two passes.
+constexpr std::uint8_t kSteady = 0;  // in its fat box since the last pass
+constexpr std::uint8_t kFresh = 1;   // new, or left its fat box
+constexpr std::uint8_t kDead = 2;    // destroyed: its id is freed by the pass
+
+// A pass reads the structure's whole pair list when more than one proxy in
+// this many is fresh, and queries the structure once per fresh proxy below.
+constexpr std::size_t kWholeListShare = 8;
+
 /// Removes one `p` from `list` (which holds it), order not kept.
 template <class P>
 void erase_one(std::vector<P*>& list, const P* p) {
@@ -163,13 +184,24 @@ btBroadphaseProxy* BulletBroadphase::createProxy(const btVector3& aabbMin, const
   p->m_collisionFilterMask = collisionFilterMask;
   p->m_aabbMin = aabbMin;
   p->m_aabbMax = aabbMax;
-  p->given = filter_of(*p);
   if (free_uids_.empty()) {
     p->m_uniqueId = next_uid_++;
   } else {
     p->m_uniqueId = free_uids_.back();
     free_uids_.pop_back();
   }
+  if (free_ids_.empty()) {
+    p->id = static_cast<std::uint32_t>(proxy_of_.size());
+    proxy_of_.push_back(nullptr);
+    boxes_.emplace_back();
+    fresh_.push_back(kSteady);
+  } else {
+    p->id = free_ids_.back();
+    free_ids_.pop_back();
+  }
+  proxy_of_[p->id] = p;
+  set_box(boxes_[p->id], aabbMin, aabbMax);
+  boxes_[p->id].filter = filter_of(*p);
   p->live_index = live_.size();
   live_.push_back(p);
   if (is_huge(aabbMin, aabbMax)) {
@@ -181,7 +213,7 @@ btBroadphaseProxy* BulletBroadphase::createProxy(const btVector3& aabbMin, const
                             ? Motion::fixed
                             : Motion::dynamic);
   }
-  mark_changed(*p);
+  mark_fresh(*p);
   return p;
 }
 
@@ -211,10 +243,10 @@ void BulletBroadphase::drop_huge(Proxy& p) {
   p.huge_index = Proxy::kNoMove;
 }
 
-void BulletBroadphase::mark_changed(Proxy& p) {
-  if (p.changed_index != Proxy::kNoMove) return;
-  p.changed_index = changed_.size();
-  changed_.push_back(&p);
+void BulletBroadphase::mark_fresh(const Proxy& p) {
+  if (fresh_[p.id] != kSteady) return;
+  fresh_[p.id] = kFresh;
+  fresh_ids_.push_back(p.id);
 }
 
 void BulletBroadphase::remove_move(Proxy& p) {
@@ -243,11 +275,10 @@ void BulletBroadphase::destroyProxy(btBroadphaseProxy* proxy, btDispatcher* disp
   } else {
     leave_structure(*p);
   }
-  if (p->changed_index != Proxy::kNoMove) {
-    changed_[p->changed_index] = changed_.back();
-    changed_[p->changed_index]->changed_index = p->changed_index;
-    changed_.pop_back();
-  }
+  // The id is freed by the next pass, which drops its candidates.
+  if (fresh_[p->id] == kSteady) fresh_ids_.push_back(p->id);
+  fresh_[p->id] = kDead;
+  proxy_of_[p->id] = nullptr;
   live_[p->live_index] = live_.back();
   live_[p->live_index]->live_index = p->live_index;
   live_.pop_back();
@@ -258,12 +289,12 @@ void BulletBroadphase::destroyProxy(btBroadphaseProxy* proxy, btDispatcher* disp
 void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMin,
                                const btVector3& aabbMax, btDispatcher* /*dispatcher*/) {
   auto* p = static_cast<Proxy*>(proxy);
-  if (p->m_aabbMin == aabbMin && p->m_aabbMax == aabbMax) return;
   p->m_aabbMin = aabbMin;
   p->m_aabbMax = aabbMax;
-  mark_changed(*p);
+  set_box(boxes_[p->id], aabbMin, aabbMax);
   const bool huge = is_huge(aabbMin, aabbMax);
   if (huge != p->huge()) {
+    mark_fresh(*p);
     if (huge) {
       leave_structure(*p);
       add_huge(*p);
@@ -275,6 +306,7 @@ void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMi
   }
   if (huge) return;
   if (inside(aabbMin, aabbMax, p->fat_lo, p->fat_hi)) return;  // the structure's box holds it
+  mark_fresh(*p);
   const Shape s = fatten(*p);
   if (p->move_index == Proxy::kNoMove) {
     p->move_index = moves_.size();
@@ -301,31 +333,58 @@ Shape BulletBroadphase::fatten(Proxy& p) const {
   return shape_of(p.fat_lo, p.fat_hi);
 }
 
-bool BulletBroadphase::pairs(const Proxy& a, const Proxy& b) const {
-  return overlap(a.m_aabbMin, a.m_aabbMax, b.m_aabbMin, b.m_aabbMax) &&
-         (!filters_apply_ || filters_pass(filter_of(a), filter_of(b)));
+// Bullet's closed box test in btScalar, then group and mask unless the
+// cache has a filter callback, all without a branch: about two candidates
+// in three overlap, in no order a predictor could learn, and a branch on it
+// made the pass over the candidates half again as long (3 000 boxes).
+inline bool BulletBroadphase::begins(std::uint32_t a, std::uint32_t b) const {
+  const Box& p = boxes_[a];
+  const Box& q = boxes_[b];
+  const bool touch = (p.lo[0] <= q.hi[0]) & (q.lo[0] <= p.hi[0]) & (p.lo[1] <= q.hi[1]) &
+                     (q.lo[1] <= p.hi[1]) & (p.lo[2] <= q.hi[2]) & (q.lo[2] <= p.hi[2]);
+  const bool pass =
+      ((p.filter.group & q.filter.mask) != 0) & ((q.filter.group & p.filter.mask) != 0);
+  return touch & (pass | !filters_apply_);
+}
+
+void BulletBroadphase::begin_pair(Proxy* p, Proxy* q) {
+  p->partners.push_back(q);
+  q->partners.push_back(p);
+  ++pair_count_;
+  cache_->addOverlappingPair(p, q);
+}
+
+void BulletBroadphase::end_pair(Proxy* p, Proxy* q, btDispatcher* dispatcher) {
+  erase_one(p->partners, q);
+  erase_one(q->partners, p);
+  --pair_count_;
+  removed_ = true;
+  if (!cache_->hasDeferredRemoval()) cache_->removeOverlappingPair(p, q, dispatcher);
+}
+
+// A candidate for a fresh proxy: its pairs that ended are gone already, so
+// a pair that begins is new unless it is among the shorter partner list.
+void BulletBroadphase::add_candidate(Proxy* p, Proxy* q) {
+  const bool in = begins(p->id, q->id);
+  if (in) {
+    const Proxy* shorter = p->partners.size() <= q->partners.size() ? p : q;
+    const Proxy* other = shorter == p ? q : p;
+    if (std::find(shorter->partners.begin(), shorter->partners.end(), other) ==
+        shorter->partners.end())
+      begin_pair(p, q);
+  }
+  candidates_.push_back({p->id, q->id, in});
 }
 
 // Group and mask live in the proxy, where users also change them directly
-// (getBroadphaseHandle()->m_collisionFilterMask = ...): every pass compares
-// them with the last pass's, O(proxies), and a proxy whose filter changed
-// is looked at again. With a user's filter callback the cache decides
-// alone, when a pair begins (as btAxisSweep3 asks it).
-void BulletBroadphase::sync_filters() {
-  const bool apply = cache_->getOverlapFilterCallback() == nullptr;
-  const bool all = apply != filters_apply_;
-  filters_apply_ = apply;
-  for (Proxy* p : live_) {
-    const Filter f = filter_of(*p);
-    if (all || !(f == p->given)) {
-      p->given = f;
-      mark_changed(*p);
-    }
-  }
-}
-
+// (getBroadphaseHandle()->m_collisionFilterMask = ...): every pass copies
+// them, O(proxies), and the candidates' test reads the copy. With a user's
+// filter callback the cache decides alone, when a pair begins (as
+// btAxisSweep3 asks it).
 void BulletBroadphase::calculateOverlappingPairs(btDispatcher* dispatcher) {
-  sync_filters();
+  filters_apply_ = cache_->getOverlapFilterCallback() == nullptr;
+  if (filters_apply_)
+    for (const Proxy* p : live_) boxes_[p->id].filter = filter_of(*p);
   if (!moves_.empty()) {
     structure_->update(moves_);
     for (const Move& m : moves_) by_slot_[m.handle.index]->move_index = Proxy::kNoMove;
@@ -334,60 +393,93 @@ void BulletBroadphase::calculateOverlappingPairs(btDispatcher* dispatcher) {
     structure_->settle();
   }
   settle_due_ = false;
-  const bool deferred = cache_->hasDeferredRemoval();
-  bool removed = false;
-  // Pairs that end: a changed proxy's partners that no longer pair.
-  for (Proxy* p : changed_) {
-    std::vector<Proxy*>& list = p->partners;
-    for (std::size_t i = 0; i < list.size();) {
-      Proxy* q = list[i];
-      if (pairs(*p, *q)) {
+  removed_ = false;
+  // One structure query per fresh proxy, or its whole pair list: on 3 000
+  // boxes the queries cost less while fewer than an eighth were fresh.
+  if (fresh_ids_.size() * kWholeListShare > live_.size()) {
+    full_pass(dispatcher);
+  } else {
+    incremental_pass(dispatcher);
+  }
+  for (const std::uint32_t id : fresh_ids_) {
+    if (fresh_[id] == kDead) free_ids_.push_back(id);
+    fresh_[id] = kSteady;
+  }
+  fresh_ids_.clear();
+  if (cache_->hasDeferredRemoval() && removed_) remove_deferred(dispatcher);
+}
+
+void BulletBroadphase::incremental_pass(btDispatcher* dispatcher) {
+  // A fresh proxy's pairs that ended: after this, every pair it is in
+  // overlaps, so its fat box meets the other's and its query finds it.
+  for (const std::uint32_t id : fresh_ids_) {
+    Proxy* p = proxy_of_[id];
+    if (fresh_[id] == kDead) continue;  // its pairs ended with it
+    for (std::size_t i = 0; i < p->partners.size();) {
+      Proxy* q = p->partners[i];
+      if (begins(p->id, q->id)) {
         ++i;
-        continue;
+      } else {
+        end_pair(p, q, dispatcher);  // swaps the last partner into i
       }
-      list[i] = list.back();
-      list.pop_back();
-      erase_one(q->partners, p);
-      --pair_count_;
-      removed = true;
-      if (!deferred) cache_->removeOverlappingPair(p, q, dispatcher);
     }
   }
-  // Pairs that begin: the structure's pairs of fat boxes (incremental in
-  // sap: its pass only reads its cache) with a changed proxy in them, and
-  // the changed proxies against the huge ones.
-  auto meet = [&](Proxy* p, Proxy* q) {
-    if (!pairs(*p, *q)) return;
-    const Proxy* shorter = p->partners.size() <= q->partners.size() ? p : q;
-    const Proxy* other = shorter == p ? q : p;
-    for (const Proxy* r : shorter->partners)
-      if (r == other) return;  // persisting
-    p->partners.push_back(q);
-    q->partners.push_back(p);
-    ++pair_count_;
-    cache_->addOverlappingPair(p, q);
-  };
-  if (!changed_.empty()) {
-    candidates_.clear();
-    structure_->find_pairs(candidates_);
-    for (const HandlePair& hp : candidates_) {
-      Proxy* a = by_slot_[hp.a.index];
-      Proxy* b = by_slot_[hp.b.index];
-      if (a->changed_index != Proxy::kNoMove || b->changed_index != Proxy::kNoMove) meet(a, b);
+  // The candidates between steady proxies: each tested, the rest dropped
+  // (written and not counted: a branch on the fresh ones cost more).
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < candidates_.size(); ++i) {
+    Candidate c = candidates_[i];
+    const bool steady = (fresh_[c.a] | fresh_[c.b]) == kSteady;
+    const std::uint32_t in = begins(c.a, c.b);
+    if (in != c.in && steady) {
+      if (in) {
+        begin_pair(proxy_of_[c.a], proxy_of_[c.b]);
+      } else {
+        end_pair(proxy_of_[c.a], proxy_of_[c.b], dispatcher);
+      }
+      c.in = in;
     }
+    candidates_[kept] = c;
+    kept += steady;
   }
-  for (Proxy* p : changed_) {
-    if (p->huge()) {
+  candidates_.resize(kept);
+  // The fresh proxies' candidates. A pair of two fresh proxies comes from
+  // the one with the smaller id; a huge proxy meets every proxy, and a
+  // fresh one meets the steady huge ones.
+  for (const std::uint32_t id : fresh_ids_) {
+    Proxy* p = proxy_of_[id];
+    if (fresh_[id] == kDead) continue;
+    auto meets = [&](const Proxy* q) {
+      return q != p && !(fresh_[q->id] != kSteady && q->id < id);
+    };
+    if (p->huge()) {  // every other proxy but a fresh huge one with a smaller id
       for (Proxy* q : live_)
-        if (q != p && (!q->huge() || q->changed_index > p->changed_index)) meet(p, q);
-    } else {
-      for (Proxy* q : huge_)
-        if (q->changed_index == Proxy::kNoMove) meet(p, q);  // a changed huge q meets p itself
+        if (q != p && !(q->huge() && fresh_[q->id] != kSteady && q->id < id)) add_candidate(p, q);
+      continue;
     }
+    structure_->query(shape_of(p->fat_lo, p->fat_hi), [&](Handle h) {
+      Proxy* q = by_slot_[h.index];
+      if (meets(q)) add_candidate(p, q);
+      return true;
+    });
+    for (Proxy* q : huge_)
+      if (fresh_[q->id] == kSteady) add_candidate(p, q);
   }
-  for (Proxy* p : changed_) p->changed_index = Proxy::kNoMove;
-  changed_.clear();
-  if (deferred && removed) remove_deferred(dispatcher);
+}
+
+void BulletBroadphase::full_pass(btDispatcher* dispatcher) {
+  // The pairs that ended, from the candidates that had begun.
+  for (const Candidate& c : candidates_) {
+    if (!c.in || fresh_[c.a] == kDead || fresh_[c.b] == kDead) continue;
+    if (!begins(c.a, c.b)) end_pair(proxy_of_[c.a], proxy_of_[c.b], dispatcher);
+  }
+  candidates_.clear();
+  found_.clear();
+  structure_->find_pairs(found_);
+  for (const HandlePair& hp : found_) add_candidate(by_slot_[hp.a.index], by_slot_[hp.b.index]);
+  for (Proxy* h : huge_)
+    for (Proxy* q : live_)
+      if (q != h && !(q->huge() && q->id < h->id)) add_candidate(h, q);
 }
 
 // A cache with deferred removal (btSortedOverlappingPairCache) ignores
@@ -502,11 +594,16 @@ void BulletBroadphase::resetPool(btDispatcher* /*dispatcher*/) {
   by_slot_.clear();
   huge_.clear();
   moves_.clear();
-  changed_.clear();
   free_uids_.clear();
   next_uid_ = 1;
   settle_due_ = false;
   pair_count_ = 0;
+  fresh_.clear();
+  boxes_.clear();
+  proxy_of_.clear();
+  fresh_ids_.clear();
+  free_ids_.clear();
+  candidates_.clear();
 }
 
 void BulletBroadphase::printStats() {
