@@ -188,6 +188,8 @@ class BulletBroadphase final : public btBroadphaseInterface {
   std::vector<std::uint8_t> fresh_;       // kFresh: new or left its fat box; kDead: destroyed
   std::vector<Box> boxes_;                // each proxy's box, group and mask as of this pass
   std::vector<Proxy*> proxy_of_;          // null when free or destroyed
+  std::vector<std::uint8_t> moved_;       // 1: box or filter changed since the last pass
+  bool any_moved_ = false;                // some moved_ is 1
   std::vector<std::uint32_t> fresh_ids_;  // the ids marked in fresh_, each once
   std::vector<std::uint32_t> free_ids_;   // ids to reuse
   std::vector<Candidate> candidates_;     // every pair of fat boxes, each once

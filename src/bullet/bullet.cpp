@@ -195,6 +195,7 @@ btBroadphaseProxy* BulletBroadphase::createProxy(const btVector3& aabbMin, const
     proxy_of_.push_back(nullptr);
     boxes_.emplace_back();
     fresh_.push_back(kSteady);
+    moved_.push_back(0);
   } else {
     p->id = free_ids_.back();
     free_ids_.pop_back();
@@ -289,9 +290,12 @@ void BulletBroadphase::destroyProxy(btBroadphaseProxy* proxy, btDispatcher* disp
 void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMin,
                                const btVector3& aabbMax, btDispatcher* /*dispatcher*/) {
   auto* p = static_cast<Proxy*>(proxy);
+  if (p->m_aabbMin == aabbMin && p->m_aabbMax == aabbMax) return;  // a body asleep or at rest
   p->m_aabbMin = aabbMin;
   p->m_aabbMax = aabbMax;
   set_box(boxes_[p->id], aabbMin, aabbMax);
+  moved_[p->id] = 1;
+  any_moved_ = true;
   const bool huge = is_huge(aabbMin, aabbMax);
   if (huge != p->huge()) {
     mark_fresh(*p);
@@ -382,9 +386,21 @@ void BulletBroadphase::add_candidate(Proxy* p, Proxy* q) {
 // filter callback the cache decides alone, when a pair begins (as
 // btAxisSweep3 asks it).
 void BulletBroadphase::calculateOverlappingPairs(btDispatcher* dispatcher) {
-  filters_apply_ = cache_->getOverlapFilterCallback() == nullptr;
-  if (filters_apply_)
-    for (const Proxy* p : live_) boxes_[p->id].filter = filter_of(*p);
+  const bool apply = cache_->getOverlapFilterCallback() == nullptr;
+  if (apply != filters_apply_) {  // every candidate's answer may change
+    filters_apply_ = apply;
+    std::fill(moved_.begin(), moved_.end(), 1);
+    any_moved_ = true;
+  }
+  if (filters_apply_) {
+    for (const Proxy* p : live_) {
+      const Filter f = filter_of(*p);
+      if (f == boxes_[p->id].filter) continue;
+      boxes_[p->id].filter = f;
+      moved_[p->id] = 1;
+      any_moved_ = true;
+    }
+  }
   if (!moves_.empty()) {
     structure_->update(moves_);
     for (const Move& m : moves_) by_slot_[m.handle.index]->move_index = Proxy::kNoMove;
@@ -406,6 +422,8 @@ void BulletBroadphase::calculateOverlappingPairs(btDispatcher* dispatcher) {
     fresh_[id] = kSteady;
   }
   fresh_ids_.clear();
+  if (any_moved_) std::fill(moved_.begin(), moved_.end(), 0);
+  any_moved_ = false;
   if (cache_->hasDeferredRemoval() && removed_) remove_deferred(dispatcher);
 }
 
@@ -424,13 +442,16 @@ void BulletBroadphase::incremental_pass(btDispatcher* dispatcher) {
       }
     }
   }
-  // The candidates between steady proxies: each tested, the rest dropped
-  // (written and not counted: a branch on the fresh ones cost more).
+  // The candidates between steady proxies: each tested where a box or a
+  // filter changed, the rest dropped (written and not counted: a branch on
+  // the fresh ones cost more). With no box changed (a world asleep) the
+  // pass has nothing to do.
+  if (!any_moved_ && fresh_ids_.empty()) return;
   std::size_t kept = 0;
   for (std::size_t i = 0; i < candidates_.size(); ++i) {
     Candidate c = candidates_[i];
     const bool steady = (fresh_[c.a] | fresh_[c.b]) == kSteady;
-    const std::uint32_t in = begins(c.a, c.b);
+    const std::uint32_t in = (moved_[c.a] | moved_[c.b]) != 0 ? begins(c.a, c.b) : c.in;
     if (in != c.in && steady) {
       if (in) {
         begin_pair(proxy_of_[c.a], proxy_of_[c.b]);
@@ -599,6 +620,8 @@ void BulletBroadphase::resetPool(btDispatcher* /*dispatcher*/) {
   settle_due_ = false;
   pair_count_ = 0;
   fresh_.clear();
+  moved_.clear();
+  any_moved_ = false;
   boxes_.clear();
   proxy_of_.clear();
   fresh_ids_.clear();
