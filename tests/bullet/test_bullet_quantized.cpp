@@ -286,6 +286,24 @@ struct Visits final : btBroadphaseRayCallback {  // (an aabb callback too)
   }
 };
 
+/// Logs the pair events a sweep gives its second receiver
+/// (set_pair_callback, Bullet's setOverlappingPairUserCallback): +a,b for
+/// an add, -a,b for a removal, by proxy numbers in the order given.
+struct EventLog final : btOverlappingPairCallback {
+  std::vector<std::string> events;
+  btBroadphasePair* addOverlappingPair(btBroadphaseProxy* a, btBroadphaseProxy* b) override {
+    events.push_back("+" + std::to_string(a->m_uniqueId) + "," + std::to_string(b->m_uniqueId));
+    return nullptr;
+  }
+  void* removeOverlappingPair(btBroadphaseProxy* a, btBroadphaseProxy* b, btDispatcher*) override {
+    events.push_back("-" + std::to_string(a->m_uniqueId) + "," + std::to_string(b->m_uniqueId));
+    return nullptr;
+  }
+  void removeOverlappingPairsContainingProxy(btBroadphaseProxy* a, btDispatcher*) override {
+    events.push_back("x" + std::to_string(a->m_uniqueId));
+  }
+};
+
 std::string text(const btVector3& lo, const btVector3& hi) {
   char buf[200];
   std::snprintf(buf, sizeof buf, "[%g %g %g]-[%g %g %g]", static_cast<double>(lo.x()),
@@ -355,7 +373,8 @@ struct RandomBoxes {
 
 /// Random calls on Bullet's sweep and ours side by side, compared after
 /// each (the end points on each axis, each proxy's end-point indices, the
-/// pair array, the proxies a query visits): `ops` calls from `seed`, with
+/// pair array, the events of the second receiver, the proxies a query
+/// visits): `ops` calls from `seed`, with
 /// a hashed or a sorted cache.
 void run_against_bullet(int bits, bool sorted, std::uint64_t seed, int ops) {
   std::printf("model test against Bullet: %d-bit grid, %s cache, seed %" PRIu64 "\n", bits,
@@ -376,6 +395,13 @@ void run_against_bullet(int bits, bool sorted, std::uint64_t seed, int ops) {
   std::unique_ptr<btBroadphaseInterface> bullet(
       bullet_sweep(bits, world_lo, world_hi, max_proxies, bullet_cache.get()));
   QuantizedSweep ours(world_lo, world_hi, max_proxies, bits, our_cache.get());
+  EventLog bullet_events, our_events;
+  if (bits == 16) {
+    static_cast<Open16&>(*bullet).setOverlappingPairUserCallback(&bullet_events);
+  } else {
+    static_cast<Open32&>(*bullet).setOverlappingPairUserCallback(&bullet_events);
+  }
+  ours.set_pair_callback(&our_events);
   auto bullet_index = [&](const btBroadphaseProxy* p, int axis, bool high) {
     return bits == 16 ? static_cast<Open16&>(*bullet).end_point_index(p, axis, high)
                       : static_cast<Open32&>(*bullet).end_point_index(p, axis, high);
@@ -390,6 +416,7 @@ void run_against_bullet(int bits, bool sorted, std::uint64_t seed, int ops) {
   };
   std::vector<Live> live;
 
+  std::size_t events_seen = 0;
   auto check = [&](int op, const std::string& what) {
     ASSERT_EQ(ours.end_point_count(), 2 * live.size() + 2) << "op " << op << " (" << what << ")";
     for (int axis = 0; axis < 3; ++axis)
@@ -403,6 +430,10 @@ void run_against_bullet(int bits, bool sorted, std::uint64_t seed, int ops) {
               << axis << (high ? ", high end" : ", low end");
     ASSERT_EQ(pair_array(*bullet_cache, client_id), pair_array(*our_cache, client_id))
         << "op " << op << " (" << what << ")";
+    ASSERT_EQ(bullet_events.events, our_events.events) << "op " << op << " (" << what << ")";
+    events_seen += our_events.events.size();
+    bullet_events.events.clear();
+    our_events.events.clear();
   };
 
   int creates = 0, moves = 0, destroys = 0, passes = 0, queries = 0;
@@ -491,8 +522,11 @@ void run_against_bullet(int bits, bool sorted, std::uint64_t seed, int ops) {
   check(ops + 1, "after resetPool");
   EXPECT_GT(most_pairs, 10u);
   EXPECT_GT(destroys, ops / 20);
-  std::printf("  %d creates, %d moves, %d destroys, %d passes, %d queries, up to %zu pairs\n",
-              creates, moves, destroys, passes, queries, most_pairs);
+  EXPECT_GT(events_seen, static_cast<std::size_t>(ops / 10));
+  std::printf(
+      "  %d creates, %d moves, %d destroys, %d passes, %d queries, up to %zu pairs, %zu pair "
+      "events\n",
+      creates, moves, destroys, passes, queries, most_pairs, events_seen);
 }
 
 TEST(BulletQuantized, RandomCallsMatchBulletsSweep) {
