@@ -58,8 +58,8 @@ class QuantizedSweep final : public btBroadphaseInterface {
   /// pairs in `cache` (not owned; it must outlive this object) or, when
   /// null, in a btHashedOverlappingPairCache of its own (as btAxisSweep3).
   /// (Bullet's defaults: 16 384 proxies for btAxisSweep3, 1 500 000 for
-  /// bt32BitAxisSweep3. The same world box and count give the same grid;
-  /// the count only bounds the numbers.)
+  /// bt32BitAxisSweep3. The grid depends on the world box and the bits
+  /// alone; the count only bounds the proxy numbers.)
   /// Boxes outside the world box are clamped to it (their pairs are then
   /// those of the clamped boxes, as in Bullet).
   ///
