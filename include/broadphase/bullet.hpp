@@ -66,7 +66,32 @@ struct BulletOptions {
   /// 1.48 and 1.47 (medians), 0.05 gave 1.32. In world units, >= 0 and
   /// finite (InvalidConfig).
   double margin = 0.1;
+  /// 0 (the default): pairs of the exact boxes, over `structure`. 16 or 32:
+  /// btAxisSweep3's test instead, and its order: pairs of the boxes rounded
+  /// outward onto a grid of that many bits over [world_min, world_max]
+  /// (boxes outside clamped to it), added and removed in Bullet's cache in
+  /// the order btAxisSweep3 (16) or bt32BitAxisSweep3 (32) adds and removes
+  /// them, proxies numbered alike. With Bullet's deterministic pair order
+  /// (btDispatcherInfo::m_deterministicOverlappingPairs) a world stepped
+  /// with it is, bit for bit, the world stepped with that Bullet sweep over
+  /// the same box (tests/bullet/test_bullet_quantized.cpp). `structure`,
+  /// `config` and `margin` are not used then. Other values: InvalidConfig.
+  int quantized_bits = 0;
+  /// The grid's world box (quantized_bits only): finite, min < max on
+  /// every axis (InvalidConfig).
+  btVector3 world_min = btVector3(-1000, -1000, -1000);
+  btVector3 world_max = btVector3(1000, 1000, 1000);
+  /// The most proxies live at once (quantized_bits only); room for all is
+  /// taken at construction, as Bullet's sweep takes it. Bullet's defaults
+  /// are 16 384 (btAxisSweep3) and 1 500 000 (bt32BitAxisSweep3); the
+  /// count bounds the proxy numbers and changes nothing else. 1 to 32 766
+  /// with 16 bits, 1 to 2^31 - 2 with 32 (InvalidConfig).
+  std::uint32_t max_proxies = 16384;
 };
+
+namespace bullet_detail {
+class QuantizedSweep;
+}
 
 /// A btBroadphaseInterface over one of our structures (see the file comment).
 /// createProxy, setAabb: O(1) amortised here; destroyProxy: O(its pairs);
@@ -134,10 +159,11 @@ class BulletBroadphase final : public btBroadphaseInterface {
   /// Prints the structure, the proxy count and the pairs of the last pass.
   void printStats() override;
 
-  /// The structure behind the adapter (for checks and statistics).
+  /// The structure behind the adapter (for checks and statistics); empty
+  /// with quantized_bits.
   const AnyBroadPhase& structure() const { return *structure_; }
   /// Live proxies.
-  std::size_t proxy_count() const { return live_.size(); }
+  std::size_t proxy_count() const;
 
  private:
   struct Proxy;
@@ -171,6 +197,7 @@ class BulletBroadphase final : public btBroadphaseInterface {
   void full_pass(btDispatcher* dispatcher);
 
   BulletOptions options_;
+  std::unique_ptr<bullet_detail::QuantizedSweep> sweep_;  // quantized_bits: every call goes here
   std::unique_ptr<AnyBroadPhase> structure_;
   btOverlappingPairCache* cache_;
   bool owns_cache_;

@@ -35,6 +35,8 @@
 #include <limits>
 #include <string>
 
+#include "quantized_sweep.hpp"
+
 namespace broadphase {
 
 struct BulletBroadphase::Proxy : btBroadphaseProxy {
@@ -152,6 +154,11 @@ BulletBroadphase::BulletBroadphase(btOverlappingPairCache* cache, const BulletOp
   if (!(options_.margin >= 0 && std::isfinite(options_.margin)))
     throw InvalidConfig("broadphase::BulletBroadphase: margin must be finite and >= 0, not " +
                         std::to_string(options_.margin));
+  if (options_.quantized_bits != 0 && options_.quantized_bits != 16 &&
+      options_.quantized_bits != 32)
+    throw InvalidConfig(
+        "broadphase::BulletBroadphase: quantized_bits must be 0 (exact), 16 or 32, not " +
+        std::to_string(options_.quantized_bits));
   make_structure();
   if (owns_cache_) {
     void* mem = btAlignedAlloc(sizeof(btHashedOverlappingPairCache), 16);
@@ -160,9 +167,23 @@ BulletBroadphase::BulletBroadphase(btOverlappingPairCache* cache, const BulletOp
     cache_ = cache;
   }
   filters_apply_ = cache_->getOverlapFilterCallback() == nullptr;
+  if (options_.quantized_bits != 0) {
+    try {
+      sweep_ = std::make_unique<bullet_detail::QuantizedSweep>(
+          options_.world_min, options_.world_max, options_.max_proxies, options_.quantized_bits,
+          cache_);
+    } catch (...) {
+      if (owns_cache_) {
+        cache_->~btOverlappingPairCache();
+        btAlignedFree(cache_);
+      }
+      throw;
+    }
+  }
 }
 
 BulletBroadphase::~BulletBroadphase() {
+  sweep_.reset();  // before the cache it uses
   for (Proxy* p : live_) delete p;
   if (owns_cache_) {
     cache_->~btOverlappingPairCache();
@@ -175,9 +196,12 @@ void BulletBroadphase::make_structure() {
 }
 
 btBroadphaseProxy* BulletBroadphase::createProxy(const btVector3& aabbMin, const btVector3& aabbMax,
-                                                 int /*shapeType*/, void* userPtr,
+                                                 int shapeType, void* userPtr,
                                                  int collisionFilterGroup, int collisionFilterMask,
-                                                 btDispatcher* /*dispatcher*/) {
+                                                 btDispatcher* dispatcher) {
+  if (sweep_)
+    return sweep_->createProxy(aabbMin, aabbMax, shapeType, userPtr, collisionFilterGroup,
+                               collisionFilterMask, dispatcher);
   auto* p = new Proxy();
   p->m_clientObject = userPtr;
   p->m_collisionFilterGroup = collisionFilterGroup;
@@ -260,6 +284,7 @@ void BulletBroadphase::remove_move(Proxy& p) {
 }
 
 void BulletBroadphase::destroyProxy(btBroadphaseProxy* proxy, btDispatcher* dispatcher) {
+  if (sweep_) return sweep_->destroyProxy(proxy, dispatcher);
   auto* p = static_cast<Proxy*>(proxy);
   // A cache with deferred removal ignores removeOverlappingPair; the
   // others lose the proxy's pairs one by one, O(its pairs) where
@@ -288,7 +313,8 @@ void BulletBroadphase::destroyProxy(btBroadphaseProxy* proxy, btDispatcher* disp
 }
 
 void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMin,
-                               const btVector3& aabbMax, btDispatcher* /*dispatcher*/) {
+                               const btVector3& aabbMax, btDispatcher* dispatcher) {
+  if (sweep_) return sweep_->setAabb(proxy, aabbMin, aabbMax, dispatcher);
   auto* p = static_cast<Proxy*>(proxy);
   if (p->m_aabbMin == aabbMin && p->m_aabbMax == aabbMax) return;  // a body asleep or at rest
   p->m_aabbMin = aabbMin;
@@ -322,6 +348,7 @@ void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMi
 
 void BulletBroadphase::getAabb(btBroadphaseProxy* proxy, btVector3& aabbMin,
                                btVector3& aabbMax) const {
+  if (sweep_) return sweep_->getAabb(proxy, aabbMin, aabbMax);
   aabbMin = proxy->m_aabbMin;
   aabbMax = proxy->m_aabbMax;
 }
@@ -386,6 +413,7 @@ void BulletBroadphase::add_candidate(Proxy* p, Proxy* q) {
 // filter callback the cache decides alone, when a pair begins (as
 // btAxisSweep3 asks it).
 void BulletBroadphase::calculateOverlappingPairs(btDispatcher* dispatcher) {
+  if (sweep_) return sweep_->calculateOverlappingPairs(dispatcher);
   const bool apply = cache_->getOverlapFilterCallback() == nullptr;
   if (apply != filters_apply_) {  // every candidate's answer may change
     filters_apply_ = apply;
@@ -531,6 +559,7 @@ void BulletBroadphase::remove_deferred(btDispatcher* dispatcher) {
 void BulletBroadphase::rayTest(const btVector3& rayFrom, const btVector3& rayTo,
                                btBroadphaseRayCallback& callback, const btVector3& aabbMin,
                                const btVector3& aabbMax) {
+  if (sweep_) return sweep_->rayTest(rayFrom, rayTo, callback, aabbMin, aabbMax);
   const Vec3 from = to_vec(rayFrom);
   const Ray ray{from, to_vec(rayTo) - from, 1.0, 0xffffffffu};
   if (!is_valid(ray)) {
@@ -587,6 +616,7 @@ void BulletBroadphase::rayTest(const btVector3& rayFrom, const btVector3& rayTo,
 
 void BulletBroadphase::aabbTest(const btVector3& aabbMin, const btVector3& aabbMax,
                                 btBroadphaseAabbCallback& callback) {
+  if (sweep_) return sweep_->aabbTest(aabbMin, aabbMax, callback);
   structure_->query(shape_of(aabbMin, aabbMax), [&](Handle h) {
     Proxy* p = by_slot_[h.index];
     if (overlap(p->m_aabbMin, p->m_aabbMax, aabbMin, aabbMax)) callback.process(p);
@@ -597,6 +627,7 @@ void BulletBroadphase::aabbTest(const btVector3& aabbMin, const btVector3& aabbM
 }
 
 void BulletBroadphase::getBroadphaseAabb(btVector3& aabbMin, btVector3& aabbMax) const {
+  if (sweep_) return sweep_->getBroadphaseAabb(aabbMin, aabbMax);
   if (live_.empty()) {
     aabbMin = aabbMax = btVector3(0, 0, 0);
     return;
@@ -609,7 +640,8 @@ void BulletBroadphase::getBroadphaseAabb(btVector3& aabbMin, btVector3& aabbMax)
   }
 }
 
-void BulletBroadphase::resetPool(btDispatcher* /*dispatcher*/) {
+void BulletBroadphase::resetPool(btDispatcher* dispatcher) {
+  if (sweep_) return sweep_->resetPool(dispatcher);
   if (!live_.empty()) return;
   make_structure();
   by_slot_.clear();
@@ -629,7 +661,16 @@ void BulletBroadphase::resetPool(btDispatcher* /*dispatcher*/) {
   candidates_.clear();
 }
 
+std::size_t BulletBroadphase::proxy_count() const {
+  return sweep_ ? sweep_->proxy_count() : live_.size();
+}
+
 void BulletBroadphase::printStats() {
+  if (sweep_) {
+    std::printf("BulletBroadphase over btAxisSweep3's %d-bit grid: %u proxies\n",
+                options_.quantized_bits, sweep_->proxy_count());
+    return;
+  }
   std::printf("BulletBroadphase over %s: %zu proxies, %zu pairs in the last pass, %zu bytes\n",
               options_.structure.c_str(), live_.size(), pair_count_, structure_->memory_bytes());
 }

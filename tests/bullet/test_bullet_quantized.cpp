@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <broadphase/bullet.hpp>
 #include <broadphase/config_error.hpp>
 #include <cinttypes>
 #include <cmath>
@@ -175,7 +176,13 @@ void compare_world(const WorldCase& c, int bits) {
     bullet_cache = std::make_unique<btSortedOverlappingPairCache>();
     our_cache = std::make_unique<btSortedOverlappingPairCache>();
   }
-  auto* our_sweep = new QuantizedSweep(lo, hi, max_proxies, bits, our_cache.get());
+  // Ours as a user gets it: BulletBroadphase with the quantized option.
+  broadphase::BulletOptions options;
+  options.quantized_bits = bits;
+  options.world_min = lo;
+  options.world_max = hi;
+  options.max_proxies = max_proxies;
+  auto* our_sweep = new broadphase::BulletBroadphase(our_cache.get(), options);
   auto bullet = make_world(c.kind, c.bodies, seed,
                            bullet_sweep(bits, lo, hi, max_proxies, bullet_cache.get()));
   auto ours = make_world(c.kind, c.bodies, seed, our_sweep);
@@ -652,6 +659,41 @@ TEST(BulletQuantized, RefusesBadConfigurations) {
 
 // One proxy too many is refused with nothing changed: the others keep
 // their pairs, and a destroyed proxy's number is taken again.
+// The adapter's option names what is wrong, and with a good one forwards
+// to the sweep (proxies numbered from 1, pairs in the caller's cache).
+TEST(BulletQuantized, AdapterOptionIsCheckedAndForwards) {
+  broadphase::BulletOptions o;
+  o.quantized_bits = 24;
+  try {
+    broadphase::BulletBroadphase bp(nullptr, o);
+    ADD_FAILURE() << "24 bits accepted";
+  } catch (const broadphase::InvalidConfig& e) {
+    EXPECT_NE(std::string(e.what()).find("quantized_bits"), std::string::npos) << e.what();
+  }
+  o.quantized_bits = 16;
+  o.world_min = btVector3(1, 1, 1);
+  o.world_max = btVector3(-1, 2, 2);
+  EXPECT_THROW(broadphase::BulletBroadphase(nullptr, o), broadphase::InvalidConfig);
+  o.world_min = btVector3(-10, -10, -10);
+  o.world_max = btVector3(10, 10, 10);
+  o.max_proxies = 4;
+  btHashedOverlappingPairCache cache;
+  broadphase::BulletBroadphase bp(&cache, o);
+  btBroadphaseProxy* a = bp.createProxy(btVector3(0, 0, 0), btVector3(1, 1, 1), BOX_SHAPE_PROXYTYPE,
+                                        nullptr, 1, -1, nullptr);
+  btBroadphaseProxy* b = bp.createProxy(btVector3(1, 1, 1), btVector3(2, 2, 2), BOX_SHAPE_PROXYTYPE,
+                                        nullptr, 1, -1, nullptr);
+  bp.calculateOverlappingPairs(nullptr);
+  EXPECT_EQ(a->m_uniqueId, 1);
+  EXPECT_EQ(b->m_uniqueId, 2);
+  EXPECT_EQ(bp.proxy_count(), 2u);
+  EXPECT_EQ(cache.getNumOverlappingPairs(), 1);
+  EXPECT_EQ(bp.getOverlappingPairCache(), &cache);
+  bp.destroyProxy(a, nullptr);
+  bp.destroyProxy(b, nullptr);
+  EXPECT_EQ(cache.getNumOverlappingPairs(), 0);
+}
+
 TEST(BulletQuantized, RefusesAProxyBeyondMax) {
   QuantizedSweep sweep(btVector3(-10, -10, -10), btVector3(10, 10, 10), 3, 16);
   const btVector3 lo(-1, -1, -1), hi(1, 1, 1);
