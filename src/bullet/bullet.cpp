@@ -33,6 +33,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <stdexcept>
 #include <string>
 
 #include "quantized_sweep.hpp"
@@ -40,9 +41,37 @@
 namespace broadphase {
 
 struct BulletBroadphase::Proxy : btBroadphaseProxy {
-  Handle handle;                     // in the structure; null for a huge proxy
-  double fat_lo[3], fat_hi[3];       // the box the structure holds (within its Shape)
-  std::vector<Proxy*> partners;      // the pairs it is in
+  Handle handle;                // in the structure; null for a huge proxy
+  double fat_lo[3], fat_hi[3];  // the box the structure holds (within its Shape)
+  // The pairs it is in: the other proxy, and where that one's link back
+  // is in its own list, so that a pair leaves both lists in O(1) (a plane
+  // under 100 000 boxes is in 100 000 pairs; a search of its list per
+  // removed box made removing them all quadratic).
+  struct Link {
+    Proxy* other;
+    std::uint32_t back;  // other->partners[back].other == this
+  };
+  std::vector<Link> partners;
+  /// The index of the link to `q` in partners, or npos (a scan of it).
+  std::size_t find(const Proxy* q) const {
+    for (std::size_t i = 0; i < partners.size(); ++i)
+      if (partners[i].other == q) return i;
+    return kNoMove;
+  }
+  /// Removes partners[i] alone (the link back must go too, see unlink).
+  void drop_link(std::size_t i) {
+    const Link last = partners.back();
+    partners.pop_back();
+    if (i == partners.size()) return;
+    partners[i] = last;
+    last.other->partners[last.back].back = static_cast<std::uint32_t>(i);
+  }
+  /// Removes the pair of partners[i], from both lists.
+  void unlink(std::size_t i) {
+    const Link l = partners[i];
+    l.other->drop_link(l.back);
+    drop_link(i);
+  }
   std::uint32_t id = 0;              // index of its box, filter and flag
   std::size_t live_index = 0;        // in live_
   std::size_t move_index = kNoMove;  // in moves_, kNoMove when none is pending
@@ -138,14 +167,6 @@ constexpr std::uint8_t kDead = 2;    // destroyed: its id is freed by the pass
 // A pass reads the structure's whole pair list when more than one proxy in
 // this many is fresh, and queries the structure once per fresh proxy below.
 constexpr std::size_t kWholeListShare = 8;
-
-/// Removes one `p` from `list` (which holds it), order not kept.
-template <class P>
-void erase_one(std::vector<P*>& list, const P* p) {
-  const auto it = std::find(list.begin(), list.end(), p);
-  *it = list.back();
-  list.pop_back();
-}
 
 }  // namespace
 
@@ -292,9 +313,9 @@ void BulletBroadphase::destroyProxy(btBroadphaseProxy* proxy, btDispatcher* disp
   if (cache_->hasDeferredRemoval()) {
     cache_->removeOverlappingPairsContainingProxy(p, dispatcher);
   } else {
-    for (Proxy* q : p->partners) cache_->removeOverlappingPair(p, q, dispatcher);
+    for (const Proxy::Link& l : p->partners) cache_->removeOverlappingPair(p, l.other, dispatcher);
   }
-  for (Proxy* q : p->partners) erase_one(q->partners, p);
+  for (const Proxy::Link& l : p->partners) l.other->drop_link(l.back);
   pair_count_ -= p->partners.size();
   if (p->huge()) {
     drop_huge(*p);
@@ -379,15 +400,24 @@ inline bool BulletBroadphase::begins(std::uint32_t a, std::uint32_t b) const {
 }
 
 void BulletBroadphase::begin_pair(Proxy* p, Proxy* q) {
-  p->partners.push_back(q);
-  q->partners.push_back(p);
+  p->partners.push_back({q, static_cast<std::uint32_t>(q->partners.size())});
+  q->partners.push_back({p, static_cast<std::uint32_t>(p->partners.size() - 1)});
   ++pair_count_;
   cache_->addOverlappingPair(p, q);
 }
 
 void BulletBroadphase::end_pair(Proxy* p, Proxy* q, btDispatcher* dispatcher) {
-  erase_one(p->partners, q);
-  erase_one(q->partners, p);
+  // Found from the shorter list (a box's, not the plane's).
+  if (p->partners.size() <= q->partners.size()) {
+    end_link(p, p->find(q), dispatcher);
+  } else {
+    end_link(q, q->find(p), dispatcher);
+  }
+}
+
+void BulletBroadphase::end_link(Proxy* p, std::size_t i, btDispatcher* dispatcher) {
+  Proxy* q = p->partners[i].other;
+  p->unlink(i);
   --pair_count_;
   removed_ = true;
   if (!cache_->hasDeferredRemoval()) cache_->removeOverlappingPair(p, q, dispatcher);
@@ -400,9 +430,7 @@ void BulletBroadphase::add_candidate(Proxy* p, Proxy* q) {
   if (in) {
     const Proxy* shorter = p->partners.size() <= q->partners.size() ? p : q;
     const Proxy* other = shorter == p ? q : p;
-    if (std::find(shorter->partners.begin(), shorter->partners.end(), other) ==
-        shorter->partners.end())
-      begin_pair(p, q);
+    if (shorter->find(other) == Proxy::kNoMove) begin_pair(p, q);
   }
   candidates_.push_back({p->id, q->id, in});
 }
@@ -462,11 +490,10 @@ void BulletBroadphase::incremental_pass(btDispatcher* dispatcher) {
     Proxy* p = proxy_of_[id];
     if (fresh_[id] == kDead) continue;  // its pairs ended with it
     for (std::size_t i = 0; i < p->partners.size();) {
-      Proxy* q = p->partners[i];
-      if (begins(p->id, q->id)) {
+      if (begins(p->id, p->partners[i].other->id)) {
         ++i;
       } else {
-        end_pair(p, q, dispatcher);  // swaps the last partner into i
+        end_link(p, i, dispatcher);  // swaps the last partner into i
       }
     }
   }
@@ -544,7 +571,7 @@ void BulletBroadphase::remove_deferred(btDispatcher* dispatcher) {
     const auto* a = static_cast<const Proxy*>(pair.m_pProxy0);
     const auto* b = static_cast<const Proxy*>(pair.m_pProxy1);
     if (a != nullptr && b != nullptr &&
-        std::find(a->partners.begin(), a->partners.end(), b) != a->partners.end())
+        (a->partners.size() <= b->partners.size() ? a->find(b) : b->find(a)) != Proxy::kNoMove)
       continue;
     cache_->cleanOverlappingPair(pair, dispatcher);
     pair.m_pProxy0 = nullptr;
@@ -659,6 +686,43 @@ void BulletBroadphase::resetPool(btDispatcher* dispatcher) {
   fresh_ids_.clear();
   free_ids_.clear();
   candidates_.clear();
+}
+
+void BulletBroadphase::validate() const {
+  if (sweep_) return;
+  structure_->validate();
+  auto fail = [](const std::string& what) {
+    throw std::logic_error("BulletBroadphase::validate: " + what);
+  };
+  std::size_t links = 0;
+  for (std::size_t i = 0; i < live_.size(); ++i) {
+    const Proxy* p = live_[i];
+    if (p->live_index != i) fail("a proxy's live_index is wrong");
+    if (proxy_of_.at(p->id) != p) fail("proxy_of_ does not name proxy " + std::to_string(p->id));
+    if (fresh_.at(p->id) != kSteady) fail("a fresh flag outlived its pass");
+    for (std::size_t k = 0; k < p->partners.size(); ++k) {
+      const Proxy::Link& l = p->partners[k];
+      if (l.other == p) fail("a proxy is its own partner");
+      if (l.back >= l.other->partners.size() || l.other->partners[l.back].other != p ||
+          l.other->partners[l.back].back != k)
+        fail("the link back of a pair of proxy " + std::to_string(p->id) + " is wrong");
+      if (l.other->id > p->id && !begins(p->id, l.other->id))
+        fail("a pair whose boxes do not overlap (or whose filters fail) is kept");
+    }
+    links += p->partners.size();
+  }
+  if (links != 2 * pair_count_) fail("pair_count_ is not the pairs in the lists");
+  std::size_t begun = 0;
+  for (const Candidate& c : candidates_) {
+    if (c.a == c.b) fail("a candidate pairs a proxy with itself");
+    const Proxy* a = proxy_of_.at(c.a);
+    const Proxy* b = proxy_of_.at(c.b);
+    if (a == nullptr || b == nullptr) fail("a candidate names a destroyed proxy");
+    const bool listed = a->find(b) != Proxy::kNoMove;
+    if (listed != (c.in != 0)) fail("a candidate's bit disagrees with the partner lists");
+    begun += listed;
+  }
+  if (begun != pair_count_) fail("a begun pair is not among the candidates, or twice");
 }
 
 std::size_t BulletBroadphase::proxy_count() const {

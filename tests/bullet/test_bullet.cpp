@@ -140,7 +140,7 @@ void random_run(const std::string& spec, CacheKind kind, std::uint64_t seed, int
       }
     }
     bp.calculateOverlappingPairs(nullptr);
-    bp.structure().validate();
+    bp.validate();
     ASSERT_EQ(bp.proxy_count(), proxies.size());
     if (kind == CacheKind::null) {
       EXPECT_EQ(cache->getNumOverlappingPairs(), 0);
