@@ -1,6 +1,6 @@
 // The engines' lab section: Bullet's step and its broad-phase share with
-// btDbvtBroadphase, bt32BitAxisSweep3 and ours (BulletBroadphase over sap,
-// the default, and grid-verlet) on the test worlds and on 10 000 and 100 000
+// btDbvtBroadphase, bt32BitAxisSweep3 and ours (BulletBroadphase over its
+// default, kdtree, and grid-verlet) on the test worlds and on 10 000 and 100 000
 // falling boxes; FCL's update + collide with its dynamic AABB tree, SaP,
 // spatial hash and naive managers against ours, 10^3 to 10^5 objects. The
 // whole plan runs `--runs` times, one run after the other, so that the
