@@ -151,12 +151,23 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
   };
   struct Probe;
   struct Candidate;
+  /// A pair of fixed objects whose AABBs overlap, in the callback's order.
+  struct FixedPair {
+    Object* first;
+    Object* second;
+  };
 
   std::uint32_t add(Object* obj);
   void place(std::uint32_t slot, bool moving);
   void unplace(std::uint32_t slot);
   bool refresh(std::uint32_t slot, std::vector<Move>& moves);
   void commit(std::vector<Move>& moves);
+  /// Brings fixed_pairs_ up to date: drops the pairs of objects that left
+  /// the fixed set, or, after a fixed object joined it, takes them anew
+  /// from the structure.
+  void renew_fixed_pairs();
+  bool is_fixed(Handle h) const { return (fixed_bits_[h.index >> 6] >> (h.index & 63)) & 1u; }
+  void mark_fixed(Handle h, bool fixed);
   template <class Visit>
   bool candidates_of(const Probe& p, double reach, Visit&& visit) const;
   bool collide_probes(const std::vector<Probe>& probes, bool probes_first, void* cdata,
@@ -174,6 +185,16 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
   std::size_t count_ = 0;
   std::uint64_t next_order_ = 0;
   bool replaced_ = false;  ///< an update re-inserted an object: settle()
+  // The pairs among objects that never moved (fixed in the structure) whose
+  // AABBs overlap, tested once: a collide hands them to the callback
+  // straight from this list and skips them among the structure's pairs.
+  std::vector<FixedPair> fixed_pairs_;
+  /// Per fixed pair, its objects' structure handle indices: what a removal
+  /// or a first move drops the pair by.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> fixed_pair_index_;
+  std::vector<std::uint64_t> fixed_bits_;  ///< structure handle index -> fixed (a bit)
+  bool fixed_complete_ = true;             ///< fixed_pairs_ holds every pair of fixed objects
+  bool fixed_dropped_ = false;  ///< a fixed object left since: fixed_pairs_ holds stale pairs
 };
 
 extern template class FclCollisionManager<double>;
