@@ -182,6 +182,8 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
   std::unordered_map<const Object*, std::uint32_t> slot_of_;
   std::vector<std::uint32_t> slot_of_handle_;  ///< structure handle index -> slot
   std::vector<std::uint32_t> apart_;           ///< slots of the objects kept apart
+  /// Per position of the last update(objects) list, the slot it named.
+  std::vector<std::uint32_t> update_slots_;
   std::size_t count_ = 0;
   std::uint64_t next_order_ = 0;
   bool replaced_ = false;  ///< an update re-inserted an object: settle()
