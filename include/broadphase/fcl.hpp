@@ -141,7 +141,6 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
  private:
   static constexpr std::uint32_t kNone = 0xffffffffu;
   struct Record {
-    // What collide reads of each pair first, in the record's first 64 bytes.
     Object* object = nullptr;     ///< null: a free slot
     ::fcl::AABB<S> box;           ///< the AABB at registration or the last update
     std::uint64_t order = 0;      ///< registration order
@@ -181,7 +180,23 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
   std::vector<std::uint32_t> free_;
   std::unordered_map<const Object*, std::uint32_t> slot_of_;
   std::vector<std::uint32_t> slot_of_handle_;  ///< structure handle index -> slot
-  std::vector<std::uint32_t> apart_;           ///< slots of the objects kept apart
+  /// What collide reads of an object the structure names, by its handle
+  /// index, in one cache line: a copy of its record's box, object and order.
+  struct alignas(64) Hot {
+    ::fcl::AABB<S> box;
+    Object* object;
+    std::uint64_t order;
+  };
+  std::vector<Hot> hot_;
+  /// Where an object's AABB lies from its start (FCL's CollisionObject
+  /// member), for fetching it ahead without a call into libfcl per object:
+  /// read at every registration. A fetch of a wrong address costs nothing
+  /// and is never read.
+  std::ptrdiff_t aabb_offset_ = 0;
+  const char* aabb_of(const Object* o) const {
+    return reinterpret_cast<const char*>(o) + aabb_offset_;
+  }
+  std::vector<std::uint32_t> apart_;  ///< slots of the objects kept apart
   /// Per position of the last update(objects) list, the slot it named.
   std::vector<std::uint32_t> update_slots_;
   std::size_t count_ = 0;
