@@ -464,13 +464,20 @@ void FclCollisionManager<S>::collide(void* cdata, ::fcl::CollisionCallBack<S> ca
   // the structure's pass, record lookups and test.
   const bool cached = fixed_complete_ && !fixed_dropped_;
   if (cached) {
-    constexpr std::size_t kAhead = 8;
+    // Both lines an AABB may span (48 bytes, in an object aligned to 16),
+    // 32 pairs ahead. The collide at 10^5 objects (fcl_bench, two builds
+    // alternated, medians of 4 runs each): the first line 8 ahead 17.2 ms,
+    // both lines 16.3; both 8 ahead 15.8, 16 ahead 14.6; 16 ahead 14.2, 32
+    // ahead 13.6; 32 ahead 14.1, 64 ahead 13.9.
+    constexpr std::size_t kAhead = 32;
     const std::size_t n = fixed_pairs_.size();
     const FixedPair* fp = fixed_pairs_.data();
     for (std::size_t i = 0; i < n; ++i) {
       if (i + kAhead < n) {
-        detail::prefetch(aabb_of(fp[i + kAhead].first));
-        detail::prefetch(aabb_of(fp[i + kAhead].second));
+        for (const char* p : {aabb_of(fp[i + kAhead].first), aabb_of(fp[i + kAhead].second)}) {
+          detail::prefetch(p);
+          detail::prefetch(p + sizeof(::fcl::AABB<S>) - 1);
+        }
       }
       if (callback(fp[i].first, fp[i].second, cdata)) return;
     }
