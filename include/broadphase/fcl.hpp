@@ -67,9 +67,12 @@ inline constexpr std::string_view kFclDefaultStructure = "grid-verlet";
 /// (S = double or float; FCL 0.7 instantiates its own managers in double
 /// only, this one is compiled for both). Registration and update: O(1)
 /// amortised per object plus the structure's cost (a bulk update per
-/// `update()` call); `collide()`: the structure's pair pass plus one FCL
-/// AABB test per candidate. Objects are not owned: each registered object
-/// must outlive its registration.
+/// `update()` call), plus, at the `setup()`, `registerObjects` or `update`
+/// that follows, a pass over the kept pairs among objects that never moved
+/// when some left that set, or over the structure's pairs when some joined
+/// it; `collide()`: those kept pairs, then the structure's pair pass and
+/// one FCL AABB test per other candidate. Objects are not owned: each
+/// registered object must outlive its registration.
 template <class S>
 class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
  public:
@@ -98,7 +101,8 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
   /// Unregisters an object; one not registered is ignored (as
   /// NaiveCollisionManager does).
   void unregisterObject(Object* obj) override;
-  /// Commits the registrations (the structure's settle()); results never
+  /// Commits the registrations (the structure's settle()) and brings the
+  /// kept pairs among objects that never moved up to date; results never
   /// depend on it.
   void setup() override;
   /// Reads every object's AABB and moves those that changed: O(n) plus one
