@@ -3,6 +3,7 @@
 //
 //   fcl_bench [--sizes 1000,10000,100000] [--frames 10] [--seed 1]
 //             [--structure grid-verlet] [--skip-sap-above N] [--skip-hash-above N]
+//             [--ours-only 1]  (no FCL manager: for profiling ours alone)
 #include <algorithm>
 #include <broadphase/detail/median.hpp>
 #include <cstdio>
@@ -56,6 +57,10 @@ void print(const broadphase::engines::FclSizeRun& r) {
   double floor = median(r.managers.front().callback_ms);
   for (const auto& c : r.managers) floor = std::min(floor, median(c.callback_ms));
   const auto& tree = r.managers.size() > 1 ? r.managers[1] : r.managers.front();
+  if (r.managers.size() < 2) {
+    std::printf("the callback alone: %.3f ms\n\n", floor);
+    return;
+  }
   std::printf(
       "the callback alone: %.3f ms at the least; %s's update + collide over it: %.2fx, "
       "the most any manager could be faster (one whose update and pair pass took no "
@@ -71,6 +76,7 @@ int main(int argc, char** argv) {
     std::vector<std::size_t> sizes{1000, 10000, 100000};
     broadphase::engines::FclPlan plan;
     std::size_t skip_sap_above = 10000000, skip_hash_above = 10000000;
+    bool ours_only = false;
     for (int i = 1; i < argc; ++i) {
       const std::string a = argv[i];
       if (i + 1 >= argc) throw std::invalid_argument(a + ": missing value (or unknown option)");
@@ -85,6 +91,8 @@ int main(int argc, char** argv) {
         plan.structure = v;
       else if (a == "--skip-sap-above")
         skip_sap_above = static_cast<std::size_t>(positive("--skip-sap-above", v));
+      else if (a == "--ours-only")
+        ours_only = positive("--ours-only", v) != 0;
       else if (a == "--skip-hash-above")
         skip_hash_above = static_cast<std::size_t>(positive("--skip-hash-above", v));
       else
@@ -95,8 +103,9 @@ int main(int argc, char** argv) {
         plan.frames, plan.warm, static_cast<unsigned long long>(plan.seed));
     for (std::size_t n : sizes) {
       plan.n = n;
-      plan.sap = n <= skip_sap_above;
-      plan.hash = n <= skip_hash_above;
+      plan.tree = !ours_only;
+      plan.sap = !ours_only && n <= skip_sap_above;
+      plan.hash = !ours_only && n <= skip_hash_above;
       print(broadphase::engines::measure_fcl(plan));
     }
   } catch (const std::runtime_error& e) {

@@ -87,7 +87,8 @@ FclSizeRun measure_fcl(const FclPlan& plan) {
           structure, Config{.world = {{0, 0, 0}, {scene.world, scene.world, scene.world}},
                             .expected_objects = n,
                             .options = {}}));
-  add("fcl DynamicAABBTree", std::make_unique<fcl::DynamicAABBTreeCollisionManagerd>());
+  if (plan.tree)
+    add("fcl DynamicAABBTree", std::make_unique<fcl::DynamicAABBTreeCollisionManagerd>());
   if (plan.sap) add("fcl SaP", std::make_unique<fcl::SaPCollisionManagerd>());
   // The lab's cell for FCL's hash (lab/peers/fcl.cpp): the world's side over
   // the cube root of the object count, the table as large as the count.

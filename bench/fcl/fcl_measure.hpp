@@ -18,6 +18,7 @@ struct FclPlan {
   int warm = 2;
   std::uint64_t seed = 1;  ///< the scene's seed
   std::string structure;   ///< ours: a registry spec (empty: kFclDefaultStructure)
+  bool tree = true;        ///< FCL's DynamicAABBTreeCollisionManager
   bool sap = true;         ///< FCL's SaPCollisionManager
   bool hash = true;        ///< FCL's SpatialHashingCollisionManager
   bool naive = false;      ///< FCL's NaiveCollisionManager (every pair tested)

@@ -67,9 +67,12 @@ inline constexpr std::string_view kFclDefaultStructure = "grid-verlet";
 /// (S = double or float; FCL 0.7 instantiates its own managers in double
 /// only, this one is compiled for both). Registration and update: O(1)
 /// amortised per object plus the structure's cost (a bulk update per
-/// `update()` call); `collide()`: the structure's pair pass plus one FCL
-/// AABB test per candidate. Objects are not owned: each registered object
-/// must outlive its registration.
+/// `update()` call), plus, at the `setup()`, `registerObjects` or `update`
+/// that follows, a pass over the kept pairs among objects that never moved
+/// when some left that set, or over the structure's pairs when some joined
+/// it; `collide()`: those kept pairs, then the structure's pair pass and
+/// one FCL AABB test per other candidate. Objects are not owned: each
+/// registered object must outlive its registration.
 template <class S>
 class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
  public:
@@ -98,7 +101,8 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
   /// Unregisters an object; one not registered is ignored (as
   /// NaiveCollisionManager does).
   void unregisterObject(Object* obj) override;
-  /// Commits the registrations (the structure's settle()); results never
+  /// Commits the registrations (the structure's settle()) and brings the
+  /// kept pairs among objects that never moved up to date; results never
   /// depend on it.
   void setup() override;
   /// Reads every object's AABB and moves those that changed: O(n) plus one
@@ -141,7 +145,6 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
  private:
   static constexpr std::uint32_t kNone = 0xffffffffu;
   struct Record {
-    // What collide reads of each pair first, in the record's first 64 bytes.
     Object* object = nullptr;     ///< null: a free slot
     ::fcl::AABB<S> box;           ///< the AABB at registration or the last update
     std::uint64_t order = 0;      ///< registration order
@@ -151,12 +154,23 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
   };
   struct Probe;
   struct Candidate;
+  /// A pair of fixed objects whose AABBs overlap, in the callback's order.
+  struct FixedPair {
+    Object* first;
+    Object* second;
+  };
 
   std::uint32_t add(Object* obj);
   void place(std::uint32_t slot, bool moving);
   void unplace(std::uint32_t slot);
   bool refresh(std::uint32_t slot, std::vector<Move>& moves);
   void commit(std::vector<Move>& moves);
+  /// Brings fixed_pairs_ up to date: drops the pairs of objects that left
+  /// the fixed set, or, after a fixed object joined it, takes them anew
+  /// from the structure.
+  void renew_fixed_pairs();
+  bool is_fixed(Handle h) const { return (fixed_bits_[h.index >> 6] >> (h.index & 63)) & 1u; }
+  void mark_fixed(Handle h, bool fixed);
   template <class Visit>
   bool candidates_of(const Probe& p, double reach, Visit&& visit) const;
   bool collide_probes(const std::vector<Probe>& probes, bool probes_first, void* cdata,
@@ -170,10 +184,38 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
   std::vector<std::uint32_t> free_;
   std::unordered_map<const Object*, std::uint32_t> slot_of_;
   std::vector<std::uint32_t> slot_of_handle_;  ///< structure handle index -> slot
-  std::vector<std::uint32_t> apart_;           ///< slots of the objects kept apart
+  /// What collide reads of an object the structure names, by its handle
+  /// index, in one cache line: a copy of its record's box, object and order.
+  struct alignas(64) Hot {
+    ::fcl::AABB<S> box;
+    Object* object;
+    std::uint64_t order;
+  };
+  std::vector<Hot> hot_;
+  /// Where an object's AABB lies from its start (FCL's CollisionObject
+  /// member), for fetching it ahead without a call into libfcl per object:
+  /// read at every registration. A fetch of a wrong address costs nothing
+  /// and is never read.
+  std::ptrdiff_t aabb_offset_ = 0;
+  const char* aabb_of(const Object* o) const {
+    return reinterpret_cast<const char*>(o) + aabb_offset_;
+  }
+  std::vector<std::uint32_t> apart_;  ///< slots of the objects kept apart
+  /// Per position of the last update(objects) list, the slot it named.
+  std::vector<std::uint32_t> update_slots_;
   std::size_t count_ = 0;
   std::uint64_t next_order_ = 0;
   bool replaced_ = false;  ///< an update re-inserted an object: settle()
+  // The pairs among objects that never moved (fixed in the structure) whose
+  // AABBs overlap, tested once: a collide hands them to the callback
+  // straight from this list and skips them among the structure's pairs.
+  std::vector<FixedPair> fixed_pairs_;
+  /// Per fixed pair, its objects' structure handle indices: what a removal
+  /// or a first move drops the pair by.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> fixed_pair_index_;
+  std::vector<std::uint64_t> fixed_bits_;  ///< structure handle index -> fixed (a bit)
+  bool fixed_complete_ = true;             ///< fixed_pairs_ holds every pair of fixed objects
+  bool fixed_dropped_ = false;  ///< a fixed object left since: fixed_pairs_ holds stale pairs
 };
 
 extern template class FclCollisionManager<double>;
