@@ -37,7 +37,8 @@ runs = j["runs"]
 if runs != 2:
     errors.append("--quick runs 2 runs, the JSON says %r" % runs)
 worlds = ["falling 200", "pyramid 55", "mixed 60", "groups 60", "ghost 60", "falling 400"]
-ours = ["ours (sap)", "ours (grid-verlet)"]
+# BulletOptions{}.structure (kdtree) and grid-verlet, engines_lab.cpp's bullet_cases
+ours = ["ours (kdtree)", "ours (grid-verlet)"]
 for run in range(1, runs + 1):
     for w in worlds:
         names = [r["broadphase"] for r in bullet if r["run"] == str(run) and r["world"] == w]
