@@ -92,8 +92,17 @@ struct FclCollisionManager<S>::Candidate {
 };
 
 template <class S>
+FclCollisionManager<S>::FclCollisionManager(std::string_view spec)
+    : FclCollisionManager(spec, Config{}) {
+  fit_world_ = true;
+}
+
+template <class S>
 FclCollisionManager<S>::FclCollisionManager(std::string_view spec, const Config& config)
-    : FclCollisionManager(make_structure(spec, config)) {}
+    : FclCollisionManager(make_structure(spec, config)) {
+  spec_ = spec;
+  config_ = config;
+}
 
 template <class S>
 FclCollisionManager<S>::FclCollisionManager(std::unique_ptr<AnyBroadPhase> structure)
@@ -192,6 +201,7 @@ void FclCollisionManager<S>::registerObjects(const std::vector<Object*>& objs) {
     throw std::invalid_argument(
         "broadphase::FclCollisionManager::registerObjects: an object appears twice in the batch");
   for (Object* o : objs) add(o);
+  fit_world();
   structure_->settle();
   renew_fixed_pairs();
 }
@@ -220,8 +230,61 @@ void FclCollisionManager<S>::unregisterObject(Object* obj) {
 
 template <class S>
 void FclCollisionManager<S>::setup() {
+  fit_world();
   structure_->settle();
   renew_fixed_pairs();
+}
+
+// The structures size their grids and trees by Config::world; objects
+// outside it stay exact but crowd its border cells (see the constructor's
+// comment for what it cost), and a world far larger than the objects
+// gives them few, crowded cells. One pass over the records decides, O(n)
+// against settle()'s O(n log n) or more; a refit places every object
+// again, about what registering them cost.
+template <class S>
+void FclCollisionManager<S>::fit_world() {
+  if (!fit_world_) return;
+  constexpr std::size_t kOutsideShare = 16;  // refit when more than 1 in 16 lie outside
+  constexpr double kVolumeRatio = 64;        // or the world is 64 times what they need
+  Aabb bounds{};
+  std::size_t placed = 0, outside = 0;
+  for (const Record& r : records_) {
+    if (r.object == nullptr || r.handle.is_null()) continue;
+    const Aabb b{{double(r.box.min_[0]), double(r.box.min_[1]), double(r.box.min_[2])},
+                 {double(r.box.max_[0]), double(r.box.max_[1]), double(r.box.max_[2])}};
+    bounds = placed == 0 ? b : bounds.merged(b);
+    ++placed;
+    outside += !config_.world.contains(b);
+  }
+  if (placed == 0) return;
+  const Vec3 size = bounds.hi - bounds.lo;
+  const double pad = std::max({size.x, size.y, size.z, 1.0}) / 8;
+  const Aabb fit{bounds.lo - Vec3{pad, pad, pad}, bounds.hi + Vec3{pad, pad, pad}};
+  auto volume = [](const Aabb& a) {
+    const Vec3 e = a.hi - a.lo;
+    return e.x * e.y * e.z;
+  };
+  if (outside * kOutsideShare <= placed && volume(config_.world) <= kVolumeRatio * volume(fit))
+    return;
+  if (!std::isfinite(volume(fit)) || !(volume(fit) > 0)) return;  // beyond double's range: keep
+  Config c = config_;
+  c.world = fit;
+  std::unique_ptr<AnyBroadPhase> fresh = make_structure(spec_, c);
+  config_ = c;
+  structure_ = std::move(fresh);
+  slot_of_handle_.clear();
+  hot_.clear();
+  fixed_bits_.clear();
+  fixed_pairs_.clear();
+  fixed_pair_index_.clear();
+  fixed_complete_ = true;
+  fixed_dropped_ = false;
+  for (std::uint32_t slot = 0; slot < records_.size(); ++slot) {
+    Record& r = records_[slot];
+    if (r.object == nullptr || r.handle.is_null()) continue;
+    r.handle = Handle{};
+    place(slot, r.moving);
+  }
 }
 
 // FCL's tree skips an object whose AABB equals the stored one within 100

@@ -267,6 +267,61 @@ TEST(FclManager, SelfCollideInFloat) {
   self_collide_rounds<float>(std::string(broadphase::kFclDefaultStructure), 7, 300, 4);
 }
 
+// Made without a Config, the manager fits the structure's world to the
+// objects (far outside the default [0, 1000]^3 here, then far inside it);
+// the pairs stay FCL's. Made with one, it keeps it.
+TEST(FclManager, WorldFollowsTheObjects) {
+  const std::uint64_t seed = 11;
+  SCOPED_TRACE("seed " + std::to_string(seed));
+  World<double> w(seed, 6000);
+  FclCollisionManager<double> ours;
+  fcl::NaiveCollisionManager<double> naive;
+  std::vector<fcl::CollisionObjectd*> live;
+  for (int i = 0; i < 600; ++i) {
+    auto* o = w.add();
+    o->setTranslation(o->getTranslation() - fcl::Vector3d(3000, 3000, 3000));
+    o->computeAABB();
+    live.push_back(o);
+  }
+  ours.registerObjects(live);
+  naive.registerObjects(live);
+  ours.setup();
+  naive.setup();
+  ours.validate();
+  auto all_inside = [&] {
+    for (auto* o : live) {
+      const auto& b = o->getAABB();
+      const broadphase::Aabb box{{b.min_[0], b.min_[1], b.min_[2]},
+                                 {b.max_[0], b.max_[1], b.max_[2]}};
+      if (!ours.config().world.contains(box)) return false;
+    }
+    return true;
+  };
+  EXPECT_TRUE(all_inside()) << "the world was not fitted to the objects";
+  EXPECT_EQ(unordered(self_calls(w, ours)), unordered(self_calls(w, naive)));
+  // Everything moved into a 20-unit cube: the world is refitted at setup.
+  for (auto* o : live) {
+    o->setTranslation(fcl::Vector3d(w.uniform(0, 20), w.uniform(0, 20), w.uniform(0, 20)));
+    o->computeAABB();
+  }
+  ours.update();
+  naive.update();
+  ours.validate();
+  EXPECT_EQ(unordered(self_calls(w, ours)), unordered(self_calls(w, naive))) << "before setup";
+  ours.setup();
+  ours.validate();
+  const auto world = ours.config().world;
+  EXPECT_LT(world.hi.x - world.lo.x, 100) << "the world did not shrink to the objects";
+  EXPECT_TRUE(all_inside());
+  EXPECT_EQ(unordered(self_calls(w, ours)), unordered(self_calls(w, naive))) << "after setup";
+  // With the caller's Config the world stays as given.
+  FclCollisionManager<double> given(broadphase::kFclDefaultStructure, broadphase::Config{});
+  given.registerObjects(live);
+  given.setup();
+  EXPECT_EQ(given.config().world, broadphase::Config{}.world);
+  EXPECT_EQ(unordered(self_calls(w, given)), unordered(self_calls(w, naive)));
+}
+
 TEST(FclManager, EveryRegistrationOrderRuleIsNaives) {
   // Self pairs come earlier-registered object first.
   World<double> w(11, 40);
