@@ -58,8 +58,9 @@ struct BulletOptions {
   /// expected object count are hints; objects anywhere stay exact.
   Config config = {};
   /// The structure holds each proxy's box grown by this much on every side
-  /// and is told of a move only when the box leaves it (btDbvtBroadphase's
-  /// fat leaves, whose margin gDbvtMargin is 0.05). Pairs stay exact
+  /// (and stretched by the box's travel since its last fat box, on the side
+  /// it travelled to) and is told of a move only when the box leaves it
+  /// (btDbvtBroadphase's fat leaves, whose margin gDbvtMargin is 0.05). Pairs stay exact
   /// whatever the margin: it trades structure queries for candidates to
   /// test. On 3 000 boxes of side 1 falling onto a plane (three runs each,
   /// alternated), 0.1 and 0.15 gave the dbvt's broad phase over ours as
