@@ -195,6 +195,8 @@ class FclCollisionManager final : public ::fcl::BroadPhaseCollisionManager<S> {
   /// With fit_world_: makes the structure anew over the objects' bounds
   /// when its world does not fit them (see the constructor).
   void fit_world();
+  /// Drops what is kept by structure handle (copies, fixed bits and pairs).
+  void forget_handles();
 
   std::unique_ptr<AnyBroadPhase> structure_;
   std::string spec_;        ///< the structure's spec, when made from one

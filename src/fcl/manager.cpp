@@ -272,13 +272,7 @@ void FclCollisionManager<S>::fit_world() {
   std::unique_ptr<AnyBroadPhase> fresh = make_structure(spec_, c);
   config_ = c;
   structure_ = std::move(fresh);
-  slot_of_handle_.clear();
-  hot_.clear();
-  fixed_bits_.clear();
-  fixed_pairs_.clear();
-  fixed_pair_index_.clear();
-  fixed_complete_ = true;
-  fixed_dropped_ = false;
+  forget_handles();
   for (std::uint32_t slot = 0; slot < records_.size(); ++slot) {
     Record& r = records_[slot];
     if (r.object == nullptr || r.handle.is_null()) continue;
@@ -425,16 +419,23 @@ void FclCollisionManager<S>::clear() {
   records_.clear();
   free_.clear();
   slot_of_.clear();
-  slot_of_handle_.clear();
-  hot_.clear();
   apart_.clear();
   update_slots_.clear();
+  forget_handles();
+  count_ = 0;
+}
+
+// What is kept by the structure's handles: the copies, the fixed bits and
+// the fixed pairs (clear, and a structure made anew by fit_world).
+template <class S>
+void FclCollisionManager<S>::forget_handles() {
+  slot_of_handle_.clear();
+  hot_.clear();
+  fixed_bits_.clear();
   fixed_pairs_.clear();
   fixed_pair_index_.clear();
-  fixed_bits_.clear();
   fixed_complete_ = true;
   fixed_dropped_ = false;
-  count_ = 0;
 }
 
 template <class S>
